@@ -1,0 +1,17 @@
+/**
+ * @file dv.h
+ * @brief dynval umbrella header: every public module.
+ */
+#ifndef DV_H
+#define DV_H
+
+#include "dynval/dv_types.h"
+#include "dynval/dv_config.h"
+#include "dynval/dv_moments.h"
+#include "dynval/dv_sliding.h"
+#include "dynval/dv_segstd.h"
+#include "dynval/dv_temporal.h"
+#include "dynval/dv_corr.h"
+#include "dynval/dv_chan.h"
+
+#endif /* DV_H */

@@ -1,0 +1,93 @@
+/**
+ * @file dv_chan.h
+ * @brief The per-channel feature set a DAQ runs on every sample: record statistics,
+ *        sliding-window statistics, segmented STD and temporal moments, in one call.
+ *
+ * A record is n_seg * seg_len accepted samples. When a record completes, its statistics and
+ * temporal moments are kept for dv_chan_get_record() and the record accumulators restart.
+ * The sliding window runs continuously across records. NaN/Inf samples are dropped and
+ * counted (they do not enter any feature).
+ */
+#ifndef DV_CHAN_H
+#define DV_CHAN_H
+
+#include "dynval/dv_types.h"
+#include "dynval/dv_moments.h"
+#include "dynval/dv_sliding.h"
+#include "dynval/dv_segstd.h"
+#include "dynval/dv_temporal.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Storage needed by dv_chan_init(), in elements. */
+#define DV_CHAN_BUF_LEN(win_len, n_seg) (DV_SLIDING_BUF_LEN(win_len) + DV_SEGSTD_BUF_LEN(n_seg))
+
+/** @brief Configuration of one channel's feature set. */
+typedef struct {
+    uint32_t win_len; /**< sliding window, samples, 2..DV_SLIDING_MAX_LEN (e.g. 256) */
+    uint32_t seg_len; /**< samples per STD segment, >= 2 (e.g. 64) */
+    uint32_t n_seg;   /**< segments per record, >= 1 (e.g. 64: a 4096-sample record) */
+    dv_real_t dt_s;   /**< sample period, s, > 0 */
+} dv_chan_config_t;
+
+/** @brief One channel's features. Fields are private. */
+typedef struct {
+    dv_chan_config_t cfg;   /**< configuration */
+    dv_moments_t rec;       /**< statistics of the open record */
+    dv_sliding_t win;       /**< sliding window */
+    dv_segstd_t seg;        /**< segmented STD */
+    dv_temporal_t tm;       /**< temporal moments of the open record */
+    dv_stats_t last_stats;  /**< statistics of the last complete record */
+    dv_temporal_out_t last_tm; /**< temporal moments of the last complete record */
+    dv_status_t last_tm_st; /**< status of last_tm (DV_ENUMERIC for an all-zero record) */
+    uint32_t records;       /**< complete records */
+    uint64_t n_nonfinite;   /**< NaN/Inf samples dropped */
+} dv_chan_t;
+
+/**
+ * @brief Bind storage and clear state.
+ * @param[in] buf DV_CHAN_BUF_LEN(cfg->win_len, cfg->n_seg) elements, must outlive @p s
+ * @retval DV_OK / DV_EINVAL (NULL or a config value out of range) / DV_ESIZE (buffer too small)
+ */
+dv_status_t dv_chan_init(dv_chan_t *s, const dv_chan_config_t *cfg, dv_real_t *buf,
+                         size_t buf_len);
+
+/** @brief Clear every feature and counter (storage and config kept). */
+void dv_chan_reset(dv_chan_t *s);
+
+/**
+ * @brief Add one sample to every feature.
+ * @retval DV_OK       added
+ * @retval DV_DONE     added; it completed a segment (dv_segstd_last(&s->seg, ...))
+ * @retval DV_RECORD   added; it completed a record (dv_chan_get_record())
+ * @retval DV_ENUMERIC NaN/Inf: dropped and counted, no feature changed
+ */
+dv_status_t dv_chan_update(dv_chan_t *s, dv_real_t x);
+
+/**
+ * @brief Add up to @p n samples, stopping right after a sample that completes a record.
+ * @param[out] n_used samples consumed (<= n); call again with the rest
+ * @retval DV_RECORD a record completed at x[*n_used - 1]
+ * @retval DV_OK     all @p n consumed, no record completed (NaN/Inf dropped and counted)
+ * @retval DV_EINVAL NULL argument with n > 0
+ */
+dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, size_t *n_used);
+
+/**
+ * @brief Statistics and temporal moments of the last complete record.
+ * @param[out] tm may be NULL; otherwise filled, or left untouched when the record's energy
+ *                was zero (then DV_ENUMERIC is returned after @p st is filled)
+ * @retval DV_OK / DV_ENOTREADY (no complete record; outputs untouched) / DV_ENUMERIC / DV_EINVAL
+ */
+dv_status_t dv_chan_get_record(const dv_chan_t *s, dv_stats_t *st, dv_temporal_out_t *tm);
+
+/** @brief Sliding-window statistics; see dv_sliding_get(). */
+dv_status_t dv_chan_get_window(const dv_chan_t *s, dv_stats_t *out);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DV_CHAN_H */

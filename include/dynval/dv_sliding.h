@@ -1,0 +1,79 @@
+/**
+ * @file dv_sliding.h
+ * @brief Basic statistics over a sliding window of the last N samples, O(1) per sample.
+ *
+ * Mean, STD, RMS, skewness, kurtosis from shifted power sums with add/subtract; a second set
+ * of sums restarted every N samples replaces the running ones when the window turns over, so
+ * round-off cannot drift however long the stream. Min/max/peak use monotonic deques
+ * (amortised O(1), at most 2 comparisons per sample on average).
+ */
+#ifndef DV_SLIDING_H
+#define DV_SLIDING_H
+
+#include "dynval/dv_types.h"
+#include "dynval/dv_moments.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Storage needed by dv_sliding_init(), in elements, for a window of @p n samples. */
+#define DV_SLIDING_BUF_LEN(n) (3u * (size_t)(n))
+
+/** @brief Sliding-window statistics. Fields are private. */
+typedef struct {
+    dv_real_t *ring;      /**< last @c len samples, length @c len */
+    dv_real_t *qmax;      /**< decreasing deque of window values, length @c len */
+    dv_real_t *qmin;      /**< increasing deque of window values, length @c len */
+    uint32_t len;         /**< window length in samples */
+    uint32_t head;        /**< next ring slot to write */
+    uint32_t fill;        /**< samples in the window, saturates at @c len */
+    uint32_t qmax_h, qmax_n, qmin_h, qmin_n; /**< deque heads and sizes */
+    dv_real_t shift;      /**< shift of the power sums */
+    dv_real_t s[4];       /**< window sums of d, d^2, d^3, d^4, d = x - shift */
+    dv_real_t f[4];       /**< the same sums restarted when head last wrapped */
+    uint64_t count;       /**< accepted samples since init/reset */
+    uint64_t n_nonfinite; /**< NaN/Inf samples dropped */
+} dv_sliding_t;
+
+/**
+ * @brief Bind storage and clear state.
+ * @param[out] s   instance
+ * @param[in]  len window length in samples, 2..DV_SLIDING_MAX_LEN
+ * @param[in]  buf storage of DV_SLIDING_BUF_LEN(len) elements; must outlive @p s
+ * @param[in]  buf_len elements in @p buf
+ * @retval DV_OK     ready
+ * @retval DV_EINVAL NULL pointer, or @p len out of range
+ * @retval DV_ESIZE  @p buf_len < DV_SLIDING_BUF_LEN(len)
+ */
+dv_status_t dv_sliding_init(dv_sliding_t *s, size_t len, dv_real_t *buf, size_t buf_len);
+
+/** @brief Empty the window (storage and length kept). */
+void dv_sliding_reset(dv_sliding_t *s);
+
+/**
+ * @brief Push one sample (the oldest leaves once the window is full).
+ * @retval DV_OK       added
+ * @retval DV_ENUMERIC @p x is NaN/Inf: dropped, counted, state unchanged
+ */
+dv_status_t dv_sliding_update(dv_sliding_t *s, dv_real_t x);
+
+/**
+ * @brief Push @p n samples; identical to n calls of dv_sliding_update().
+ * @retval DV_OK / DV_ENUMERIC (some samples dropped and counted) / DV_EINVAL (NULL @p x, n > 0)
+ */
+dv_status_t dv_sliding_update_block(dv_sliding_t *s, const dv_real_t *x, size_t n);
+
+/**
+ * @brief Statistics of the current window; count is the window length.
+ * @retval DV_OK        @p out filled (check out->flags)
+ * @retval DV_ENOTREADY fewer than @c len samples so far; @p out untouched
+ * @retval DV_EINVAL    NULL argument
+ */
+dv_status_t dv_sliding_get(const dv_sliding_t *s, dv_stats_t *out);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DV_SLIDING_H */

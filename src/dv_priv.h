@@ -1,0 +1,67 @@
+/* Internal helpers shared by the dynval modules. Not installed, not part of the API. */
+#ifndef DV_PRIV_H
+#define DV_PRIV_H
+
+#include <math.h>
+
+#include "dynval/dv_types.h"
+#include "dynval/dv_moments.h"
+
+#ifdef DV_REAL_DOUBLE
+#define DV_SQRT(x) sqrt(x)
+#define DV_FABS(x) fabs(x)
+#define DV_CBRT(x) cbrt(x)
+#define DV_EXP(x) exp(x)
+#define DV_LOG(x) log(x)
+#define DV_POW(x, y) pow(x, y)
+#define DV_COS(x) cos(x)
+#define DV_SIN(x) sin(x)
+#define DV_FLOOR(x) floor(x)
+#define DV_LDEXP(x, e) ldexp(x, e)
+#define DV_FREXP(x, e) frexp(x, e)
+#else
+#define DV_SQRT(x) sqrtf(x)
+#define DV_FABS(x) fabsf(x)
+#define DV_CBRT(x) cbrtf(x)
+#define DV_EXP(x) expf(x)
+#define DV_LOG(x) logf(x)
+#define DV_POW(x, y) powf(x, y)
+#define DV_COS(x) cosf(x)
+#define DV_SIN(x) sinf(x)
+#define DV_FLOOR(x) floorf(x)
+#define DV_LDEXP(x, e) ldexpf(x, e)
+#define DV_FREXP(x, e) frexpf(x, e)
+#endif
+
+/* isfinite() without the macro's generic dispatch: x - x is 0 for finite x, NaN otherwise. */
+static inline bool dv_priv_finite(dv_real_t x)
+{
+    return (x - x) == DV_R(0.0);
+}
+
+/* Central moments of a (weighted) set: weight n (count or sum of weights), mean,
+ * and the central sums m2 = sum w (x-mean)^2, m3, m4. Exact to merge (Pebay 2008). */
+typedef struct {
+    dv_real_t n;
+    dv_real_t mean;
+    dv_real_t m2;
+    dv_real_t m3;
+    dv_real_t m4;
+} dv_priv_cm_t;
+
+/* Power sums s_k = sum w d^k (k = 0..4) about a shift, turned into central moments. */
+void dv_priv_cm_from_sums(dv_priv_cm_t *out, dv_real_t shift, dv_real_t s0, dv_real_t s1,
+                          dv_real_t s2, dv_real_t s3, dv_real_t s4);
+
+/* a <- a (+) b: exact combination of two partial results (Chan et al. / Pebay). */
+void dv_priv_cm_merge(dv_priv_cm_t *a, const dv_priv_cm_t *b);
+
+/* Re-express power sums s1..s4 of n samples about shift k_old as sums about k_old - delta
+ * (binomial expansion; exact in exact arithmetic, well conditioned for |delta| ~ spread). */
+void dv_priv_sums_shift(dv_real_t s[4], dv_real_t n, dv_real_t delta);
+
+/* Fill the statistics of a set from its central moments and extremes. */
+void dv_priv_stats_fill(dv_stats_t *out, const dv_priv_cm_t *cm, uint64_t count, dv_real_t min,
+                        dv_real_t max);
+
+#endif /* DV_PRIV_H */
