@@ -13,5 +13,6 @@
 #include "dynval/dv_temporal.h"
 #include "dynval/dv_corr.h"
 #include "dynval/dv_chan.h"
+#include "dynval/dv_codec.h"
 
 #endif /* DV_H */
