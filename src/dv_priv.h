@@ -64,4 +64,25 @@ void dv_priv_sums_shift(dv_real_t s[4], dv_real_t n, dv_real_t delta);
 void dv_priv_stats_fill(dv_stats_t *out, const dv_priv_cm_t *cm, uint64_t count, dv_real_t min,
                         dv_real_t max);
 
+/* ---- AR kernels (src/dv_arkern.c): portable C, and on x86-64 double builds AVX2/FMA and
+ * AVX-512F versions picked at run time. kern: 0 portable, 1 AVX2+FMA, 2 AVX-512F. ---- */
+uint32_t dv_priv_ar_kern(void);
+
+/* r[k] = sum_{i=0}^{n-1-k} x_i x_{i+k}, k = 0..maxlag, maxlag < n (no 1/n). */
+void dv_priv_ar_acf(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r, uint32_t kern);
+
+/* sum_{i<n} a_i b_i with independent partial sums. */
+dv_real_t dv_priv_ar_dot(const dv_real_t *a, const dv_real_t *b, size_t n, uint32_t kern);
+
+/* e[i] = x[i] - c0 - sum_{j=1..p} a[j-1] x[i-j], i = 0..n-1; x[-p..-1] must be readable.
+ * @p e must not overlap @p x. */
+void dv_priv_ar_fir(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
+                    dv_real_t *e, uint32_t kern);
+
+/* One Burg stage on aligned errors f[0..len), b[0..len) (f[j] = f(i), b[j] = b(i-1)):
+ * b[j] -= k f[j]; f[j] = f[j+1] - k b[j+1] (old values), j < len-1; returns the next stage's
+ * num = sum f b and den = sum f^2 + b^2 over j < len-1. */
+void dv_priv_ar_burg_step(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k, dv_real_t *num,
+                          dv_real_t *den, uint32_t kern);
+
 #endif /* DV_PRIV_H */

@@ -21,4 +21,12 @@
 
 DV_STATIC_ASSERT(DV_BLOCK_LEN >= 2u && DV_BLOCK_LEN <= 4096u, block_len_in_range);
 
+/* Highest AR / ARX order. The report fits AR(30..60) (AR(50), and AR(60) for AR-ARX stage 1);
+ * 64 covers that, and fixed-size coefficient arrays of 64 keep a model at 0.5 kB in double. */
+#ifndef DV_AR_MAX_ORDER
+#define DV_AR_MAX_ORDER 64u
+#endif
+
+DV_STATIC_ASSERT(DV_AR_MAX_ORDER >= 64u && DV_AR_MAX_ORDER <= 1024u, ar_max_order_in_range);
+
 #endif /* DV_CONFIG_H */

@@ -71,4 +71,14 @@ static inline int dv_test_close(double got, double want, double rtol, double sca
     return 1;
 }
 
+#ifdef DV_MOMENTS_H
+/* Bitwise equality of every field of two dv_stats_t (padding excluded). */
+static inline int dv_test_stats_identical(const dv_stats_t *a, const dv_stats_t *b)
+{
+    const dv_real_t fa[] = {a->mean, a->var, a->std, a->rms, a->skew, a->kurt, a->peak, a->min, a->max, a->crest, a->kfactor};
+    const dv_real_t fb[] = {b->mean, b->var, b->std, b->rms, b->skew, b->kurt, b->peak, b->min, b->max, b->crest, b->kfactor};
+    return memcmp(fa, fb, sizeof fa) == 0 && a->count == b->count && a->flags == b->flags;
+}
+#endif
+
 #endif
