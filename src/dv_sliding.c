@@ -1,4 +1,5 @@
-/* Sliding-window statistics: add/subtract power sums, refreshed exactly once per window. */
+/* Sliding-window statistics: add/subtract power sums, refreshed exactly once per window;
+ * extremes from suffix (previous turn) and prefix (current turn) maxima. */
 #include "dynval/dv_sliding.h"
 #include "dynval/dv_config.h"
 #include "dv_priv.h"
@@ -12,8 +13,8 @@ dv_status_t dv_sliding_init(dv_sliding_t *s, size_t len, dv_real_t *buf, size_t 
         return DV_ESIZE;
     }
     s->ring = buf;
-    s->qmax = buf + len;
-    s->qmin = buf + 2u * len;
+    s->sufmax = buf + len;
+    s->sufmin = buf + 2u * len;
     s->len = (uint32_t)len;
     dv_sliding_reset(s);
     return DV_OK;
@@ -23,7 +24,8 @@ void dv_sliding_reset(dv_sliding_t *s)
 {
     DV_ASSERT(s != NULL);
     s->head = s->fill = 0u;
-    s->qmax_h = s->qmax_n = s->qmin_h = s->qmin_n = 0u;
+    s->premax = -DV_REAL_MAX;
+    s->premin = DV_REAL_MAX;
     s->shift = DV_R(0.0);
     for (int k = 0; k < 4; k++) {
         s->s[k] = s->f[k] = DV_R(0.0);
@@ -32,42 +34,31 @@ void dv_sliding_reset(dv_sliding_t *s)
     s->n_nonfinite = 0u;
 }
 
-/* Deque slot i positions after head h, in a ring of n. */
-static inline uint32_t slot(uint32_t h, uint32_t i, uint32_t n)
+/* The ring has turned over: f holds exactly the window's sums, free of add/subtract round-off.
+ * Adopt them, re-centre on the window mean (a drifting signal keeps small d), and take the
+ * suffix extremes of this turn for the next one. */
+static void turn_over(dv_sliding_t *s)
 {
-    const uint32_t j = h + i;
-    return j >= n ? j - n : j;
-}
-
-static inline void push_max(dv_sliding_t *s, dv_real_t x)
-{
-    while (s->qmax_n > 0u && s->qmax[slot(s->qmax_h, s->qmax_n - 1u, s->len)] < x) {
-        s->qmax_n--;
+    const dv_real_t n = (dv_real_t)s->len;
+    const dv_real_t delta = s->f[0] / n; /* window mean - shift */
+    for (int k = 0; k < 4; k++) {
+        s->s[k] = s->f[k];
+        s->f[k] = DV_R(0.0);
     }
-    s->qmax[slot(s->qmax_h, s->qmax_n, s->len)] = x;
-    s->qmax_n++;
-}
-
-static inline void push_min(dv_sliding_t *s, dv_real_t x)
-{
-    while (s->qmin_n > 0u && s->qmin[slot(s->qmin_h, s->qmin_n - 1u, s->len)] > x) {
-        s->qmin_n--;
+    dv_priv_sums_shift(s->s, n, -delta);
+    s->s[0] = DV_R(0.0); /* deviations from the mean sum to 0 by definition */
+    s->shift += delta;
+    dv_real_t mx = -DV_REAL_MAX, mn = DV_REAL_MAX;
+    for (uint32_t i = s->len; i-- > 0u;) {
+        const dv_real_t v = s->ring[i];
+        mx = v > mx ? v : mx;
+        mn = v < mn ? v : mn;
+        s->sufmax[i] = mx;
+        s->sufmin[i] = mn;
     }
-    s->qmin[slot(s->qmin_h, s->qmin_n, s->len)] = x;
-    s->qmin_n++;
-}
-
-/* The leaving sample is the deque front exactly when it is the window's extreme. */
-static inline void expire(dv_sliding_t *s, dv_real_t old)
-{
-    if (s->qmax[s->qmax_h] == old) {
-        s->qmax_h = slot(s->qmax_h, 1u, s->len);
-        s->qmax_n--;
-    }
-    if (s->qmin[s->qmin_h] == old) {
-        s->qmin_h = slot(s->qmin_h, 1u, s->len);
-        s->qmin_n--;
-    }
+    s->premax = -DV_REAL_MAX;
+    s->premin = DV_REAL_MAX;
+    s->head = 0u;
 }
 
 dv_status_t dv_sliding_update(dv_sliding_t *s, dv_real_t x)
@@ -84,42 +75,25 @@ dv_status_t dv_sliding_update(dv_sliding_t *s, dv_real_t x)
     const dv_real_t d2 = d * d;
     const dv_real_t d3 = d2 * d, d4 = d2 * d2;
     if (s->fill == s->len) {
-        const dv_real_t old = s->ring[s->head];
-        const dv_real_t e = old - s->shift;
+        const dv_real_t e = s->ring[s->head] - s->shift;
         const dv_real_t e2 = e * e;
         s->s[0] += d - e;
         s->s[1] += d2 - e2;
         s->s[2] += d3 - e2 * e;
         s->s[3] += d4 - e2 * e2;
-        expire(s, old);
     } else {
-        s->s[0] += d;
-        s->s[1] += d2;
-        s->s[2] += d3;
-        s->s[3] += d4;
         s->fill++;
     }
     s->f[0] += d;
     s->f[1] += d2;
     s->f[2] += d3;
     s->f[3] += d4;
-    push_max(s, x);
-    push_min(s, x);
+    s->premax = x > s->premax ? x : s->premax;
+    s->premin = x < s->premin ? x : s->premin;
     s->ring[s->head] = x;
     s->count++;
     if (++s->head == s->len) {
-        s->head = 0u;
-        /* f now holds exactly the window's sums, free of add/subtract round-off. Adopt them,
-         * and re-centre on the window mean so a drifting signal keeps small d. */
-        const dv_real_t n = (dv_real_t)s->len;
-        const dv_real_t delta = s->f[0] / n; /* window mean - shift */
-        for (int k = 0; k < 4; k++) {
-            s->s[k] = s->f[k];
-            s->f[k] = DV_R(0.0);
-        }
-        dv_priv_sums_shift(s->s, n, -delta);
-        s->s[0] = DV_R(0.0); /* the sum of deviations from the mean is 0 by definition */
-        s->shift += delta;
+        turn_over(s);
     }
     return DV_OK;
 }
@@ -131,10 +105,84 @@ dv_status_t dv_sliding_update_block(dv_sliding_t *s, const dv_real_t *x, size_t 
         return n == 0u ? DV_OK : DV_EINVAL;
     }
     dv_status_t st = DV_OK;
-    for (size_t i = 0u; i < n; i++) {
-        if (dv_sliding_update(s, x[i]) != DV_OK) {
-            st = DV_ENUMERIC;
+    size_t i = 0u;
+    while (i < n) {
+        /* The fast path needs a full window, finite samples and a stretch up to the turn. */
+        size_t m = s->len - s->head;
+        m = m < n - i ? m : n - i;
+        bool fast = s->fill == s->len && m >= 8u;
+        const dv_real_t *p = x + i;
+        for (size_t j = 0u; fast && j < m; j++) {
+            fast = dv_priv_finite(p[j]);
         }
+        if (!fast) {
+            if (dv_sliding_update(s, x[i]) != DV_OK) {
+                st = DV_ENUMERIC;
+            }
+            i++;
+            continue;
+        }
+        /* Sums of the entering and the leaving samples, two interleaved lanes each. */
+        const dv_real_t k = s->shift;
+        dv_real_t *old = s->ring + s->head;
+        dv_real_t a[4] = {0}, b[4] = {0}, oa[4] = {0}, ob[4] = {0};
+        dv_real_t mx = s->premax, mn = s->premin;
+        size_t j = 0u;
+        for (; j + 1u < m; j += 2u) {
+            const dv_real_t u = p[j] - k, v = p[j + 1u] - k;
+            const dv_real_t e = old[j] - k, g = old[j + 1u] - k;
+            const dv_real_t u2 = u * u, v2 = v * v, e2 = e * e, g2 = g * g;
+            a[0] += u;
+            b[0] += v;
+            a[1] += u2;
+            b[1] += v2;
+            a[2] += u2 * u;
+            b[2] += v2 * v;
+            a[3] += u2 * u2;
+            b[3] += v2 * v2;
+            oa[0] += e;
+            ob[0] += g;
+            oa[1] += e2;
+            ob[1] += g2;
+            oa[2] += e2 * e;
+            ob[2] += g2 * g;
+            oa[3] += e2 * e2;
+            ob[3] += g2 * g2;
+            mx = p[j] > mx ? p[j] : mx;
+            mn = p[j] < mn ? p[j] : mn;
+            mx = p[j + 1u] > mx ? p[j + 1u] : mx;
+            mn = p[j + 1u] < mn ? p[j + 1u] : mn;
+        }
+        for (; j < m; j++) {
+            const dv_real_t u = p[j] - k, e = old[j] - k;
+            const dv_real_t u2 = u * u, e2 = e * e;
+            a[0] += u;
+            a[1] += u2;
+            a[2] += u2 * u;
+            a[3] += u2 * u2;
+            oa[0] += e;
+            oa[1] += e2;
+            oa[2] += e2 * e;
+            oa[3] += e2 * e2;
+            mx = p[j] > mx ? p[j] : mx;
+            mn = p[j] < mn ? p[j] : mn;
+        }
+        for (int q = 0; q < 4; q++) {
+            const dv_real_t in = a[q] + b[q];
+            s->s[q] += in - (oa[q] + ob[q]);
+            s->f[q] += in;
+        }
+        for (j = 0u; j < m; j++) {
+            old[j] = p[j];
+        }
+        s->premax = mx;
+        s->premin = mn;
+        s->count += m;
+        s->head += (uint32_t)m;
+        if (s->head == s->len) {
+            turn_over(s);
+        }
+        i += m;
     }
     return st;
 }
@@ -147,8 +195,12 @@ dv_status_t dv_sliding_get(const dv_sliding_t *s, dv_stats_t *out)
     if (s->fill < s->len) {
         return DV_ENOTREADY;
     }
+    /* window = previous turn from head on + current turn before head */
+    dv_real_t mx = s->sufmax[s->head], mn = s->sufmin[s->head];
+    mx = s->premax > mx ? s->premax : mx;
+    mn = s->premin < mn ? s->premin : mn;
     dv_priv_cm_t cm;
     dv_priv_cm_from_sums(&cm, s->shift, (dv_real_t)s->len, s->s[0], s->s[1], s->s[2], s->s[3]);
-    dv_priv_stats_fill(out, &cm, s->len, s->qmin[s->qmin_h], s->qmax[s->qmax_h]);
+    dv_priv_stats_fill(out, &cm, s->len, mn, mx);
     return DV_OK;
 }

@@ -4,8 +4,9 @@
  *
  * Mean, STD, RMS, skewness, kurtosis from shifted power sums with add/subtract; a second set
  * of sums restarted every N samples replaces the running ones when the window turns over, so
- * round-off cannot drift however long the stream. Min/max/peak use monotonic deques
- * (amortised O(1), at most 2 comparisons per sample on average).
+ * round-off cannot drift however long the stream. Min/max/peak are exact and branch-free: the
+ * window is the tail of the previous turn of the ring (its suffix extremes, computed once per
+ * turn) plus the head of the current turn (running extremes) (van Herk / Gil-Werman).
  */
 #ifndef DV_SLIDING_H
 #define DV_SLIDING_H
@@ -23,12 +24,13 @@ extern "C" {
 /** @brief Sliding-window statistics. Fields are private. */
 typedef struct {
     dv_real_t *ring;      /**< last @c len samples, length @c len */
-    dv_real_t *qmax;      /**< decreasing deque of window values, length @c len */
-    dv_real_t *qmin;      /**< increasing deque of window values, length @c len */
+    dv_real_t *sufmax;    /**< max of ring[i..len-1] over the previous turn, length @c len */
+    dv_real_t *sufmin;    /**< min of ring[i..len-1] over the previous turn, length @c len */
     uint32_t len;         /**< window length in samples */
     uint32_t head;        /**< next ring slot to write */
     uint32_t fill;        /**< samples in the window, saturates at @c len */
-    uint32_t qmax_h, qmax_n, qmin_h, qmin_n; /**< deque heads and sizes */
+    dv_real_t premax;     /**< max of ring[0..head-1] in the current turn */
+    dv_real_t premin;     /**< min of ring[0..head-1] in the current turn */
     dv_real_t shift;      /**< shift of the power sums */
     dv_real_t s[4];       /**< window sums of d, d^2, d^3, d^4, d = x - shift */
     dv_real_t f[4];       /**< the same sums restarted when head last wrapped */

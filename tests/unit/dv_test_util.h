@@ -81,4 +81,15 @@ static inline int dv_test_stats_identical(const dv_stats_t *a, const dv_stats_t 
 }
 #endif
 
+#ifdef DV_MOMENTS_H
+/* Two dv_stats_t agree: extremes and count exactly, the moments within rtol. */
+static inline int dv_test_stats_close(const dv_stats_t *a, const dv_stats_t *b, double rtol)
+{
+    return a->count == b->count && a->min == b->min && a->max == b->max && a->peak == b->peak &&
+           dv_test_close(a->mean, b->mean, rtol, b->std) && dv_test_close(a->std, b->std, rtol, 0) &&
+           dv_test_close(a->rms, b->rms, rtol, 0) && dv_test_close(a->skew, b->skew, rtol, 1) &&
+           dv_test_close(a->kurt, b->kurt, rtol, 0) && dv_test_close(a->crest, b->crest, rtol, 0);
+}
+#endif
+
 #endif
