@@ -14,5 +14,8 @@
 #include "dynval/dv_corr.h"
 #include "dynval/dv_chan.h"
 #include "dynval/dv_codec.h"
+#include "dynval/dv_ar.h"
+#include "dynval/dv_arx.h"
+#include "dynval/dv_arstats.h"
 
 #endif /* DV_H */

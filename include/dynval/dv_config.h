@@ -29,4 +29,31 @@ DV_STATIC_ASSERT(DV_BLOCK_LEN >= 2u && DV_BLOCK_LEN <= 4096u, block_len_in_range
 
 DV_STATIC_ASSERT(DV_AR_MAX_ORDER >= 64u && DV_AR_MAX_ORDER <= 1024u, ar_max_order_in_range);
 
+/* Degrees of freedom of the lumped-mass chain model. The report's frame has 4; 8 covers a
+ * refined chain, keeps the state (2n <= 16) in a few cache lines and Jacobi/expm at init cheap. */
+#ifndef DV_MAX_DOF
+#define DV_MAX_DOF 8u
+#endif
+
+/* Contact (gap) elements per model: the report has one bumper; 4 covers both sides of two. */
+#ifndef DV_MAX_CONTACT
+#define DV_MAX_CONTACT 4u
+#endif
+
+/* Output channels per model: accelerations of every DOF plus velocities/forces of 8 more. */
+#ifndef DV_MAX_OUT
+#define DV_MAX_OUT 16u
+#endif
+
+/* Contact sub-steps per sample: 16 keeps omega_contact * h <= 0.25 for a contact frequency up
+ * to fs (at 640 Hz, the report's bumper needs 8); more only costs time per step. */
+#ifndef DV_MAX_SUB
+#define DV_MAX_SUB 16u
+#endif
+
+DV_STATIC_ASSERT(DV_MAX_DOF >= 8u && DV_MAX_DOF <= 32u, max_dof_in_range);
+DV_STATIC_ASSERT(DV_MAX_CONTACT >= 1u && DV_MAX_CONTACT <= 16u, max_contact_in_range);
+DV_STATIC_ASSERT(DV_MAX_OUT >= 4u && DV_MAX_OUT <= 64u, max_out_in_range);
+DV_STATIC_ASSERT(DV_MAX_SUB >= 1u && DV_MAX_SUB <= 64u, max_sub_in_range);
+
 #endif /* DV_CONFIG_H */

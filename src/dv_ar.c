@@ -1,0 +1,399 @@
+/* AR(p): Yule-Walker (Levinson-Durbin) and Burg fits, order selection, streaming residual. */
+#include "dynval/dv_ar.h"
+#include "dv_priv.h"
+
+/* ---- record preparation ---------------------------------------------------------------- */
+
+static dv_real_t sum4(const dv_real_t *x, size_t n)
+{
+    dv_real_t s0 = DV_R(0.0), s1 = DV_R(0.0), s2 = DV_R(0.0), s3 = DV_R(0.0);
+    size_t i = 0u;
+    for (; i + 4u <= n; i += 4u) {
+        s0 += x[i];
+        s1 += x[i + 1u];
+        s2 += x[i + 2u];
+        s3 += x[i + 3u];
+    }
+    for (; i < n; i++) {
+        s0 += x[i];
+    }
+    return (s0 + s1) + (s2 + s3);
+}
+
+/* y = x - mean. A non-finite sample shows up as a non-finite sum. */
+static dv_status_t center(const dv_real_t *x, size_t n, dv_real_t *y, dv_real_t *mean)
+{
+    const dv_real_t nn = (dv_real_t)n;
+    dv_real_t mu = sum4(x, n) / nn;
+    if (!dv_priv_finite(mu)) {
+        /* A sum can overflow with finite samples; look before blaming the data. */
+        return DV_ENUMERIC;
+    }
+    for (size_t i = 0u; i < n; i++) {
+        y[i] = x[i] - mu;
+    }
+#ifndef DV_REAL_DOUBLE
+    /* In float the first mean is off by ~n eps |mean|; one correction pass removes it. */
+    const dv_real_t d = sum4(y, n) / nn;
+    for (size_t i = 0u; i < n; i++) {
+        y[i] -= d;
+    }
+    mu += d;
+#endif
+    *mean = mu;
+    return DV_OK;
+}
+
+/* A record whose spread is at round-off level of its offset carries no AR information. */
+static bool is_constant(dv_real_t r0, dv_real_t mean)
+{
+    const dv_real_t floor2 = DV_R(16.0) * DV_REAL_EPS * DV_REAL_EPS * mean * mean;
+    return !(r0 > DV_R(0.0)) || r0 <= floor2;
+}
+
+/* ---- the recursion shared by both estimators -------------------------------------------- */
+
+/* Result of run(): coefficients of the highest valid order and per-order curves. */
+typedef struct {
+    uint32_t reached; /* highest valid order, 0..pmax */
+    dv_real_t mean;
+    dv_real_t r0;
+} run_out_t;
+
+/* Order-update a <- [a - k * reverse(a), k] (m-1 -> m); tmp has room for m-1. */
+static void order_update(dv_real_t *a, uint32_t m, dv_real_t k, dv_real_t *tmp)
+{
+    for (uint32_t j = 1u; j < m; j++) {
+        tmp[j - 1u] = a[j - 1u] - k * a[m - j - 1u];
+    }
+    for (uint32_t j = 1u; j < m; j++) {
+        a[j - 1u] = tmp[j - 1u];
+    }
+    a[m - 1u] = k;
+}
+
+/* Runs orders 1..pmax; stops at the first order whose reflection coefficient is not inside
+ * (-1, 1) or whose error variance is not positive. a holds the last valid order's fit. */
+static dv_status_t run(dv_ar_method_t method, uint32_t pmax, const dv_real_t *x, size_t n,
+                       dv_real_t *work, dv_real_t *a, dv_real_t *refl, dv_real_t *sig,
+                       run_out_t *ro)
+{
+    const uint32_t kern = dv_priv_ar_kern();
+    const dv_real_t nn = (dv_real_t)n;
+    dv_real_t *y = work;                 /* n: centred record (Burg: forward errors) */
+    dv_real_t *small = work + 2u * n;    /* 4 (pmax + 1) */
+    dv_real_t *r = small;                /* pmax + 1 autocorrelation values */
+    dv_real_t *ak = small + (pmax + 1u); /* order-m coefficients in progress */
+    dv_real_t *tmp = ak + (pmax + 1u);
+    dv_real_t mean;
+
+    dv_status_t st = center(x, n, y, &mean);
+    if (st != DV_OK) {
+        return st;
+    }
+    ro->mean = mean;
+    ro->reached = 0u;
+
+    if (method == DV_AR_YULE_WALKER) {
+        dv_priv_ar_acf(y, n, pmax, r, kern);
+        for (uint32_t k = 0u; k <= pmax; k++) {
+            r[k] /= nn;
+        }
+        ro->r0 = r[0];
+        if (!dv_priv_finite(r[0]) || !dv_priv_finite(r[pmax]) || is_constant(r[0], mean)) {
+            return DV_ENUMERIC;
+        }
+        dv_real_t err = r[0];
+        for (uint32_t m = 1u; m <= pmax; m++) {
+            dv_real_t acc = r[m];
+            for (uint32_t j = 1u; j < m; j++) {
+                acc -= ak[j - 1u] * r[m - j];
+            }
+            const dv_real_t k = acc / err;
+            if (!(DV_FABS(k) < DV_R(1.0))) {
+                break;
+            }
+            const dv_real_t e2 = err * (DV_R(1.0) - k * k);
+            if (!(e2 > DV_R(0.0))) {
+                break;
+            }
+            order_update(ak, m, k, tmp);
+            err = e2;
+            refl[m - 1u] = k;
+            sig[m - 1u] = err;
+            ro->reached = m;
+        }
+    } else {
+        /* f[j] = f(j+1), b[j] = b(j): the order-0 errors are the centred record itself. */
+        dv_real_t *b = work + n;
+        for (size_t i = 0u; i < n; i++) {
+            b[i] = y[i];
+        }
+        const dv_real_t r0 = dv_priv_ar_dot(b, b, n, kern) / nn;
+        ro->r0 = r0;
+        if (!dv_priv_finite(r0) || is_constant(r0, mean)) {
+            return DV_ENUMERIC;
+        }
+        dv_real_t *f = y;
+        for (size_t i = 0u; i + 1u < n; i++) {
+            f[i] = y[i + 1u];
+        }
+        size_t len = n - 1u;
+        dv_real_t num = dv_priv_ar_dot(f, b, len, kern);
+        dv_real_t den = dv_priv_ar_dot(f, f, len, kern) + dv_priv_ar_dot(b, b, len, kern);
+        dv_real_t err = r0;
+        for (uint32_t m = 1u; m <= pmax; m++) {
+            if (!(den > DV_R(0.0))) {
+                break;
+            }
+            const dv_real_t k = DV_R(2.0) * num / den;
+            if (!(DV_FABS(k) < DV_R(1.0))) {
+                break;
+            }
+            const dv_real_t e2 = err * (DV_R(1.0) - k * k);
+            if (!(e2 > DV_R(0.0))) {
+                break;
+            }
+            order_update(ak, m, k, tmp);
+            err = e2;
+            refl[m - 1u] = k;
+            sig[m - 1u] = err;
+            ro->reached = m;
+            if (m < pmax) {
+                dv_priv_ar_burg_step(f, b, len, k, &num, &den, kern);
+                len--;
+            }
+        }
+    }
+    for (uint32_t j = 0u; j < ro->reached; j++) {
+        a[j] = ak[j];
+    }
+    return DV_OK;
+}
+
+static dv_status_t check_args(const void *out, dv_ar_method_t method, uint32_t p,
+                              const dv_real_t *x, size_t n, const dv_real_t *work,
+                              size_t work_len)
+{
+    if (out == NULL || x == NULL || work == NULL || p == 0u || p > DV_AR_MAX_ORDER || n < 2u ||
+        (size_t)p >= n || n > (size_t)UINT32_MAX ||
+        (method != DV_AR_YULE_WALKER && method != DV_AR_BURG)) {
+        return DV_EINVAL;
+    }
+    if (work_len < DV_AR_WORK_LEN(n, p)) {
+        return DV_ESIZE;
+    }
+    return DV_OK;
+}
+
+dv_status_t dv_ar_fit(dv_ar_model_t *m, dv_ar_method_t method, uint32_t p, const dv_real_t *x,
+                      size_t n, dv_real_t *work, size_t work_len)
+{
+    dv_status_t st = check_args(m, method, p, x, n, work, work_len);
+    if (st != DV_OK) {
+        return st;
+    }
+    dv_real_t a[DV_AR_MAX_ORDER], refl[DV_AR_MAX_ORDER], sig[DV_AR_MAX_ORDER];
+    run_out_t ro;
+    st = run(method, p, x, n, work, a, refl, sig, &ro);
+    if (st != DV_OK) {
+        return st;
+    }
+    if (ro.reached < p) {
+        return DV_ENUMERIC; /* deterministic (perfectly predictable) record at this order */
+    }
+    m->order = p;
+    m->n = (uint32_t)n;
+    m->mean = ro.mean;
+    m->sigma2 = sig[p - 1u];
+    for (uint32_t j = 0u; j < DV_AR_MAX_ORDER; j++) {
+        m->a[j] = j < p ? a[j] : DV_R(0.0);
+        m->refl[j] = j < p ? refl[j] : DV_R(0.0);
+    }
+    return DV_OK;
+}
+
+dv_status_t dv_ar_order(dv_ar_order_t *o, dv_ar_method_t method, uint32_t pmax,
+                        const dv_real_t *x, size_t n, dv_real_t *work, size_t work_len)
+{
+    dv_status_t st = check_args(o, method, pmax, x, n, work, work_len);
+    if (st != DV_OK) {
+        return st;
+    }
+    dv_real_t a[DV_AR_MAX_ORDER], refl[DV_AR_MAX_ORDER], sig[DV_AR_MAX_ORDER];
+    run_out_t ro;
+    st = run(method, pmax, x, n, work, a, refl, sig, &ro);
+    if (st != DV_OK) {
+        return st;
+    }
+    if (ro.reached == 0u) {
+        return DV_ENUMERIC;
+    }
+    const dv_real_t nn = (dv_real_t)n;
+    const dv_real_t band = DV_R(2.0) / DV_SQRT(nn);
+    o->pmax = ro.reached;
+    o->n = (uint32_t)n;
+    o->band = band;
+    o->p_aic = 1u;
+    o->p_pacf = 0u;
+    for (uint32_t m = 1u; m <= DV_AR_MAX_ORDER; m++) {
+        if (m > ro.reached) {
+            o->aic[m - 1u] = o->pacf[m - 1u] = o->sigma2[m - 1u] = DV_R(0.0);
+            continue;
+        }
+        const dv_real_t aic = nn * DV_LOG(sig[m - 1u]) + DV_R(2.0) * (dv_real_t)m;
+        o->aic[m - 1u] = aic;
+        o->pacf[m - 1u] = refl[m - 1u];
+        o->sigma2[m - 1u] = sig[m - 1u];
+        if (aic < o->aic[o->p_aic - 1u]) {
+            o->p_aic = m;
+        }
+        if (DV_FABS(refl[m - 1u]) >= band) {
+            o->p_pacf = m;
+        }
+    }
+    return DV_OK;
+}
+
+dv_status_t dv_ar_autocorr(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r)
+{
+    if (x == NULL || r == NULL || n == 0u || maxlag >= n) {
+        return DV_EINVAL;
+    }
+    dv_priv_ar_acf(x, n, maxlag, r, dv_priv_ar_kern());
+    const dv_real_t nn = (dv_real_t)n;
+    dv_status_t st = DV_OK;
+    for (size_t k = 0u; k <= maxlag; k++) {
+        r[k] /= nn;
+        if (!dv_priv_finite(r[k])) {
+            st = DV_ENUMERIC;
+        }
+    }
+    return st;
+}
+
+/* ---- streaming residual ------------------------------------------------------------------ */
+
+dv_status_t dv_ar_resid_init(dv_ar_resid_t *r, const dv_ar_model_t *m, dv_real_t *buf,
+                             size_t buf_len)
+{
+    if (r == NULL || m == NULL || buf == NULL || m->order == 0u || m->order > DV_AR_MAX_ORDER) {
+        return DV_EINVAL;
+    }
+    const uint32_t p = m->order;
+    if (buf_len < DV_AR_RESID_BUF_LEN(p)) {
+        return DV_ESIZE;
+    }
+    dv_real_t suma = DV_R(0.0);
+    for (uint32_t j = 0u; j < p; j++) {
+        if (!dv_priv_finite(m->a[j])) {
+            return DV_ENUMERIC;
+        }
+        suma += m->a[j];
+    }
+    if (!dv_priv_finite(m->mean)) {
+        return DV_ENUMERIC;
+    }
+    for (uint32_t j = 0u; j < DV_AR_MAX_ORDER; j++) {
+        r->a[j] = j < p ? m->a[j] : DV_R(0.0);
+        r->c[j] = j < p ? m->a[p - 1u - j] : DV_R(0.0);
+    }
+    r->mean = m->mean;
+    r->c0 = m->mean * (DV_R(1.0) - suma);
+    r->p = p;
+    r->hist = buf;
+    r->kern = dv_priv_ar_kern();
+    dv_ar_resid_reset(r);
+    return DV_OK;
+}
+
+void dv_ar_resid_reset(dv_ar_resid_t *r)
+{
+    DV_ASSERT(r != NULL);
+    for (uint32_t j = 0u; j < 2u * r->p; j++) {
+        r->hist[j] = DV_R(0.0);
+    }
+    r->head = 0u;
+    r->count = 0u;
+    r->n_nonfinite = 0u;
+}
+
+dv_status_t dv_ar_resid_update(dv_ar_resid_t *r, dv_real_t x, dv_real_t *e)
+{
+    DV_ASSERT(r != NULL && e != NULL);
+    if (!dv_priv_finite(x)) {
+        r->n_nonfinite++;
+        return DV_ENUMERIC;
+    }
+    const uint32_t p = r->p;
+    const dv_real_t y = x - r->mean;
+    dv_status_t st = DV_ENOTREADY;
+    if (r->count >= p) {
+        /* hist[head .. head+p-1] holds the last p centred samples, oldest first. */
+        *e = y - dv_priv_ar_dot(r->c, r->hist + r->head, p, r->kern);
+        st = DV_OK;
+    }
+    r->hist[r->head] = y;
+    r->hist[r->head + p] = y;
+    r->head = r->head + 1u == p ? 0u : r->head + 1u;
+    r->count++;
+    return st;
+}
+
+dv_status_t dv_ar_resid_update_block(dv_ar_resid_t *r, const dv_real_t *x, size_t n,
+                                     dv_real_t *e, size_t *n_out)
+{
+    DV_ASSERT(r != NULL);
+    if (n == 0u) {
+        if (n_out != NULL) {
+            *n_out = 0u;
+        }
+        return DV_OK;
+    }
+    if (x == NULL || e == NULL || n_out == NULL) {
+        return DV_EINVAL;
+    }
+    const uint32_t p = r->p;
+    bool finite = true;
+    for (size_t i = 0u; i < n; i++) {
+        finite = finite && dv_priv_finite(x[i]);
+    }
+    size_t out = 0u, i = 0u;
+    dv_status_t st = DV_OK;
+    if (!finite) {
+        for (; i < n; i++) {
+            const dv_status_t s1 = dv_ar_resid_update(r, x[i], e + out);
+            if (s1 == DV_OK) {
+                out++;
+            } else if (s1 == DV_ENUMERIC) {
+                st = DV_ENUMERIC;
+            }
+        }
+        *n_out = out;
+        return st;
+    }
+    /* Single updates until the block itself holds the p samples before each output. */
+    for (; i < n && (i < p || r->count < p); i++) {
+        if (dv_ar_resid_update(r, x[i], e + out) == DV_OK) {
+            out++;
+        }
+    }
+    if (i < n) {
+        dv_priv_ar_fir(r->a, p, r->c0, x + i, n - i, e + out, r->kern);
+        out += n - i;
+        r->count += n - i;
+        for (uint32_t j = 0u; j < p; j++) {
+            const dv_real_t y = x[n - p + j] - r->mean;
+            r->hist[j] = y;
+            r->hist[j + p] = y;
+        }
+        r->head = 0u;
+    }
+    *n_out = out;
+    return st;
+}
+
+uint64_t dv_ar_resid_nonfinite(const dv_ar_resid_t *r)
+{
+    return r == NULL ? 0u : r->n_nonfinite;
+}

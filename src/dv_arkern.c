@@ -1,0 +1,469 @@
+/* AR inner loops: autocorrelation, dot product, multi-output FIR and the Burg stage.
+ *
+ * The portable versions keep 4 independent partial sums, because C compilers may not reorder
+ * floating-point sums and one accumulator chain is latency-bound (4 cycles per add). On x86-64
+ * double builds the same loops also exist as AVX2/FMA and AVX-512F functions compiled with
+ * target attributes and chosen at run time, so a plain -O2 build (SSE2 baseline) still runs
+ * AR(60) residuals at a few ns per sample. The arm-none-eabi and float builds see only C. */
+#include "dv_priv.h"
+
+#if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) &&   \
+    !defined(DV_NO_SIMD)
+#define DV_AR_X86 1
+#include <immintrin.h>
+#else
+#define DV_AR_X86 0
+#endif
+
+/* ------------------------------------------------------------------------------------------ */
+/* portable C                                                                                  */
+
+static dv_real_t dot_c(const dv_real_t *a, const dv_real_t *b, size_t n)
+{
+    dv_real_t s0 = DV_R(0.0), s1 = DV_R(0.0), s2 = DV_R(0.0), s3 = DV_R(0.0);
+    size_t i = 0u;
+    for (; i + 4u <= n; i += 4u) {
+        s0 += a[i] * b[i];
+        s1 += a[i + 1u] * b[i + 1u];
+        s2 += a[i + 2u] * b[i + 2u];
+        s3 += a[i + 3u] * b[i + 3u];
+    }
+    for (; i < n; i++) {
+        s0 += a[i] * b[i];
+    }
+    return (s0 + s1) + (s2 + s3);
+}
+
+static void acf_c(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r)
+{
+    for (size_t k = 0u; k <= maxlag; k++) {
+        r[k] = dot_c(x, x + k, n - k);
+    }
+}
+
+static void fir_c(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
+                  dv_real_t *e)
+{
+    size_t i = 0u;
+    /* Four outputs at a time share each coefficient load and give four independent chains. */
+    for (; i + 4u <= n; i += 4u) {
+        dv_real_t s0 = DV_R(0.0), s1 = DV_R(0.0), s2 = DV_R(0.0), s3 = DV_R(0.0);
+        const dv_real_t *xi = x + i;
+        for (size_t j = 1u; j <= p; j++) {
+            const dv_real_t aj = a[j - 1u];
+            s0 += aj * xi[0] ;
+            s1 += aj * xi[1];
+            s2 += aj * xi[2];
+            s3 += aj * xi[3];
+            xi--;
+        }
+        e[i] = x[i] - c0 - s0;
+        e[i + 1u] = x[i + 1u] - c0 - s1;
+        e[i + 2u] = x[i + 2u] - c0 - s2;
+        e[i + 3u] = x[i + 3u] - c0 - s3;
+    }
+    for (; i < n; i++) {
+        dv_real_t s = DV_R(0.0);
+        for (size_t j = 1u; j <= p; j++) {
+            s += a[j - 1u] * x[i - j];
+        }
+        e[i] = x[i] - c0 - s;
+    }
+}
+
+static void burg_c(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k, dv_real_t *num,
+                   dv_real_t *den)
+{
+    dv_real_t n0 = DV_R(0.0), n1 = DV_R(0.0), d0 = DV_R(0.0), d1 = DV_R(0.0);
+    size_t j = 0u;
+    for (; j + 2u < len; j += 2u) {
+        const dv_real_t b0 = b[j] - k * f[j];
+        const dv_real_t b1 = b[j + 1u] - k * f[j + 1u];
+        const dv_real_t f0 = f[j + 1u] - k * b[j + 1u];
+        const dv_real_t f1 = f[j + 2u] - k * b[j + 2u];
+        b[j] = b0;
+        b[j + 1u] = b1;
+        f[j] = f0;
+        f[j + 1u] = f1;
+        n0 += f0 * b0;
+        n1 += f1 * b1;
+        d0 += f0 * f0 + b0 * b0;
+        d1 += f1 * f1 + b1 * b1;
+    }
+    for (; j + 1u < len; j++) {
+        const dv_real_t b0 = b[j] - k * f[j];
+        const dv_real_t f0 = f[j + 1u] - k * b[j + 1u];
+        b[j] = b0;
+        f[j] = f0;
+        n0 += f0 * b0;
+        d0 += f0 * f0 + b0 * b0;
+    }
+    *num = n0 + n1;
+    *den = d0 + d1;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* x86-64, double: AVX2 + FMA                                                                  */
+#if DV_AR_X86
+
+#define DV_TGT_AVX2 __attribute__((target("avx2,fma")))
+#define DV_TGT_AVX512 __attribute__((target("avx512f,avx2,fma")))
+
+DV_TGT_AVX2 static double hsum256(__m256d v)
+{
+    const __m128d lo = _mm256_castpd256_pd128(v);
+    const __m128d hi = _mm256_extractf128_pd(v, 1);
+    const __m128d s = _mm_add_pd(lo, hi);
+    return _mm_cvtsd_f64(_mm_add_sd(s, _mm_unpackhi_pd(s, s)));
+}
+
+DV_TGT_AVX2 static double dot_avx2(const double *a, const double *b, size_t n)
+{
+    __m256d s0 = _mm256_setzero_pd(), s1 = _mm256_setzero_pd();
+    __m256d s2 = _mm256_setzero_pd(), s3 = _mm256_setzero_pd();
+    size_t i = 0u;
+    for (; i + 16u <= n; i += 16u) {
+        s0 = _mm256_fmadd_pd(_mm256_loadu_pd(a + i), _mm256_loadu_pd(b + i), s0);
+        s1 = _mm256_fmadd_pd(_mm256_loadu_pd(a + i + 4u), _mm256_loadu_pd(b + i + 4u), s1);
+        s2 = _mm256_fmadd_pd(_mm256_loadu_pd(a + i + 8u), _mm256_loadu_pd(b + i + 8u), s2);
+        s3 = _mm256_fmadd_pd(_mm256_loadu_pd(a + i + 12u), _mm256_loadu_pd(b + i + 12u), s3);
+    }
+    for (; i + 4u <= n; i += 4u) {
+        s0 = _mm256_fmadd_pd(_mm256_loadu_pd(a + i), _mm256_loadu_pd(b + i), s0);
+    }
+    double s = hsum256(_mm256_add_pd(_mm256_add_pd(s0, s1), _mm256_add_pd(s2, s3)));
+    for (; i < n; i++) {
+        s += a[i] * b[i];
+    }
+    return s;
+}
+
+/* Lags in groups of 32: one broadcast of x_i feeds 8 accumulators of 4 lags each. */
+DV_TGT_AVX2 static void acf_avx2(const double *x, size_t n, size_t maxlag, double *r)
+{
+    for (size_t g = 0u; g <= maxlag; g += 32u) {
+        __m256d acc[8];
+        for (int q = 0; q < 8; q++) {
+            acc[q] = _mm256_setzero_pd();
+        }
+        const size_t imax = n > g + 31u ? n - g - 31u : 0u; /* rows whose 32 lags are in range */
+        for (size_t i = 0u; i < imax; i++) {
+            const __m256d xi = _mm256_broadcast_sd(x + i);
+            const double *xk = x + i + g;
+            acc[0] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk), acc[0]);
+            acc[1] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 4), acc[1]);
+            acc[2] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 8), acc[2]);
+            acc[3] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 12), acc[3]);
+            acc[4] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 16), acc[4]);
+            acc[5] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 20), acc[5]);
+            acc[6] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 24), acc[6]);
+            acc[7] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 28), acc[7]);
+        }
+        double tmp[32];
+        for (int q = 0; q < 8; q++) {
+            _mm256_storeu_pd(tmp + 4 * q, acc[q]);
+        }
+        for (size_t l = 0u; l < 32u && g + l <= maxlag; l++) {
+            const size_t k = g + l;
+            double s = tmp[l];
+            for (size_t i = imax; i + k < n; i++) {
+                s += x[i] * x[i + k];
+            }
+            r[k] = s;
+        }
+    }
+}
+
+DV_TGT_AVX2 static void fir_avx2(const double *a, size_t p, double c0, const double *x, size_t n,
+                                 double *e)
+{
+    const __m256d vc0 = _mm256_set1_pd(c0);
+    size_t i = 0u;
+    for (; i + 32u <= n; i += 32u) {
+        __m256d s[8];
+        for (int q = 0; q < 8; q++) {
+            s[q] = _mm256_sub_pd(_mm256_loadu_pd(x + i + 4 * q), vc0);
+        }
+        const double *xi = x + i;
+        for (size_t j = 1u; j <= p; j++) {
+            const __m256d aj = _mm256_broadcast_sd(a + j - 1u);
+            const double *xj = xi - j;
+            s[0] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj), s[0]);
+            s[1] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 4), s[1]);
+            s[2] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 8), s[2]);
+            s[3] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 12), s[3]);
+            s[4] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 16), s[4]);
+            s[5] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 20), s[5]);
+            s[6] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 24), s[6]);
+            s[7] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 28), s[7]);
+        }
+        for (int q = 0; q < 8; q++) {
+            _mm256_storeu_pd(e + i + 4 * q, s[q]);
+        }
+    }
+    for (; i + 4u <= n; i += 4u) {
+        __m256d s = _mm256_sub_pd(_mm256_loadu_pd(x + i), vc0);
+        for (size_t j = 1u; j <= p; j++) {
+            s = _mm256_fnmadd_pd(_mm256_broadcast_sd(a + j - 1u), _mm256_loadu_pd(x + i - j), s);
+        }
+        _mm256_storeu_pd(e + i, s);
+    }
+    if (i < n) {
+        fir_c(a, p, c0, x + i, n - i, e + i);
+    }
+}
+
+DV_TGT_AVX2 static void burg_avx2(double *f, double *b, size_t len, double k, double *num,
+                                  double *den)
+{
+    const __m256d vk = _mm256_set1_pd(k);
+    __m256d n0 = _mm256_setzero_pd(), n1 = _mm256_setzero_pd();
+    __m256d d0 = _mm256_setzero_pd(), d1 = _mm256_setzero_pd();
+    size_t j = 0u;
+    /* All loads of an iteration precede its stores; f[j+1..j+8] and b[j+1..j+8] are still old. */
+    for (; j + 8u < len; j += 8u) {
+        const __m256d fa = _mm256_loadu_pd(f + j), fb = _mm256_loadu_pd(f + j + 4u);
+        const __m256d ba = _mm256_loadu_pd(b + j), bb = _mm256_loadu_pd(b + j + 4u);
+        const __m256d f1a = _mm256_loadu_pd(f + j + 1u), f1b = _mm256_loadu_pd(f + j + 5u);
+        const __m256d b1a = _mm256_loadu_pd(b + j + 1u), b1b = _mm256_loadu_pd(b + j + 5u);
+        const __m256d nba = _mm256_fnmadd_pd(vk, fa, ba), nbb = _mm256_fnmadd_pd(vk, fb, bb);
+        const __m256d nfa = _mm256_fnmadd_pd(vk, b1a, f1a), nfb = _mm256_fnmadd_pd(vk, b1b, f1b);
+        _mm256_storeu_pd(b + j, nba);
+        _mm256_storeu_pd(b + j + 4u, nbb);
+        _mm256_storeu_pd(f + j, nfa);
+        _mm256_storeu_pd(f + j + 4u, nfb);
+        n0 = _mm256_fmadd_pd(nfa, nba, n0);
+        n1 = _mm256_fmadd_pd(nfb, nbb, n1);
+        d0 = _mm256_fmadd_pd(nfa, nfa, _mm256_fmadd_pd(nba, nba, d0));
+        d1 = _mm256_fmadd_pd(nfb, nfb, _mm256_fmadd_pd(nbb, nbb, d1));
+    }
+    double sn = hsum256(_mm256_add_pd(n0, n1));
+    double sd = hsum256(_mm256_add_pd(d0, d1));
+    for (; j + 1u < len; j++) {
+        const double b0 = b[j] - k * f[j];
+        const double f0 = f[j + 1u] - k * b[j + 1u];
+        b[j] = b0;
+        f[j] = f0;
+        sn += f0 * b0;
+        sd += f0 * f0 + b0 * b0;
+    }
+    *num = sn;
+    *den = sd;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* x86-64, double: AVX-512F                                                                    */
+
+DV_TGT_AVX512 static double dot_avx512(const double *a, const double *b, size_t n)
+{
+    __m512d s0 = _mm512_setzero_pd(), s1 = _mm512_setzero_pd();
+    size_t i = 0u;
+    for (; i + 16u <= n; i += 16u) {
+        s0 = _mm512_fmadd_pd(_mm512_loadu_pd(a + i), _mm512_loadu_pd(b + i), s0);
+        s1 = _mm512_fmadd_pd(_mm512_loadu_pd(a + i + 8u), _mm512_loadu_pd(b + i + 8u), s1);
+    }
+    if (i + 8u <= n) {
+        s0 = _mm512_fmadd_pd(_mm512_loadu_pd(a + i), _mm512_loadu_pd(b + i), s0);
+        i += 8u;
+    }
+    if (i < n) {
+        const __mmask8 m = (__mmask8)((1u << (unsigned)(n - i)) - 1u);
+        s1 = _mm512_fmadd_pd(_mm512_maskz_loadu_pd(m, a + i), _mm512_maskz_loadu_pd(m, b + i), s1);
+    }
+    return _mm512_reduce_add_pd(_mm512_add_pd(s0, s1));
+}
+
+DV_TGT_AVX512 static void acf_avx512(const double *x, size_t n, size_t maxlag, double *r)
+{
+    for (size_t g = 0u; g <= maxlag; g += 64u) {
+        __m512d acc[8];
+        for (int q = 0; q < 8; q++) {
+            acc[q] = _mm512_setzero_pd();
+        }
+        const size_t imax = n > g + 63u ? n - g - 63u : 0u;
+        for (size_t i = 0u; i < imax; i++) {
+            const __m512d xi = _mm512_set1_pd(x[i]);
+            const double *xk = x + i + g;
+            acc[0] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk), acc[0]);
+            acc[1] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 8), acc[1]);
+            acc[2] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 16), acc[2]);
+            acc[3] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 24), acc[3]);
+            acc[4] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 32), acc[4]);
+            acc[5] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 40), acc[5]);
+            acc[6] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 48), acc[6]);
+            acc[7] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 56), acc[7]);
+        }
+        double tmp[64];
+        for (int q = 0; q < 8; q++) {
+            _mm512_storeu_pd(tmp + 8 * q, acc[q]);
+        }
+        for (size_t l = 0u; l < 64u && g + l <= maxlag; l++) {
+            const size_t k = g + l;
+            double s = tmp[l];
+            for (size_t i = imax; i + k < n; i++) {
+                s += x[i] * x[i + k];
+            }
+            r[k] = s;
+        }
+    }
+}
+
+DV_TGT_AVX512 static void fir_avx512(const double *a, size_t p, double c0, const double *x,
+                                     size_t n, double *e)
+{
+    const __m512d vc0 = _mm512_set1_pd(c0);
+    size_t i = 0u;
+    for (; i + 64u <= n; i += 64u) {
+        __m512d s[8];
+        for (int q = 0; q < 8; q++) {
+            s[q] = _mm512_sub_pd(_mm512_loadu_pd(x + i + 8 * q), vc0);
+        }
+        const double *xi = x + i;
+        for (size_t j = 1u; j <= p; j++) {
+            const __m512d aj = _mm512_set1_pd(a[j - 1u]);
+            const double *xj = xi - j;
+            s[0] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj), s[0]);
+            s[1] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 8), s[1]);
+            s[2] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 16), s[2]);
+            s[3] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 24), s[3]);
+            s[4] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 32), s[4]);
+            s[5] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 40), s[5]);
+            s[6] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 48), s[6]);
+            s[7] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 56), s[7]);
+        }
+        for (int q = 0; q < 8; q++) {
+            _mm512_storeu_pd(e + i + 8 * q, s[q]);
+        }
+    }
+    for (; i + 8u <= n; i += 8u) {
+        __m512d s = _mm512_sub_pd(_mm512_loadu_pd(x + i), vc0);
+        for (size_t j = 1u; j <= p; j++) {
+            s = _mm512_fnmadd_pd(_mm512_set1_pd(a[j - 1u]), _mm512_loadu_pd(x + i - j), s);
+        }
+        _mm512_storeu_pd(e + i, s);
+    }
+    if (i < n) {
+        fir_c(a, p, c0, x + i, n - i, e + i);
+    }
+}
+
+DV_TGT_AVX512 static void burg_avx512(double *f, double *b, size_t len, double k, double *num,
+                                      double *den)
+{
+    const __m512d vk = _mm512_set1_pd(k);
+    __m512d n0 = _mm512_setzero_pd(), n1 = _mm512_setzero_pd();
+    __m512d d0 = _mm512_setzero_pd(), d1 = _mm512_setzero_pd();
+    size_t j = 0u;
+    for (; j + 16u < len; j += 16u) {
+        const __m512d fa = _mm512_loadu_pd(f + j), fb = _mm512_loadu_pd(f + j + 8u);
+        const __m512d ba = _mm512_loadu_pd(b + j), bb = _mm512_loadu_pd(b + j + 8u);
+        const __m512d f1a = _mm512_loadu_pd(f + j + 1u), f1b = _mm512_loadu_pd(f + j + 9u);
+        const __m512d b1a = _mm512_loadu_pd(b + j + 1u), b1b = _mm512_loadu_pd(b + j + 9u);
+        const __m512d nba = _mm512_fnmadd_pd(vk, fa, ba), nbb = _mm512_fnmadd_pd(vk, fb, bb);
+        const __m512d nfa = _mm512_fnmadd_pd(vk, b1a, f1a), nfb = _mm512_fnmadd_pd(vk, b1b, f1b);
+        _mm512_storeu_pd(b + j, nba);
+        _mm512_storeu_pd(b + j + 8u, nbb);
+        _mm512_storeu_pd(f + j, nfa);
+        _mm512_storeu_pd(f + j + 8u, nfb);
+        n0 = _mm512_fmadd_pd(nfa, nba, n0);
+        n1 = _mm512_fmadd_pd(nfb, nbb, n1);
+        d0 = _mm512_fmadd_pd(nfa, nfa, _mm512_fmadd_pd(nba, nba, d0));
+        d1 = _mm512_fmadd_pd(nfb, nfb, _mm512_fmadd_pd(nbb, nbb, d1));
+    }
+    double sn = _mm512_reduce_add_pd(_mm512_add_pd(n0, n1));
+    double sd = _mm512_reduce_add_pd(_mm512_add_pd(d0, d1));
+    for (; j + 1u < len; j++) {
+        const double b0 = b[j] - k * f[j];
+        const double f0 = f[j + 1u] - k * b[j + 1u];
+        b[j] = b0;
+        f[j] = f0;
+        sn += f0 * b0;
+        sd += f0 * f0 + b0 * b0;
+    }
+    *num = sn;
+    *den = sd;
+}
+
+#endif /* DV_AR_X86 */
+
+/* ------------------------------------------------------------------------------------------ */
+/* dispatch                                                                                    */
+
+uint32_t dv_priv_ar_kern(void)
+{
+#if DV_AR_X86
+    /* libgcc/compiler-rt check CPUID and that the OS saves the wide registers (XGETBV). */
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("avx512f")) {
+        return 2u;
+    }
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
+        return 1u;
+    }
+#endif
+    return 0u;
+}
+
+void dv_priv_ar_acf(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r, uint32_t kern)
+{
+#if DV_AR_X86
+    if (kern == 2u) {
+        acf_avx512(x, n, maxlag, r);
+        return;
+    }
+    if (kern == 1u) {
+        acf_avx2(x, n, maxlag, r);
+        return;
+    }
+#endif
+    (void)kern;
+    acf_c(x, n, maxlag, r);
+}
+
+dv_real_t dv_priv_ar_dot(const dv_real_t *a, const dv_real_t *b, size_t n, uint32_t kern)
+{
+#if DV_AR_X86
+    if (kern == 2u) {
+        return dot_avx512(a, b, n);
+    }
+    if (kern == 1u) {
+        return dot_avx2(a, b, n);
+    }
+#endif
+    (void)kern;
+    return dot_c(a, b, n);
+}
+
+void dv_priv_ar_fir(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
+                    dv_real_t *e, uint32_t kern)
+{
+#if DV_AR_X86
+    if (kern == 2u) {
+        fir_avx512(a, p, c0, x, n, e);
+        return;
+    }
+    if (kern == 1u) {
+        fir_avx2(a, p, c0, x, n, e);
+        return;
+    }
+#endif
+    (void)kern;
+    fir_c(a, p, c0, x, n, e);
+}
+
+void dv_priv_ar_burg_step(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k, dv_real_t *num,
+                          dv_real_t *den, uint32_t kern)
+{
+#if DV_AR_X86
+    if (kern == 2u) {
+        burg_avx512(f, b, len, k, num, den);
+        return;
+    }
+    if (kern == 1u) {
+        burg_avx2(f, b, len, k, num, den);
+        return;
+    }
+#endif
+    (void)kern;
+    burg_c(f, b, len, k, num, den);
+}
