@@ -1,0 +1,154 @@
+"""firmware_sim on the host without CAN (-i none): frames fed from a candump -L file with
+--replay, then a real Modbus TCP client (pymodbus) reads features and counters, writes
+configuration, and gets proper exceptions for bad requests. Also: busy port, missing
+interface. Needs build/e2e (tests/e2e/run_e2e.sh builds it) or DV_E2E_BUILD.
+"""
+
+from __future__ import annotations
+
+import struct
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "e2e"))
+import dv_e2e as E  # noqa: E402
+
+pymodbus_client = pytest.importorskip("pymodbus.client")
+pytestmark = pytest.mark.skipif(not E.SIM_BIN.exists(),
+                                reason=f"{E.SIM_BIN} not built (tests/e2e/run_e2e.sh)")
+
+N_SAMPLES = 2 * E.SEG * E.NSEG
+
+
+def write_log(path: Path, frames: list[E.Frame]) -> None:
+    with open(path, "w") as f:
+        for i, fr in enumerate(frames):
+            ident = f"{fr.id:08X}" if fr.extended else f"{fr.id:03X}"
+            f.write(f"({1700000000 + i * 1e-3:.6f}) vcan0 {ident}#{fr.data.hex().upper()}\n")
+
+
+def logged_features(path: Path) -> dict[tuple[int, int, int], int]:
+    out = {}
+    for ln in path.read_text().splitlines():
+        _, _, fr = ln.split()
+        ident, data = fr.split("#")
+        if int(ident, 16) == E.ID_FEATURE and len(ident) == 3:
+            k, v = E.feature_key(bytes.fromhex(data))
+            out[k] = v
+    return out
+
+
+@pytest.fixture
+def damaged(tmp_path):
+    x = E.test_signal(N_SAMPLES, seed=21)
+    lsbs = [E.lsb_for(x[:, c]) for c in range(E.N_CHAN)]
+    clean = E.sample_frames(E.quantise(x, lsbs))
+    frames, inj = E.inject_faults(clean, E.N_CHAN * 200, np.random.default_rng(9), n_each=4)
+    setup = [E.chcfg(c, E.FS_HZ, lsbs[c]) for c in range(E.N_CHAN)] + [E.ctrl(E.CTRL_START)]
+    log = tmp_path / "in.log"
+    write_log(log, setup + frames)
+    return log, setup + frames, inj, lsbs
+
+
+@pytest.fixture
+def sim(tmp_path, damaged):
+    s = E.Sim(["-i", "none", "--replay", str(damaged[0]), *E.SIM_ARGS], tmp_path)
+    yield s
+    assert s.stop() == 0, s.stderr()
+
+
+def test_sim_replay_counters_and_features(sim, damaged):
+    _, frames, inj, lsbs = damaged
+    rm = E.regmap()
+    with pymodbus_client.ModbusTcpClient("127.0.0.1", port=sim.port, timeout=10) as c:
+        regs = E.read_inputs(c, rm["SIM_IR_CH_BASE"] + rm["SIM_IR_CH_STRIDE"] * rm["SIM_MAX_CHAN"])
+    assert regs[rm["SIM_IR_VERSION"]] == rm["SIM_REGMAP_VERSION"]
+    assert regs[rm["SIM_IR_N_CHAN"]] == E.N_CHAN
+    got = {k: E.u32(regs, rm[f"SIM_IR_{k}"]) for k in
+           ("RX_FRAMES", "LOST", "DUP", "LATE", "BAD_DLC", "UNKNOWN_ID", "NAN_SAMPLES", "STALE")}
+    assert got == {"RX_FRAMES": len(frames), "LOST": inj.lost, "DUP": inj.dup,
+                   "LATE": inj.late, "BAD_DLC": inj.bad_dlc, "UNKNOWN_ID": inj.unknown,
+                   "NAN_SAMPLES": inj.nan, "STALE": 0}
+    want = E.offline_features(E.accepted_stream(frames), lsbs)
+    assert logged_features(sim.log) == want
+    for ch in range(E.N_CHAN):
+        b = rm["SIM_IR_CH_BASE"] + rm["SIM_IR_CH_STRIDE"] * ch
+        last_rec = max(k[2] for k in want if k[0] == ch and k[1] == 0x11)
+        assert E.u32(regs, b + rm["SIM_IR_CH_REC_STD"]) == want[(ch, 0x11, last_rec)]
+        assert E.u32(regs, b + rm["SIM_IR_CH_RECORDS"]) == last_rec + 1
+    # stage status registers: observer and AR are reported, not faked
+    assert regs[rm["SIM_IR_OBS_STATUS"]] in (rm["SIM_STAGE_NOT_CONFIGURED"],
+                                             rm["SIM_STAGE_RUNNING"])
+
+
+def test_sim_modbus_write_config_takes_effect(sim):
+    rm = E.regmap()
+    with pymodbus_client.ModbusTcpClient("127.0.0.1", port=sim.port, timeout=10) as c:
+        before = E.read_inputs(c, 200)
+        assert E.u32(before, rm["SIM_IR_CH_BASE"] + rm["SIM_IR_CH_RECORDS"]) > 0
+        w = c.write_register(rm["SIM_HR_WIN_LEN"], 128)
+        assert not w.isError()
+        assert c.read_holding_registers(rm["SIM_HR_WIN_LEN"], count=1).registers == [128]
+        after = E.read_inputs(c, 200)
+        # re-initialised: record count restarts, latest features read NaN until recomputed
+        b = rm["SIM_IR_CH_BASE"]
+        assert E.u32(after, b + rm["SIM_IR_CH_RECORDS"]) == 0
+        assert np.isnan(E.f32(after, b + rm["SIM_IR_CH_REC_STD"]))
+        assert E.u32(after, rm["SIM_IR_CFG_WRITES"]) == E.u32(before, rm["SIM_IR_CFG_WRITES"]) + 1
+        # counters are kept across re-init
+        assert E.u32(after, rm["SIM_IR_LOST"]) == E.u32(before, rm["SIM_IR_LOST"])
+        # a float register pair: the lsb of channel 2
+        lsb = struct.unpack(">I", struct.pack(">f", 0.5))[0]
+        w = c.write_registers(rm["SIM_HR_LSB"] + 4, [lsb >> 16, lsb & 0xFFFF])
+        assert not w.isError()
+        r = c.read_holding_registers(rm["SIM_HR_LSB"] + 4, count=2).registers
+        assert E.bits_f32((r[0] << 16) | r[1]) == 0.5
+
+
+def test_sim_modbus_bad_requests_get_exceptions(sim):
+    rm = E.regmap()
+    n_in = rm["SIM_IR_CH_BASE"] + rm["SIM_IR_CH_STRIDE"] * rm["SIM_MAX_CHAN"]
+    n_hold = rm["SIM_HR_FS_CH"] + rm["SIM_MAX_CHAN"]
+    with pymodbus_client.ModbusTcpClient("127.0.0.1", port=sim.port, timeout=10) as c:
+        r = c.read_input_registers(n_in - 1, count=2)  # runs past the end
+        assert r.isError() and r.exception_code == 2
+        r = c.read_holding_registers(n_hold, count=1)
+        assert r.isError() and r.exception_code == 2
+        r = c.read_coils(0, count=1)  # no coils in this map
+        assert r.isError() and r.exception_code == 2
+        for addr, val in [(rm["SIM_HR_N_CHAN"], 0), (rm["SIM_HR_N_CHAN"], 9),
+                          (rm["SIM_HR_N_SEG"], 5000), (rm["SIM_HR_FORCE_CHAN"], 7)]:
+            r = c.write_register(addr, val)
+            assert r.isError() and r.exception_code == 3, (addr, val)
+        nan = struct.unpack(">I", struct.pack(">f", float("nan")))[0]
+        r = c.write_registers(rm["SIM_HR_LSB"], [nan >> 16, nan & 0xFFFF])
+        assert r.isError() and r.exception_code == 3
+        r = c.write_register(n_hold, 1)
+        assert r.isError() and r.exception_code == 2
+        assert c.read_holding_registers(rm["SIM_HR_N_CHAN"], count=1).registers == [E.N_CHAN]
+    # functions the server does not implement: exception 1 (illegal function)
+    for fc in (0x08, 0x2B, 0x41):
+        rsp = E.raw_modbus(sim.port, bytes([fc, 0, 0, 0, 0]))
+        assert rsp == bytes([fc | 0x80, 1]), (fc, rsp)
+    # still serving
+    with pymodbus_client.ModbusTcpClient("127.0.0.1", port=sim.port, timeout=10) as c:
+        assert not c.read_input_registers(0, count=1).isError()
+
+
+def test_sim_busy_port_and_bad_usage(sim, tmp_path):
+    import subprocess
+    r = subprocess.run([str(E.SIM_BIN), "-i", "none", "-p", str(sim.port)], capture_output=True,
+                       text=True, timeout=20)
+    assert r.returncode == 4 and "busy" in r.stderr
+    r = subprocess.run([str(E.SIM_BIN), "-w", "1"], capture_output=True, text=True, timeout=20)
+    assert r.returncode == 2 and "usage" in r.stderr
+
+
+def test_sim_missing_can_interface(tmp_path):
+    import subprocess
+    r = subprocess.run([str(E.SIM_BIN), "-i", "nosuchcan0", "-p", str(E.free_port())],
+                       capture_output=True, text=True, timeout=20)
+    assert r.returncode == 3 and "CAN" in r.stderr
