@@ -1,6 +1,11 @@
-/* The per-channel feature bundle: one NaN check, then every feature module. */
+/* The per-channel feature bundle. Per sample: one NaN check and the sliding window's inlined
+ * kernel, which keeps the sample in its ring. Every block (<= DV_BLOCK_LEN samples, never more
+ * than the ring holds) the other features take the block from the ring in tight loops: power
+ * sums about the segment's first sample feed the record moments and the segmented STD, and
+ * the temporal moments run their block kernel. Same results, far fewer loads and stores. */
 #include "dynval/dv_chan.h"
 #include "dynval/dv_config.h"
+#include "dv_feat_core.h"
 #include "dv_priv.h"
 
 dv_status_t dv_chan_init(dv_chan_t *s, const dv_chan_config_t *cfg, dv_real_t *buf,
@@ -31,10 +36,17 @@ dv_status_t dv_chan_init(dv_chan_t *s, const dv_chan_config_t *cfg, dv_real_t *b
         return st;
     }
     s->cfg = *cfg;
-    s->records = 0u;
-    s->n_nonfinite = 0u;
-    s->last_tm_st = DV_ENOTREADY;
+    s->blk_max = cfg->win_len < DV_BLOCK_LEN ? cfg->win_len : DV_BLOCK_LEN;
+    dv_chan_reset(s);
     return DV_OK;
+}
+
+static void clear_block(dv_chan_t *s)
+{
+    s->p[0] = s->p[1] = s->p[2] = s->p[3] = DV_R(0.0);
+    s->pmin = DV_REAL_MAX;
+    s->pmax = -DV_REAL_MAX;
+    s->blk = 0u;
 }
 
 void dv_chan_reset(dv_chan_t *s)
@@ -47,6 +59,9 @@ void dv_chan_reset(dv_chan_t *s)
     s->records = 0u;
     s->n_nonfinite = 0u;
     s->last_tm_st = DV_ENOTREADY;
+    s->shift = s->seg1 = s->seg2 = DV_R(0.0);
+    s->seg_pos = 0u;
+    clear_block(s);
 }
 
 static void close_record(dv_chan_t *s)
@@ -58,6 +73,83 @@ static void close_record(dv_chan_t *s)
     s->records++;
 }
 
+/* Hand the open block to the record moments; at a segment end also to the segmented STD. */
+static dv_status_t close_block(dv_chan_t *s)
+{
+    dv_priv_moments_push_block(&s->rec, s->shift, s->blk, s->p, s->pmin, s->pmax);
+    s->seg1 += s->p[0];
+    s->seg2 += s->p[1];
+    clear_block(s);
+    if (s->seg_pos < s->cfg.seg_len) {
+        return DV_OK;
+    }
+    const dv_status_t st = dv_priv_segstd_push(&s->seg, s->seg1, s->seg2);
+    s->seg1 = s->seg2 = DV_R(0.0);
+    s->seg_pos = 0u;
+    if (st == DV_RECORD) {
+        close_record(s);
+    }
+    return st;
+}
+
+/* Power sums, extremes and temporal moments of n consecutive finite samples of the block. */
+static void add_span(dv_chan_t *s, const dv_real_t *restrict x, size_t n, bool starts_segment)
+{
+    if (starts_segment) {
+        s->shift = x[0]; /* power sums about the segment's first sample */
+    }
+    (void)dv_temporal_update_block(&s->tm, x, n);
+    const dv_real_t k = s->shift;
+    dv_real_t a[4] = {0}, b[4] = {0};
+    dv_real_t mn = s->pmin, mx = s->pmax;
+    size_t i = 0u;
+    for (; i + 1u < n; i += 2u) {
+        const dv_real_t u = x[i] - k, v = x[i + 1u] - k;
+        const dv_real_t u2 = u * u, v2 = v * v;
+        a[0] += u;
+        b[0] += v;
+        a[1] += u2;
+        b[1] += v2;
+        a[2] += u2 * u;
+        b[2] += v2 * v;
+        a[3] += u2 * u2;
+        b[3] += v2 * v2;
+        mn = x[i] < mn ? x[i] : mn;
+        mx = x[i] > mx ? x[i] : mx;
+        mn = x[i + 1u] < mn ? x[i + 1u] : mn;
+        mx = x[i + 1u] > mx ? x[i + 1u] : mx;
+    }
+    for (; i < n; i++) {
+        const dv_real_t u = x[i] - k, u2 = u * u;
+        a[0] += u;
+        a[1] += u2;
+        a[2] += u2 * u;
+        a[3] += u2 * u2;
+        mn = x[i] < mn ? x[i] : mn;
+        mx = x[i] > mx ? x[i] : mx;
+    }
+    for (int q = 0; q < 4; q++) {
+        s->p[q] += a[q] + b[q];
+    }
+    s->pmin = mn;
+    s->pmax = mx;
+}
+
+/* The last blk samples sit in the sliding ring, ending just before its head. */
+static dv_status_t close_ring_block(dv_chan_t *s)
+{
+    const uint32_t len = s->win.len, n = s->blk;
+    const uint32_t end = s->win.head == 0u ? len : s->win.head;
+    const bool starts = s->seg_pos == n;
+    if (end >= n) {
+        add_span(s, s->win.ring + (end - n), n, starts);
+    } else { /* the block wraps around the ring's end */
+        add_span(s, s->win.ring + (len - (n - end)), n - end, starts);
+        add_span(s, s->win.ring, end, false);
+    }
+    return close_block(s);
+}
+
 dv_status_t dv_chan_update(dv_chan_t *s, dv_real_t x)
 {
     DV_ASSERT(s != NULL);
@@ -65,14 +157,12 @@ dv_status_t dv_chan_update(dv_chan_t *s, dv_real_t x)
         s->n_nonfinite++;
         return DV_ENUMERIC;
     }
-    (void)dv_moments_update(&s->rec, x);
-    (void)dv_sliding_update(&s->win, x);
-    (void)dv_temporal_update(&s->tm, x);
-    const dv_status_t st = dv_segstd_update(&s->seg, x);
-    if (st == DV_RECORD) {
-        close_record(s);
+    dv_priv_sliding_push(&s->win, x);
+    s->seg_pos++;
+    if (++s->blk < s->blk_max && s->seg_pos < s->cfg.seg_len) {
+        return DV_OK;
     }
-    return st;
+    return close_ring_block(s);
 }
 
 dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, size_t *n_used)
@@ -81,40 +171,35 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
     if (n_used == NULL || (x == NULL && n > 0u)) {
         return DV_EINVAL;
     }
-    /* Samples left in this record (NaN-free case): the modules take that chunk in one go. */
-    const size_t rec_len = (size_t)s->cfg.seg_len * s->cfg.n_seg;
     size_t used = 0u;
     while (used < n) {
-        size_t left = rec_len - (size_t)(s->rec.count % rec_len);
-        size_t chunk = n - used < left ? n - used : left;
+        size_t left = s->blk_max - s->blk;
+        const size_t seg_left = s->cfg.seg_len - s->seg_pos;
+        left = left < seg_left ? left : seg_left;
+        const size_t m = n - used < left ? n - used : left;
         const dv_real_t *p = x + used;
-        /* Any NaN/Inf: take the chunk sample by sample (rare; keeps the bookkeeping simple). */
         bool finite = true;
-        for (size_t i = 0u; i < chunk; i++) {
-            finite = finite && dv_priv_finite(p[i]);
+        for (size_t i = 0u; finite && i < m; i++) {
+            finite = dv_priv_finite(p[i]);
         }
-        if (!finite) {
-            for (size_t i = 0u; i < chunk; i++) {
-                if (dv_chan_update(s, p[i]) == DV_RECORD) {
-                    *n_used = used + i + 1u;
-                    return DV_RECORD;
-                }
+        if (!finite) { /* rare: this stretch goes sample by sample */
+            const dv_status_t st = dv_chan_update(s, p[0]);
+            used++;
+            if (st == DV_RECORD) {
+                *n_used = used;
+                return DV_RECORD;
             }
-            used += chunk;
             continue;
         }
-        (void)dv_moments_update_block(&s->rec, p, chunk);
-        (void)dv_sliding_update_block(&s->win, p, chunk);
-        (void)dv_temporal_update_block(&s->tm, p, chunk);
-        dv_status_t st = DV_OK;
-        for (size_t i = 0u; i < chunk; i++) {
-            st = dv_segstd_update(&s->seg, p[i]);
-        }
-        used += chunk;
-        if (st == DV_RECORD) {
-            close_record(s);
-            *n_used = used;
-            return DV_RECORD;
+        (void)dv_sliding_update_block(&s->win, p, m);
+        s->blk += (uint32_t)m;
+        s->seg_pos += (uint32_t)m;
+        used += m;
+        if (s->blk == s->blk_max || s->seg_pos == s->cfg.seg_len) {
+            if (close_ring_block(s) == DV_RECORD) {
+                *n_used = used;
+                return DV_RECORD;
+            }
         }
     }
     *n_used = used;

@@ -1,6 +1,7 @@
 /* Cumulative basic statistics: shifted power sums per block, merged exactly per block. */
 #include "dynval/dv_moments.h"
 #include "dynval/dv_config.h"
+#include "dv_feat_core.h"
 #include "dv_priv.h"
 
 dv_status_t dv_moments_init(dv_moments_t *s)
@@ -24,6 +25,29 @@ void dv_moments_reset(dv_moments_t *s)
     s->n_nonfinite = 0u;
 }
 
+static void merge_sums(dv_moments_t *s, dv_real_t shift, dv_real_t n, const dv_real_t p[4])
+{
+    dv_priv_cm_t a = {s->n, s->mean, s->m2, s->m3, s->m4};
+    dv_priv_cm_t b;
+    dv_priv_cm_from_sums(&b, shift, n, p[0], p[1], p[2], p[3]);
+    dv_priv_cm_merge(&a, &b);
+    s->n = a.n;
+    s->mean = a.mean;
+    s->m2 = a.m2;
+    s->m3 = a.m3;
+    s->m4 = a.m4;
+}
+
+void dv_priv_moments_push_block(dv_moments_t *m, dv_real_t shift, uint32_t n, const dv_real_t p[4],
+                                dv_real_t min, dv_real_t max)
+{
+    merge_sums(m, shift, (dv_real_t)n, p);
+    m->min = min < m->min ? min : m->min;
+    m->max = max > m->max ? max : m->max;
+    m->count += n;
+    m->shift = m->mean;
+}
+
 static void open_block_moments(const dv_moments_t *s, dv_priv_cm_t *b)
 {
     dv_priv_cm_from_sums(b, s->shift, (dv_real_t)s->blk, s->s1, s->s2, s->s3, s->s4);
@@ -32,16 +56,9 @@ static void open_block_moments(const dv_moments_t *s, dv_priv_cm_t *b)
 /* Merge the open block into the totals and re-centre the next block on the new mean. */
 static void flush_block(dv_moments_t *s)
 {
-    dv_priv_cm_t a = {s->n, s->mean, s->m2, s->m3, s->m4};
-    dv_priv_cm_t b;
-    open_block_moments(s, &b);
-    dv_priv_cm_merge(&a, &b);
-    s->n = a.n;
-    s->mean = a.mean;
-    s->m2 = a.m2;
-    s->m3 = a.m3;
-    s->m4 = a.m4;
-    s->shift = a.mean;
+    const dv_real_t p[4] = {s->s1, s->s2, s->s3, s->s4};
+    merge_sums(s, s->shift, (dv_real_t)s->blk, p);
+    s->shift = s->mean;
     s->s1 = s->s2 = s->s3 = s->s4 = DV_R(0.0);
     s->blk = 0u;
 }

@@ -1,5 +1,6 @@
 /* Segmented STD: per segment, sums of (x - first sample) and its square. */
 #include "dynval/dv_segstd.h"
+#include "dv_feat_core.h"
 #include "dv_priv.h"
 
 dv_status_t dv_segstd_init(dv_segstd_t *s, size_t seg_len, size_t n_seg, dv_real_t *buf,
@@ -44,13 +45,19 @@ dv_status_t dv_segstd_update(dv_segstd_t *s, dv_real_t x)
     if (++s->pos < s->seg_len) {
         return DV_OK;
     }
+    const dv_status_t st = dv_priv_segstd_push(s, s->s1, s->s2);
+    s->pos = 0u;
+    s->s1 = s->s2 = DV_R(0.0);
+    return st;
+}
+
+dv_status_t dv_priv_segstd_push(dv_segstd_t *s, dv_real_t s1, dv_real_t s2)
+{
     const dv_real_t n = (dv_real_t)s->seg_len;
-    dv_real_t var = (s->s2 - s->s1 * s->s1 / n) / n;
+    dv_real_t var = (s2 - s1 * s1 / n) / n;
     var = var > DV_R(0.0) ? var : DV_R(0.0);
     s->last = DV_SQRT(var);
     s->cur[s->seg] = s->last;
-    s->pos = 0u;
-    s->s1 = s->s2 = DV_R(0.0);
     if (++s->seg < s->n_seg) {
         return DV_DONE;
     }

@@ -2,6 +2,7 @@
  * extremes from suffix (previous turn) and prefix (current turn) maxima. */
 #include "dynval/dv_sliding.h"
 #include "dynval/dv_config.h"
+#include "dv_feat_core.h"
 #include "dv_priv.h"
 
 dv_status_t dv_sliding_init(dv_sliding_t *s, size_t len, dv_real_t *buf, size_t buf_len)
@@ -28,34 +29,71 @@ void dv_sliding_reset(dv_sliding_t *s)
     s->premin = DV_REAL_MAX;
     s->shift = DV_R(0.0);
     for (int k = 0; k < 4; k++) {
-        s->s[k] = s->f[k] = DV_R(0.0);
+        s->s[k] = DV_R(0.0);
     }
-    s->count = 0u;
     s->n_nonfinite = 0u;
 }
 
-/* The ring has turned over: f holds exactly the window's sums, free of add/subtract round-off.
- * Adopt them, re-centre on the window mean (a drifting signal keeps small d), and take the
- * suffix extremes of this turn for the next one. */
-static void turn_over(dv_sliding_t *s)
+/* The ring has turned over and holds exactly the window. Recompute its sums from scratch about
+ * its own mean (no add/subtract round-off survives a turn, and a drifting signal keeps small
+ * d), and take the suffix extremes of this turn for the next one. */
+void dv_priv_sliding_turn_over(dv_sliding_t *s)
 {
-    const dv_real_t n = (dv_real_t)s->len;
-    const dv_real_t delta = s->f[0] / n; /* window mean - shift */
-    for (int k = 0; k < 4; k++) {
-        s->s[k] = s->f[k];
-        s->f[k] = DV_R(0.0);
-    }
-    dv_priv_sums_shift(s->s, n, -delta);
-    s->s[0] = DV_R(0.0); /* deviations from the mean sum to 0 by definition */
-    s->shift += delta;
+    const dv_real_t *restrict r = s->ring;
+    const uint32_t n = s->len;
+    dv_real_t *restrict smax = s->sufmax;
+    dv_real_t *restrict smin = s->sufmin;
     dv_real_t mx = -DV_REAL_MAX, mn = DV_REAL_MAX;
-    for (uint32_t i = s->len; i-- > 0u;) {
-        const dv_real_t v = s->ring[i];
+    dv_real_t a = DV_R(0.0), b = DV_R(0.0); /* two lanes: sum of x - shift */
+    const dv_real_t k0 = s->shift;
+    uint32_t i = n;
+    for (; i >= 2u; i -= 2u) {
+        const dv_real_t v = r[i - 1u], w = r[i - 2u];
+        a += v - k0;
+        b += w - k0;
         mx = v > mx ? v : mx;
         mn = v < mn ? v : mn;
-        s->sufmax[i] = mx;
-        s->sufmin[i] = mn;
+        smax[i - 1u] = mx;
+        smin[i - 1u] = mn;
+        mx = w > mx ? w : mx;
+        mn = w < mn ? w : mn;
+        smax[i - 2u] = mx;
+        smin[i - 2u] = mn;
     }
+    if (i == 1u) {
+        const dv_real_t v = r[0];
+        a += v - k0;
+        mx = v > mx ? v : mx;
+        mn = v < mn ? v : mn;
+        smax[0] = mx;
+        smin[0] = mn;
+    }
+    const dv_real_t k = k0 + (a + b) / (dv_real_t)n; /* the window mean, to round-off */
+    dv_real_t p1[2] = {0}, p2[2] = {0}, p3[2] = {0}, p4[2] = {0};
+    for (i = 0u; i + 1u < n; i += 2u) {
+        const dv_real_t u = r[i] - k, v = r[i + 1u] - k;
+        const dv_real_t u2 = u * u, v2 = v * v;
+        p1[0] += u;
+        p1[1] += v;
+        p2[0] += u2;
+        p2[1] += v2;
+        p3[0] += u2 * u;
+        p3[1] += v2 * v;
+        p4[0] += u2 * u2;
+        p4[1] += v2 * v2;
+    }
+    if (i < n) {
+        const dv_real_t u = r[i] - k, u2 = u * u;
+        p1[0] += u;
+        p2[0] += u2;
+        p3[0] += u2 * u;
+        p4[0] += u2 * u2;
+    }
+    s->shift = k;
+    s->s[0] = p1[0] + p1[1]; /* ~0, but k is the mean only to round-off */
+    s->s[1] = p2[0] + p2[1];
+    s->s[2] = p3[0] + p3[1];
+    s->s[3] = p4[0] + p4[1];
     s->premax = -DV_REAL_MAX;
     s->premin = DV_REAL_MAX;
     s->head = 0u;
@@ -68,33 +106,7 @@ dv_status_t dv_sliding_update(dv_sliding_t *s, dv_real_t x)
         s->n_nonfinite++;
         return DV_ENUMERIC;
     }
-    if (s->count == 0u) {
-        s->shift = x;
-    }
-    const dv_real_t d = x - s->shift;
-    const dv_real_t d2 = d * d;
-    const dv_real_t d3 = d2 * d, d4 = d2 * d2;
-    if (s->fill == s->len) {
-        const dv_real_t e = s->ring[s->head] - s->shift;
-        const dv_real_t e2 = e * e;
-        s->s[0] += d - e;
-        s->s[1] += d2 - e2;
-        s->s[2] += d3 - e2 * e;
-        s->s[3] += d4 - e2 * e2;
-    } else {
-        s->fill++;
-    }
-    s->f[0] += d;
-    s->f[1] += d2;
-    s->f[2] += d3;
-    s->f[3] += d4;
-    s->premax = x > s->premax ? x : s->premax;
-    s->premin = x < s->premin ? x : s->premin;
-    s->ring[s->head] = x;
-    s->count++;
-    if (++s->head == s->len) {
-        turn_over(s);
-    }
+    dv_priv_sliding_push(s, x);
     return DV_OK;
 }
 
@@ -111,7 +123,7 @@ dv_status_t dv_sliding_update_block(dv_sliding_t *s, const dv_real_t *x, size_t 
         size_t m = s->len - s->head;
         m = m < n - i ? m : n - i;
         bool fast = s->fill == s->len && m >= 8u;
-        const dv_real_t *p = x + i;
+        const dv_real_t *restrict p = x + i;
         for (size_t j = 0u; fast && j < m; j++) {
             fast = dv_priv_finite(p[j]);
         }
@@ -122,9 +134,9 @@ dv_status_t dv_sliding_update_block(dv_sliding_t *s, const dv_real_t *x, size_t 
             i++;
             continue;
         }
-        /* Sums of the entering and the leaving samples, two interleaved lanes each. */
+        /* Sums of the entering minus the leaving samples, two interleaved lanes. */
         const dv_real_t k = s->shift;
-        dv_real_t *old = s->ring + s->head;
+        dv_real_t *restrict old = s->ring + s->head;
         dv_real_t a[4] = {0}, b[4] = {0}, oa[4] = {0}, ob[4] = {0};
         dv_real_t mx = s->premax, mn = s->premin;
         size_t j = 0u;
@@ -168,19 +180,16 @@ dv_status_t dv_sliding_update_block(dv_sliding_t *s, const dv_real_t *x, size_t 
             mn = p[j] < mn ? p[j] : mn;
         }
         for (int q = 0; q < 4; q++) {
-            const dv_real_t in = a[q] + b[q];
-            s->s[q] += in - (oa[q] + ob[q]);
-            s->f[q] += in;
+            s->s[q] += (a[q] + b[q]) - (oa[q] + ob[q]);
         }
         for (j = 0u; j < m; j++) {
             old[j] = p[j];
         }
         s->premax = mx;
         s->premin = mn;
-        s->count += m;
         s->head += (uint32_t)m;
         if (s->head == s->len) {
-            turn_over(s);
+            dv_priv_sliding_turn_over(s);
         }
         i += m;
     }

@@ -1,6 +1,7 @@
 /* Temporal moments: x^2-weighted time moments, per block in local time, merged exactly. */
 #include "dynval/dv_temporal.h"
 #include "dynval/dv_config.h"
+#include "dv_feat_core.h"
 #include "dv_priv.h"
 
 dv_status_t dv_temporal_init(dv_temporal_t *s, dv_real_t dt_s)
@@ -29,7 +30,7 @@ static void open_block(const dv_temporal_t *s, dv_priv_cm_t *b)
     dv_priv_cm_from_sums(b, s->t0, s->s0, s->s1, s->s2, s->s3, s->s4);
 }
 
-static void flush_block(dv_temporal_t *s)
+void dv_priv_temporal_flush(dv_temporal_t *s)
 {
     if (s->s0 > DV_R(0.0)) {
         dv_priv_cm_t a = {s->w, s->mean, s->m2, s->m3, s->m4};
@@ -51,26 +52,17 @@ static void flush_block(dv_temporal_t *s)
 dv_status_t dv_temporal_update(dv_temporal_t *s, dv_real_t x)
 {
     DV_ASSERT(s != NULL);
-    dv_status_t st = DV_OK;
     if (dv_priv_finite(x)) {
-        const dv_real_t w = x * x;
-        const dv_real_t t = s->tau;
-        const dv_real_t w1 = w * t, w2 = w1 * t;
-        s->s0 += w;
-        s->s1 += w1;
-        s->s2 += w2;
-        s->s3 += w2 * t;
-        s->s4 += w2 * (t * t);
-        s->count++;
-    } else {
-        s->n_nonfinite++;
-        st = DV_ENUMERIC;
+        dv_priv_temporal_push(s, x);
+        return DV_OK;
     }
+    /* The sample clock ticked: keep the time slot, add no energy. */
+    s->n_nonfinite++;
     s->tau += DV_R(1.0);
     if (++s->blk == DV_BLOCK_LEN) {
-        flush_block(s);
+        dv_priv_temporal_flush(s);
     }
-    return st;
+    return DV_ENUMERIC;
 }
 
 dv_status_t dv_temporal_update_block(dv_temporal_t *s, const dv_real_t *x, size_t n)
@@ -124,7 +116,7 @@ dv_status_t dv_temporal_update_block(dv_temporal_t *s, const dv_real_t *x, size_
             s->s4 = a4 + b4;
             s->tau = (dv_real_t)DV_BLOCK_LEN;
             s->count += DV_BLOCK_LEN;
-            flush_block(s);
+            dv_priv_temporal_flush(s);
         }
         i += DV_BLOCK_LEN;
     }

@@ -2,8 +2,8 @@
  * @file dv_sliding.h
  * @brief Basic statistics over a sliding window of the last N samples, O(1) per sample.
  *
- * Mean, STD, RMS, skewness, kurtosis from shifted power sums with add/subtract; a second set
- * of sums restarted every N samples replaces the running ones when the window turns over, so
+ * Mean, STD, RMS, skewness, kurtosis from shifted power sums with add/subtract; each time the
+ * ring turns over, the sums are recomputed exactly from the ring (O(1) amortised), so
  * round-off cannot drift however long the stream. Min/max/peak are exact and branch-free: the
  * window is the tail of the previous turn of the ring (its suffix extremes, computed once per
  * turn) plus the head of the current turn (running extremes) (van Herk / Gil-Werman).
@@ -33,8 +33,6 @@ typedef struct {
     dv_real_t premin;     /**< min of ring[0..head-1] in the current turn */
     dv_real_t shift;      /**< shift of the power sums */
     dv_real_t s[4];       /**< window sums of d, d^2, d^3, d^4, d = x - shift */
-    dv_real_t f[4];       /**< the same sums restarted when head last wrapped */
-    uint64_t count;       /**< accepted samples since init/reset */
     uint64_t n_nonfinite; /**< NaN/Inf samples dropped */
 } dv_sliding_t;
 

@@ -1,0 +1,177 @@
+#!/usr/bin/env python3
+"""Run every benchmark and write bench/RESULTS.md: the one place for the project's figures.
+
+    python3 bench/run.py            # build (Release, float and double), run, write RESULTS.md
+    python3 bench/run.py --quick    # fewer repeats (smoke run, e.g. in CI)
+
+Each bench/bench_<mod>.c program follows one protocol: `--list` prints its cases, `CASE REPS`
+prints `case=CASE units=U unit=UNIT ns=X` (median ns per unit over REPS). Times are medians of
+several processes (this host is shared and noisy); instruction counts come from valgrind
+callgrind as the difference between two REPS values (setup cancels), which is repeatable.
+bench/compare_<mod>.py modules give the same-run comparisons (numpy/scipy), and
+bench/targets.json the targets each figure is judged against.
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import importlib.util
+import json
+import logging
+import os
+import platform
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+BENCH = ROOT / "bench"
+log = logging.getLogger("bench")
+LINE = re.compile(r"case=(\S+) units=(\d+) unit=(\S+) ns=([0-9.eE+-]+)")
+
+
+def build(real: str) -> Path:
+    bdir = ROOT / "build" / f"bench-{'f64' if real == 'double' else 'f32'}"
+    subprocess.run(["cmake", "-S", str(ROOT), "-B", str(bdir), "-DCMAKE_BUILD_TYPE=Release",
+                    f"-DDV_REAL_TYPE={real}", "-DDV_BUILD_TESTS=OFF", "-DDV_BUILD_BENCH=ON"],
+                   check=True, stdout=subprocess.DEVNULL)
+    subprocess.run(["cmake", "--build", str(bdir), "-j2"], check=True, stdout=subprocess.DEVNULL)
+    return bdir / "bench"
+
+
+def run_case(exe: Path, case: str, reps: int) -> tuple[int, str, float]:
+    out = subprocess.run([str(exe), case, str(reps)], check=True, capture_output=True,
+                         text=True).stdout
+    m = LINE.search(out)
+    if m is None:
+        raise RuntimeError(f"{exe.name} {case}: no result line in {out!r}")
+    return int(m.group(2)), m.group(3), float(m.group(4))
+
+
+def instructions(exe: Path, case: str, units: int) -> float | None:
+    if shutil.which("valgrind") is None:
+        return None
+    counts = []
+    for reps in (1, 3):
+        r = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
+                            str(exe), case, str(reps)], capture_output=True, text=True)
+        m = re.search(r"Collected : (\d+)", r.stderr)
+        if r.returncode != 0 or m is None:
+            return None
+        counts.append(int(m.group(1)))
+    # the bench runs one warm-up plus REPS timed runs: the difference is 2 runs of the case
+    return (counts[1] - counts[0]) / (2 * units)
+
+
+def load_compare(mod_file: Path) -> list[dict]:
+    spec = importlib.util.spec_from_file_location(mod_file.stem, mod_file)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return list(mod.compare())
+
+
+def cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="few repeats: a smoke run")
+    ap.add_argument("--out", type=Path, default=BENCH / "RESULTS.md")
+    ap.add_argument("--only", default="", help="comma-separated bench program names")
+    args = ap.parse_args()
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    procs, reps = (1, 5) if args.quick else (5, 31)
+    targets = json.loads((BENCH / "targets.json").read_text()) if (BENCH / "targets.json").exists() else {}
+
+    rows: dict[str, list[dict]] = {}
+    sizes: list[str] = []
+    for real in ("double", "float"):
+        bdir = build(real)
+        for exe in sorted(bdir.glob("bench_*")):
+            if not os.access(exe, os.X_OK) or exe.suffix:
+                continue
+            if args.only and exe.name not in args.only.split(","):
+                continue
+            cases = subprocess.run([str(exe), "--list"], capture_output=True, text=True,
+                                   check=True).stdout.split()
+            sz = subprocess.run([str(exe), "--sizes"], capture_output=True, text=True)
+            if sz.returncode == 0:
+                for line in sz.stdout.splitlines():
+                    sizes.append(f"| {exe.name} | {real} | {line} |")
+            for case in cases:
+                log.info("%s %s %s", real, exe.name, case)
+                ns = []
+                units, unit = 0, ""
+                for _ in range(procs):
+                    units, unit, v = run_case(exe, case, reps)
+                    ns.append(v)
+                instr = instructions(exe, case, units)
+                rows.setdefault(exe.name, []).append(
+                    {"case": case, "real": real, "unit": unit, "ns": statistics.median(ns),
+                     "ns_min": min(ns), "ns_max": max(ns), "instr": instr})
+
+    comps: dict[str, list[dict]] = {}
+    for f in sorted(BENCH.glob("compare_*.py")):
+        try:
+            for c in load_compare(f):
+                comps.setdefault(c["case"], []).append(c)
+        except Exception as exc:  # a comparison that cannot run is reported, not hidden
+            log.warning("%s failed: %s", f.name, exc)
+            comps.setdefault("_failed", []).append({"what": f"{f.name}: {exc}"})
+
+    out = ["# dynval benchmark results", "",
+           f"Generated by `python3 bench/run.py` on {dt.date.today().isoformat()}; host: "
+           f"{cpu_name()}, {os.cpu_count()} cores, {platform.system()} {platform.release()}.",
+           "Times: median of per-process medians (ns per unit; min-max over processes in "
+           "brackets) — this host is shared and noisy. Instructions: valgrind callgrind, per "
+           "unit, the stable figure. Comparisons are measured in the same run.", ""]
+    for prog, rs in rows.items():
+        out += [f"## {prog}", "", "| case | real | ns/unit [min-max] | instr/unit | target | met |",
+                "|---|---|---|---|---|---|"]
+        for r in rs:
+            tgt = targets.get(r["case"], {}).get(r["real"])
+            met = ""
+            tdesc = ""
+            if tgt:
+                parts, ok = [], True
+                if "ns" in tgt:
+                    parts.append(f"<= {tgt['ns']} ns")
+                    ok = ok and r["ns"] <= tgt["ns"]
+                if "instr" in tgt and r["instr"] is not None:
+                    parts.append(f"<= {tgt['instr']} instr")
+                    ok = ok and r["instr"] <= tgt["instr"]
+                tdesc, met = ", ".join(parts), ("yes" if ok else "**no**")
+            instr = f"{r['instr']:.1f}" if r["instr"] is not None else "n/a"
+            out.append(f"| {r['case']} | {r['real']} | {r['ns']:.2f} [{r['ns_min']:.2f}-"
+                       f"{r['ns_max']:.2f}] /{r['unit']} | {instr} | {tdesc} | {met} |")
+            for c in comps.get(r["case"], []) if r["real"] == "double" else []:
+                extra = "".join(f", {k} {v:.3g}" for k, v in c.items()
+                                if k not in ("case", "what", "ns", "unit") and isinstance(v, float))
+                out.append(f"| ↳ comparison: {c['what']} | double | {c['ns']:.2f} /{c['unit']}"
+                           f" | | ratio dynval/this {r['ns'] / c['ns']:.2f}{extra} | |")
+        out.append("")
+    if sizes:
+        out += ["## State sizes", "", "| program | real | size |", "|---|---|---|", *sizes, ""]
+    for c in comps.get("_failed", []):
+        out.append(f"- comparison not run: {c['what']}")
+    extra = BENCH / "RESULTS.extra.md"
+    if extra.exists():
+        out += ["", extra.read_text()]
+    args.out.write_text("\n".join(out) + "\n")
+    log.info("wrote %s", args.out.relative_to(ROOT))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

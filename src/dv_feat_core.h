@@ -1,0 +1,67 @@
+/* Per-sample kernels shared by a feature module and the channel bundle (dv_chan.c), inlined
+ * so that the bundle pays one NaN check and no calls per sample. Callers pass finite x. */
+#ifndef DV_FEAT_CORE_H
+#define DV_FEAT_CORE_H
+
+#include "dynval/dv_config.h"
+#include "dynval/dv_moments.h"
+#include "dynval/dv_segstd.h"
+#include "dynval/dv_sliding.h"
+#include "dynval/dv_temporal.h"
+
+void dv_priv_sliding_turn_over(dv_sliding_t *s);
+void dv_priv_temporal_flush(dv_temporal_t *s);
+
+/* Merge a complete block of n samples, given as power sums p[k] = sum (x - shift)^(k+1) and
+ * its extremes, into the record totals. The moments' own open block must be empty. */
+void dv_priv_moments_push_block(dv_moments_t *m, dv_real_t shift, uint32_t n, const dv_real_t p[4],
+                                dv_real_t min, dv_real_t max);
+
+/* Store the STD of a complete segment from s1 = sum (x - shift), s2 = sum (x - shift)^2.
+ * Returns DV_DONE, or DV_RECORD when it was the record's last segment. */
+dv_status_t dv_priv_segstd_push(dv_segstd_t *s, dv_real_t s1, dv_real_t s2);
+
+static inline void dv_priv_sliding_push(dv_sliding_t *s, dv_real_t x)
+{
+    if (s->fill == 0u) {
+        s->shift = x; /* first sample since reset: centre the sums on it */
+    }
+    const dv_real_t d = x - s->shift;
+    const dv_real_t d2 = d * d;
+    const dv_real_t d3 = d2 * d, d4 = d2 * d2;
+    if (s->fill == s->len) {
+        const dv_real_t e = s->ring[s->head] - s->shift;
+        const dv_real_t e2 = e * e;
+        s->s[0] += d - e;
+        s->s[1] += d2 - e2;
+        s->s[2] += d3 - e2 * e;
+        s->s[3] += d4 - e2 * e2;
+    } else {
+        s->fill++;
+    }
+    s->premax = x > s->premax ? x : s->premax;
+    s->premin = x < s->premin ? x : s->premin;
+    s->ring[s->head] = x;
+    if (++s->head == s->len) {
+        dv_priv_sliding_turn_over(s);
+    }
+}
+
+static inline void dv_priv_temporal_push(dv_temporal_t *s, dv_real_t x)
+{
+    const dv_real_t w = x * x;
+    const dv_real_t t = s->tau;
+    const dv_real_t w1 = w * t, w2 = w1 * t;
+    s->s0 += w;
+    s->s1 += w1;
+    s->s2 += w2;
+    s->s3 += w2 * t;
+    s->s4 += w2 * (t * t);
+    s->count++;
+    s->tau += DV_R(1.0);
+    if (++s->blk == DV_BLOCK_LEN) {
+        dv_priv_temporal_flush(s);
+    }
+}
+
+#endif /* DV_FEAT_CORE_H */
