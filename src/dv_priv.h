@@ -85,4 +85,31 @@ void dv_priv_ar_fir(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t 
 void dv_priv_ar_burg_step(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k, dv_real_t *num,
                           dv_real_t *den, uint32_t kern);
 
+/* Contact force law of dv_model.h, one side: s = X - gap; 0, then kB s^2 / (2 delta) on the
+ * transition, then kB (s - delta / 2). Continuous force and tangent stiffness. */
+static inline dv_real_t dv_priv_contact_g1(dv_real_t s, dv_real_t delta, dv_real_t kb)
+{
+    if (s <= DV_R(0.0)) {
+        return DV_R(0.0);
+    }
+    if (s < delta) {
+        return kb * s * s / (DV_R(2.0) * delta);
+    }
+    return kb * (s - DV_R(0.5) * delta);
+}
+
+/* Both sides: side bit 1 = positive (X > gap), bit 2 = negative (X < -gap, mirrored). */
+static inline dv_real_t dv_priv_contact_g(int side, dv_real_t gap, dv_real_t delta,
+                                          dv_real_t kb, dv_real_t x)
+{
+    dv_real_t g = DV_R(0.0);
+    if ((side & 1) != 0) {
+        g += dv_priv_contact_g1(x - gap, delta, kb);
+    }
+    if ((side & 2) != 0) {
+        g -= dv_priv_contact_g1(-x - gap, delta, kb);
+    }
+    return g;
+}
+
 #endif /* DV_PRIV_H */

@@ -18,4 +18,8 @@
 #include "dynval/dv_arx.h"
 #include "dynval/dv_arstats.h"
 
+#include "dynval/dv_mat.h"
+#include "dynval/dv_model.h"
+#include "dynval/dv_obs.h"
+
 #endif /* DV_H */

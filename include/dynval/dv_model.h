@@ -1,0 +1,280 @@
+/**
+ * @file dv_model.h
+ * @brief n-DOF lumped-mass chain with contact elements (report Section 4.1, eq. 1-7, 45-46),
+ *        built at init: eigen-solution, damping, and an exact first-order-hold discretisation.
+ *
+ * Equations of motion (eq. 1-2): M x'' + C x' + K x = f(t) + f_contact(x).
+ * - Chain: DOF i (0-based) has mass m_i > 0. Story spring k_0 ties DOF 0 to the ground
+ *   (k_0 = 0 leaves the chain free, with a rigid-body mode), k_i (i >= 1) ties DOF i-1 to
+ *   DOF i. K is the tridiagonal matrix of eq. 2.
+ * - Damping: DV_DAMP_MODAL: C = M Phi diag(2 zeta_k w_k) Phi^T M with mass-normalised modes
+ *   (Phi^T M Phi = I), which is eq. 5 since Phi^-1 = Phi^T M; DV_DAMP_RAYLEIGH: C = a M + b K
+ *   with a, b from two modal ratios (eq. 45-46: zeta_k = a / (2 w_k) + b w_k / 2);
+ *   DV_DAMP_MATRIX: C given (symmetric, N s/m). Damping acts on velocities relative to the
+ *   ground frame.
+ * - Input (one scalar per sample, u):
+ *   DV_INPUT_FORCE: a force u (N) at DOF input_dof; states are absolute.
+ *   DV_INPUT_GROUND_ACC: ground acceleration u (m/s^2); states are relative to the ground
+ *   (z = x - x_g), M z'' + C z' + K z = -M 1 u. Acceleration outputs are absolute; velocity and
+ *   displacement outputs are relative to the ground.
+ *   DV_INPUT_GROUND_DISP: ground displacement u (m), e.g. an actuator stroke; states are
+ *   absolute and the ground elements see x - x_g: f = K 1 u + C 1 u'. u' is the slope of the
+ *   first-order-hold interpolant (exact for it); outputs that depend on u' use the slope of the
+ *   interval that ends at the sample.
+ * - Contact element c between DOF a and DOF b (or the ground, a = DV_GROUND), relative
+ *   displacement X = x_b - x_a (x_ground = 0, or u for DV_INPUT_GROUND_DISP, and 0 in the
+ *   relative coordinates of DV_INPUT_GROUND_ACC). Force law, side DV_CONTACT_POS, s = X - gap:
+ *       g(X) = 0                               s <= 0
+ *       g(X) = kB s^2 / (2 delta)              0 < s < delta
+ *       g(X) = kB (s - delta / 2)              s >= delta
+ *   i.e. the tangent stiffness dg/dX rises linearly from 0 to kB over [gap, gap + delta]
+ *   (eq. 6-7, on top of the story spring, kc = k_b): force and stiffness are continuous.
+ *   delta = 0 gives a plain bilinear spring g = kB max(s, 0). DV_CONTACT_NEG mirrors it:
+ *   g(X) = -g_pos(-X) (engages when X < -gap); DV_CONTACT_BOTH is the sum of the two.
+ *   The element pushes DOF a by +g and DOF b by -g (it resists X growing past the gap).
+ *
+ * Discretisation, sample period T: the linear part is exact for an input linear between
+ * samples (first-order hold), from the exponential of the augmented matrix
+ * [[A T, B T, 0], [0, 0, I], [0, 0, 0]] = [[Ad, G0, G1], ...], giving
+ * x[k+1] = Ad x[k] + (G0 - G1) u[k] + G1 u[k+1]. The contact forces are extra inputs with
+ * the same hold on n_sub sub-intervals of h = T / n_sub: at each sub-node the relative
+ * displacements are predicted exactly from the state, the input and the earlier sub-node
+ * forces, and the implicit force at the node is resolved by DV_MODEL_FP_ITERS fixed-point
+ * iterations, so a step always costs the same. The end state adds all sub-node forces through
+ * precomputed columns. Error: O((w_c h)^2) in the contact force's effect, w_c the contact
+ * stiffened frequency; init refuses w_max h > DV_MODEL_CONTACT_MAX_WH.
+ */
+#ifndef DV_MODEL_H
+#define DV_MODEL_H
+
+#include "dynval/dv_types.h"
+#include "dynval/dv_config.h"
+#include "dynval/dv_mat.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** DOF index that stands for the ground in a contact element. */
+enum { DV_GROUND = 65535 };
+
+/** Fixed-point iterations that resolve each implicit sub-node contact force. */
+#define DV_MODEL_FP_ITERS 2u
+
+/** Largest (highest natural frequency with all contacts engaged, rad/s) x (dt / n_sub). */
+#define DV_MODEL_CONTACT_MAX_WH 1.0
+
+/** How the damping matrix is given. */
+typedef enum {
+    DV_DAMP_MODAL = 0,    /**< modal ratios zeta[k] per mode, ascending frequency (eq. 3-5) */
+    DV_DAMP_RAYLEIGH = 1, /**< C = a M + b K from two modal ratios (eq. 45-46) */
+    DV_DAMP_MATRIX = 2    /**< explicit symmetric matrix c_n_s_per_m */
+} dv_damp_kind_t;
+
+/** What the scalar input u is. */
+typedef enum {
+    DV_INPUT_FORCE = 0,      /**< force at input_dof, N */
+    DV_INPUT_GROUND_ACC = 1, /**< ground acceleration, m/s^2 */
+    DV_INPUT_GROUND_DISP = 2 /**< ground displacement, m */
+} dv_input_kind_t;
+
+/** Which side(s) of a contact engage. */
+typedef enum {
+    DV_CONTACT_POS = 1, /**< engages for X > gap */
+    DV_CONTACT_NEG = 2, /**< engages for X < -gap */
+    DV_CONTACT_BOTH = 3 /**< both */
+} dv_contact_side_t;
+
+/** Output channel kinds. */
+typedef enum {
+    DV_OUT_ACC = 0,       /**< acceleration of DOF index, m/s^2 (absolute) */
+    DV_OUT_VEL = 1,       /**< velocity of DOF index, m/s */
+    DV_OUT_DISP = 2,      /**< displacement of DOF index, m */
+    DV_OUT_ELEM_FORCE = 3, /**< story spring index: k_i (x_i - x_{i-1}), N (x_{-1} = ground) */
+    DV_OUT_CONTACT_FORCE = 4, /**< contact element index: g(X), N */
+    DV_OUT_REACTION = 5   /**< force of the structure on the ground, N (index ignored) */
+} dv_out_kind_t;
+
+/** @brief One contact element. */
+typedef struct {
+    uint16_t dof_a;          /**< first DOF (0-based), or DV_GROUND */
+    uint16_t dof_b;          /**< second DOF (0-based), X = x_b - x_a; not the ground */
+    dv_contact_side_t side;  /**< DV_CONTACT_POS / NEG / BOTH */
+    dv_real_t gap_m;         /**< gap, m, >= 0 */
+    dv_real_t delta_m;       /**< transition width, m, >= 0 (0: plain bilinear) */
+    dv_real_t kb_n_per_m;    /**< contact stiffness kB, N/m, >= 0 */
+} dv_contact_desc_t;
+
+/** @brief One output channel. */
+typedef struct {
+    dv_out_kind_t kind; /**< what */
+    uint16_t index;     /**< DOF, story or contact index (0-based) */
+} dv_out_desc_t;
+
+/** @brief Declarative model description (plain data; fill it, then dv_model_init()). */
+typedef struct {
+    uint16_t n_dof;                          /**< 1..DV_MAX_DOF */
+    dv_real_t mass_kg[DV_MAX_DOF];           /**< masses, kg, > 0 */
+    dv_real_t k_n_per_m[DV_MAX_DOF];         /**< k[0]: ground-DOF0 (>= 0); k[i]: DOF i-1..i */
+    dv_damp_kind_t damp_kind;                /**< how damping is given */
+    dv_real_t zeta[DV_MAX_DOF];              /**< DV_DAMP_MODAL: ratio per mode, >= 0 */
+    uint16_t rayleigh_mode[2];               /**< DV_DAMP_RAYLEIGH: two mode indices (0-based) */
+    dv_real_t rayleigh_zeta[2];              /**< DV_DAMP_RAYLEIGH: their ratios */
+    dv_real_t c_n_s_per_m[DV_MAX_DOF * DV_MAX_DOF]; /**< DV_DAMP_MATRIX: n x n, stride n */
+    dv_input_kind_t input_kind;              /**< what u is */
+    uint16_t input_dof;                      /**< DV_INPUT_FORCE: the loaded DOF */
+    uint16_t n_contact;                      /**< 0..DV_MAX_CONTACT */
+    dv_contact_desc_t contact[DV_MAX_CONTACT]; /**< contact elements */
+    uint16_t n_sub;                          /**< contact sub-steps per sample, 1..DV_MAX_SUB */
+    uint16_t n_out;                          /**< 1..DV_MAX_OUT */
+    dv_out_desc_t out[DV_MAX_OUT];           /**< output channels, in order */
+} dv_model_desc_t;
+
+/** State size (2 n: displacements then velocities). */
+#define DV_MODEL_NS(n) (2u * (n))
+/** Sub-node contact forces per step. */
+#define DV_MODEL_NF(nc, nsub) (((nsub) + 1u) * (nc))
+/** Size of the augmented matrix exponentiated at init. */
+#define DV_MODEL_NAUG(n, nc) (2u * (n) + 4u + 2u * (nc))
+
+/**
+ * Storage for dv_model_init(), in elements: the model's matrices (kept for the model's
+ * lifetime) and the init-time scratch, for @p n DOF, @p nc contacts, @p nsub sub-steps and
+ * @p nout outputs (nc = 0 needs no sub-step storage).
+ */
+#define DV_MODEL_BUF_LEN(n, nc, nsub, nout)                                                     \
+    (3u * (n) * (n) + 3u * DV_MODEL_NS(n) * DV_MODEL_NS(n) +                                  \
+     DV_MODEL_NS(n) * (4u + 2u * (nc)) + (nout) * (DV_MODEL_NS(n) + 2u + (nc)) +              \
+     DV_MODEL_NF(nc, nsub) * (2u * DV_MODEL_NS(n) + 2u + DV_MODEL_NF(nc, nsub)) +             \
+     8u * DV_MODEL_NAUG(n, nc) * DV_MODEL_NAUG(n, nc) + 64u)
+
+/** @brief A built model. Fields are private; the arrays point into the caller's buffer. */
+typedef struct {
+    uint16_t n_dof;       /**< n */
+    uint16_t n_state;     /**< 2 n */
+    uint16_t n_out;       /**< outputs */
+    uint16_t n_contact;   /**< contacts */
+    uint16_t n_sub;       /**< sub-steps (1 without contacts) */
+    uint16_t n_f;         /**< sub-node contact forces per step, (n_sub + 1) n_contact */
+    dv_input_kind_t input_kind; /**< input */
+    dv_real_t dt_s;       /**< sample period, s */
+    dv_real_t mass_kg[DV_MAX_DOF];  /**< masses */
+    dv_real_t freq_hz[DV_MAX_DOF];  /**< undamped natural frequencies, ascending, Hz */
+    dv_real_t zeta[DV_MAX_DOF];     /**< modal damping ratios of C (diagonal of Phi^T C Phi) */
+    dv_real_t rayleigh_a;           /**< Rayleigh a, 1/s (DV_DAMP_RAYLEIGH, else 0) */
+    dv_real_t rayleigh_b;           /**< Rayleigh b, s (DV_DAMP_RAYLEIGH, else 0) */
+    dv_real_t w_contact_max;        /**< highest natural frequency, contacts engaged, rad/s */
+    dv_contact_desc_t contact[DV_MAX_CONTACT]; /**< copies of the contact elements */
+    dv_real_t contact_dx[DV_MAX_CONTACT];      /**< dX/du (-1: ground end follows u) */
+    dv_real_t *kmat;  /**< K, n x n */
+    dv_real_t *cmat;  /**< C, n x n */
+    dv_real_t *modes; /**< Phi, n x n, mass-normalised, column k = mode k */
+    dv_real_t *ac;    /**< continuous A, 2n x 2n */
+    dv_real_t *bc;    /**< continuous B, 2n x (2 + nc): u, u' (ground disp), contact forces */
+    dv_real_t *ad;    /**< Ad = exp(A T), 2n x 2n */
+    dv_real_t *pa;    /**< 2n: coefficient of u[k] in x[k+1] */
+    dv_real_t *pb;    /**< 2n: coefficient of u[k+1] in x[k+1] */
+    dv_real_t *cy;    /**< nout x 2n output matrix */
+    dv_real_t *d0;    /**< nout: coefficient of u[k] in y[k] */
+    dv_real_t *d1;    /**< nout: coefficient of u[k-1] in y[k] */
+    dv_real_t *ey;    /**< nout x nc: coefficient of the contact forces in y[k] */
+    dv_real_t *rx;    /**< nf x 2n: sub-node X from x[k] */
+    dv_real_t *rxa;   /**< nf: sub-node X from u[k] */
+    dv_real_t *rxb;   /**< nf: sub-node X from u[k+1] */
+    dv_real_t *smat;  /**< nf x nf: sub-node X from sub-node forces (block lower triangular) */
+    dv_real_t *vmat;  /**< 2n x nf: x[k+1] from sub-node forces */
+} dv_model_t;
+
+/** @brief Read-only views of a model's matrices (for checks and bindings). */
+typedef enum {
+    DV_MODEL_MAT_K = 0,  /**< n x n */
+    DV_MODEL_MAT_C = 1,  /**< n x n */
+    DV_MODEL_MAT_MODES = 2, /**< n x n */
+    DV_MODEL_MAT_A = 3,  /**< 2n x 2n */
+    DV_MODEL_MAT_B = 4,  /**< 2n x (2 + nc) */
+    DV_MODEL_MAT_AD = 5, /**< 2n x 2n */
+    DV_MODEL_MAT_PA = 6, /**< 2n x 1 */
+    DV_MODEL_MAT_PB = 7, /**< 2n x 1 */
+    DV_MODEL_MAT_CY = 8, /**< nout x 2n */
+    DV_MODEL_MAT_D0 = 9, /**< nout x 1 */
+    DV_MODEL_MAT_D1 = 10 /**< nout x 1 */
+} dv_model_mat_id_t;
+
+/**
+ * @brief Fill @p d with a neutral description: zeros, n_sub = 8, DV_CONTACT_POS sides,
+ *        DV_DAMP_MODAL, DV_INPUT_FORCE at DOF 0. The caller then sets n_dof, masses, ...
+ * @retval DV_OK     done
+ * @retval DV_EINVAL @p d is NULL
+ */
+dv_status_t dv_model_desc_default(dv_model_desc_t *d);
+
+/**
+ * @brief Storage dv_model_init() needs for @p d, in elements (DV_MODEL_BUF_LEN()).
+ * @return the length, or 0 when @p d is NULL or its sizes are out of range
+ */
+size_t dv_model_buf_len(const dv_model_desc_t *d);
+
+/**
+ * @brief Build the model: eigen-solution, damping, state space, discretisation at @p dt_s.
+ * @param[out] m     model
+ * @param[in]  d     description (copied; need not outlive @p m)
+ * @param[in]  dt_s  sample period, s, > 0
+ * @param[in]  buf   storage of dv_model_buf_len(d) elements; must outlive @p m
+ * @param[in]  len   elements in @p buf
+ * @retval DV_OK        built
+ * @retval DV_EINVAL    NULL pointer; n_dof, n_out, n_contact or n_sub out of range; a mass
+ *                      <= 0; a negative stiffness, gap, delta or kB; a negative modal ratio;
+ *                      a non-finite number; a bad DOF/story/contact index; Rayleigh modes
+ *                      equal or with zero frequency; an asymmetric damping matrix; dt_s <= 0
+ * @retval DV_ESIZE     @p len too small
+ * @retval DV_EUNSTABLE the damping matrix is not positive semi-definite (e.g. a negative
+ *                      Rayleigh b that makes a mode's ratio negative), the discretisation is
+ *                      not finite, or the sample period is too long for the contact stiffness
+ *                      (w_contact_max * dt_s / n_sub > DV_MODEL_CONTACT_MAX_WH)
+ */
+dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_s,
+                          dv_real_t *buf, size_t len);
+
+/**
+ * @brief Natural frequencies (Hz, ascending) and mass-normalised mode shapes.
+ * @param[in]  m        built model
+ * @param[out] freq_hz  n frequencies, or NULL
+ * @param[out] modes    n x n row-major, column k = mode k, or NULL
+ * @param[in]  len      elements available in @p modes (>= n * n when modes is given)
+ * @retval DV_OK     done
+ * @retval DV_EINVAL @p m is NULL or not built
+ * @retval DV_ESIZE  @p len < n * n with @p modes given
+ */
+dv_status_t dv_model_get_modes(const dv_model_t *m, dv_real_t *freq_hz, dv_real_t *modes,
+                               size_t len);
+
+/**
+ * @brief A read-only view of one of the model's matrices.
+ * @retval DV_OK     @p view set (data points into the model's storage; do not write)
+ * @retval DV_EINVAL NULL argument, model not built, or unknown @p which
+ */
+dv_status_t dv_model_get_mat(const dv_model_t *m, dv_model_mat_id_t which, dv_mat_t *view);
+
+/**
+ * @brief Rayleigh coefficients from two modes (eq. 45-46): zeta = a / (2 w) + b w / 2.
+ * @param[in]  w_r, w_s   the two circular frequencies, rad/s, > 0 and different
+ * @param[in]  zeta_r, zeta_s  their damping ratios
+ * @param[out] a  mass coefficient, 1/s
+ * @param[out] b  stiffness coefficient, s
+ * @retval DV_OK     done
+ * @retval DV_EINVAL NULL output, a frequency <= 0 or non-finite, or w_r == w_s
+ */
+dv_status_t dv_model_rayleigh(dv_real_t w_r, dv_real_t zeta_r, dv_real_t w_s, dv_real_t zeta_s,
+                              dv_real_t *a, dv_real_t *b);
+
+/**
+ * @brief The contact force law g(X) documented above (N), for tests and bindings.
+ * @return g(X); 0 when @p c is NULL
+ */
+dv_real_t dv_contact_force(const dv_contact_desc_t *c, dv_real_t x_m);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DV_MODEL_H */

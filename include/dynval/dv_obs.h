@@ -1,0 +1,184 @@
+/**
+ * @file dv_obs.h
+ * @brief Fixed-step observer of a dv_model_t: open-loop prediction, optional constant
+ *        (steady-state Kalman) correction, and the residual measured - predicted per channel.
+ *
+ * One call per sample k with the input u[k] and the measured outputs y[k]:
+ *   x-[k]  = Ad x[k-1] + Pa u[k-1] + Pb u[k] + V g[k]      (exact first-order hold, contacts
+ *                                                         through sub-node forces g[k])
+ *   yhat[k] = Cy x-[k] + D0 u[k] + D1 u[k-1] + Ey g_end[k]  (prediction)
+ *   r[k]   = y[k] - yhat[k]                               (residual / innovation)
+ *   x[k]   = x-[k] + L r[k]                               (L = 0: open loop)
+ * All of it is one column-major matrix-vector product over [x, u[k-1], u[k], g, y] with the
+ * gain folded in, so the cost per step is fixed. The first sample only evaluates the output
+ * (the structure is at rest at t = 0, x = 0). L is the steady-state Kalman gain of the linear
+ * part for a white force of variance q at each DOF (held over a sample) and white measurement
+ * noise of variance r per channel, from the filter DARE solved by the structure-preserving
+ * doubling algorithm at init, or set by the caller.
+ */
+#ifndef DV_OBS_H
+#define DV_OBS_H
+
+#include "dynval/dv_types.h"
+#include "dynval/dv_config.h"
+#include "dynval/dv_model.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Largest number of doubling steps of the DARE solver (each doubles the horizon). */
+#define DV_OBS_DARE_MAX_ITER 80u
+
+/** Bits of dv_obs_t.flags after a step. */
+#define DV_OBS_FLAG_BAD_INPUT 0x1u /**< u was NaN/Inf: nothing changed */
+#define DV_OBS_FLAG_BAD_MEAS 0x2u  /**< a measured channel was NaN/Inf: predicted, not corrected */
+#define DV_OBS_FLAG_NO_MEAS 0x4u   /**< no measurement given: predicted only */
+
+/** @brief Noise model for the steady-state Kalman gain. */
+typedef struct {
+    dv_real_t q_force_n2[DV_MAX_DOF]; /**< variance of a white force at each DOF, N^2, >= 0 */
+    dv_real_t r_meas[DV_MAX_OUT];     /**< measurement noise variance per output, > 0 */
+} dv_obs_noise_t;
+
+/** Storage for dv_obs_init(), in elements (state, folded matrices, gain, DARE scratch). */
+#define DV_OBS_BUF_LEN(n, nc, nsub, nout)                                                       \
+    (2u * (DV_MODEL_NS(n) + (nout)) * (DV_MODEL_NS(n) + 2u + DV_MODEL_NF(nc, nsub) + (nout)) + \
+     DV_MODEL_NS(n) * (nout) + 3u * (DV_MODEL_NS(n) + (nout) + DV_MODEL_NF(nc, nsub)) +        \
+     10u * DV_MODEL_NS(n) * DV_MODEL_NS(n) + 3u * (nout) * DV_MODEL_NS(n) + (nout) * (nout) +  \
+     7u * (DV_MODEL_NS(n) + (n)) * (DV_MODEL_NS(n) + (n)) + 64u)
+
+/** @brief Observer instance. Fields are private; arrays point into the caller's buffer. */
+typedef struct {
+    const dv_model_t *m; /**< the model (must outlive the observer) */
+    uint16_t ns;         /**< states */
+    uint16_t no;         /**< outputs */
+    uint16_t nf;         /**< sub-node contact forces */
+    uint16_t nrows;      /**< ns + no: rows of the folded matrices */
+    uint16_t ncol_open;  /**< ns + 2 + nf */
+    uint16_t ncol_gain;  /**< ns + 2 + nf + no */
+    bool has_gain;       /**< L != 0 */
+    bool started;        /**< the first sample has been seen */
+    uint32_t flags;      /**< DV_OBS_FLAG_* of the last step */
+    uint64_t n_steps;    /**< accepted steps */
+    uint64_t n_bad_input; /**< steps refused for a NaN/Inf input */
+    uint64_t n_bad_meas;  /**< steps with a NaN/Inf measured channel */
+    dv_real_t *sv;       /**< [x (ns), u[k-1], u[k], g (nf), y (no)] */
+    dv_real_t *z;        /**< [x (ns), yhat (no)] product */
+    dv_real_t *resid;    /**< no residuals of the last step */
+    dv_real_t *f_open;   /**< nrows x ncol_open, column-major, L = 0 */
+    dv_real_t *f_gain;   /**< nrows x ncol_gain, column-major, with L */
+    dv_real_t *gain;     /**< L, ns x no row-major */
+    dv_real_t *scratch;  /**< init-time scratch */
+    size_t scratch_len;  /**< elements in scratch */
+} dv_obs_t;
+
+/**
+ * @brief Storage dv_obs_init() needs for model @p m, in elements.
+ * @return DV_OBS_BUF_LEN() for the model's sizes, or 0 when @p m is NULL
+ */
+size_t dv_obs_buf_len(const dv_model_t *m);
+
+/**
+ * @brief Bind an observer to a built model; with @p noise, solve for the Kalman gain.
+ * @param[out] o      observer
+ * @param[in]  m      built model (dv_model_init()); must outlive @p o
+ * @param[in]  noise  noise model for the gain, or NULL for open loop (L = 0)
+ * @param[in]  buf    storage of dv_obs_buf_len(m) elements; must outlive @p o
+ * @param[in]  len    elements in @p buf
+ * @retval DV_OK        ready; state at rest
+ * @retval DV_EINVAL    NULL @p o, @p m or @p buf, model not built, a negative or non-finite
+ *                      q, or an r <= 0 or non-finite
+ * @retval DV_ESIZE     @p len too small
+ * @retval DV_EUNSTABLE the DARE did not converge (an undetectable undamped mode, e.g. a free
+ *                      rigid-body mode seen only through accelerations) or is singular
+ */
+dv_status_t dv_obs_init(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_t *noise,
+                        dv_real_t *buf, size_t len);
+
+/**
+ * @brief Set the correction gain L (or remove it) and refold the step matrix.
+ * @param[in,out] o     observer
+ * @param[in]     gain  L, ns x no row-major (x += L r), or NULL for open loop
+ * @param[in]     len   elements in @p gain (>= ns * no unless NULL)
+ * @retval DV_OK       set; the state is kept
+ * @retval DV_EINVAL   @p o NULL or not initialised, or a non-finite gain element
+ * @retval DV_ESIZE    @p len too small
+ */
+dv_status_t dv_obs_set_gain(dv_obs_t *o, const dv_real_t *gain, size_t len);
+
+/**
+ * @brief Copy the gain L (zeros in open loop).
+ * @retval DV_OK     copied, ns * no elements
+ * @retval DV_EINVAL NULL argument
+ * @retval DV_ESIZE  @p len < ns * no
+ */
+dv_status_t dv_obs_get_gain(const dv_obs_t *o, dv_real_t *gain, size_t len);
+
+/** @brief Back to rest: x = 0, no previous input, counters cleared; the gain is kept. */
+void dv_obs_reset(dv_obs_t *o);
+
+/**
+ * @brief One sample: predict, form the residual, correct (see the file comment).
+ * @param[in,out] o       observer
+ * @param[in]     u       input at this sample (N, m/s^2 or m, per the model)
+ * @param[in]     y_meas  no measured outputs, or NULL to predict only
+ * @retval DV_OK       done; dv_obs_get() gives the prediction and residual
+ * @retval DV_ENUMERIC @p u is NaN/Inf: state, prediction and residual held (flag
+ *                     DV_OBS_FLAG_BAD_INPUT); or a measured channel is NaN/Inf: predicted
+ *                     without correction, that channel's residual set to 0 (flag
+ *                     DV_OBS_FLAG_BAD_MEAS)
+ */
+dv_status_t dv_obs_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas);
+
+/**
+ * @brief Prediction and residual of the last step.
+ * @param[out] y_pred  no predicted outputs, or NULL
+ * @param[out] resid   no residuals (0 where no finite measurement), or NULL
+ * @param[in]  len     elements available in each non-NULL array
+ * @retval DV_OK        copied
+ * @retval DV_ENOTREADY no step yet; outputs untouched
+ * @retval DV_EINVAL    @p o NULL
+ * @retval DV_ESIZE     @p len < no
+ */
+dv_status_t dv_obs_get(const dv_obs_t *o, dv_real_t *y_pred, dv_real_t *resid, size_t len);
+
+/**
+ * @brief The state estimate x = [displacements; velocities] (2n elements).
+ * @retval DV_OK / DV_EINVAL (NULL) / DV_ESIZE (len < 2n)
+ */
+dv_status_t dv_obs_get_state(const dv_obs_t *o, dv_real_t *x, size_t len);
+
+/**
+ * @brief Run @p n samples through dv_obs_step(), continuing from the current state.
+ * @param[in,out] o       observer
+ * @param[in]     u       n inputs
+ * @param[in]     y_meas  n x no measured outputs, row-major, or NULL (prediction only)
+ * @param[in]     n       samples
+ * @param[out]    y_pred  n x no predictions, row-major, or NULL; a refused sample (NaN
+ *                        input) repeats the previous row (0 before the first)
+ * @param[out]    resid   n x no residuals, row-major, or NULL
+ * @retval DV_OK       all samples accepted
+ * @retval DV_ENUMERIC at least one sample had a NaN/Inf input or measurement (see
+ *                     dv_obs_step(); the others were processed)
+ * @retval DV_EINVAL   @p o or @p u NULL with @p n > 0
+ */
+dv_status_t dv_obs_update_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y_meas,
+                                size_t n, dv_real_t *y_pred, dv_real_t *resid);
+
+/**
+ * @brief Simulate a record from rest, open loop (the gain is ignored): reset, then the
+ *        same step code as dv_obs_step() for each sample.
+ * @param[in,out] o       observer (its state is left at the end of the record)
+ * @param[in]     u       n inputs
+ * @param[in]     n       samples
+ * @param[out]    y       n x no outputs, row-major
+ * @retval DV_OK / DV_ENUMERIC / DV_EINVAL as dv_obs_update_block() (@p y NULL is DV_EINVAL)
+ */
+dv_status_t dv_obs_simulate(dv_obs_t *o, const dv_real_t *u, size_t n, dv_real_t *y);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DV_OBS_H */

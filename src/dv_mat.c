@@ -1,0 +1,317 @@
+/* Small dense matrix kernels used at init by the model and the observer. */
+#include "dynval/dv_mat.h"
+#include "dv_priv.h"
+
+#define EL(m, i, j) ((m)->data[(size_t)(i) * (m)->cols + (size_t)(j)])
+
+static bool mat_ok(const dv_mat_t *a)
+{
+    return a != NULL && a->data != NULL && a->rows > 0u && a->cols > 0u;
+}
+
+dv_status_t dv_mat_mul(const dv_mat_t *a, const dv_mat_t *b, dv_mat_t *c)
+{
+    if (!mat_ok(a) || !mat_ok(b) || !mat_ok(c) || a->cols != b->rows || c->rows != a->rows ||
+        c->cols != b->cols) {
+        return DV_EINVAL;
+    }
+    for (size_t i = 0; i < a->rows; i++) {
+        for (size_t j = 0; j < b->cols; j++) {
+            EL(c, i, j) = DV_R(0.0);
+        }
+        for (size_t k = 0; k < a->cols; k++) {
+            const dv_real_t aik = EL(a, i, k);
+            for (size_t j = 0; j < b->cols; j++) {
+                EL(c, i, j) += aik * EL(b, k, j);
+            }
+        }
+    }
+    return DV_OK;
+}
+
+dv_status_t dv_mat_solve(dv_mat_t *a, dv_mat_t *b)
+{
+    if (!mat_ok(a) || !mat_ok(b) || a->rows != a->cols || b->rows != a->rows) {
+        return DV_EINVAL;
+    }
+    const size_t n = a->rows;
+    const size_t m = b->cols;
+    dv_real_t amax = DV_R(0.0);
+    for (size_t i = 0; i < n * n; i++) {
+        const dv_real_t v = DV_FABS(a->data[i]);
+        amax = v > amax ? v : amax;
+    }
+    const dv_real_t tiny = (dv_real_t)n * DV_REAL_EPS * amax;
+    if (!(amax > DV_R(0.0))) {
+        return DV_EUNSTABLE;
+    }
+    for (size_t k = 0; k < n; k++) {
+        size_t p = k;
+        dv_real_t best = DV_FABS(EL(a, k, k));
+        for (size_t i = k + 1; i < n; i++) {
+            const dv_real_t v = DV_FABS(EL(a, i, k));
+            if (v > best) {
+                best = v;
+                p = i;
+            }
+        }
+        if (!(best > tiny)) {
+            return DV_EUNSTABLE;
+        }
+        if (p != k) {
+            for (size_t j = 0; j < n; j++) {
+                const dv_real_t t = EL(a, k, j);
+                EL(a, k, j) = EL(a, p, j);
+                EL(a, p, j) = t;
+            }
+            for (size_t j = 0; j < m; j++) {
+                const dv_real_t t = EL(b, k, j);
+                EL(b, k, j) = EL(b, p, j);
+                EL(b, p, j) = t;
+            }
+        }
+        const dv_real_t inv = DV_R(1.0) / EL(a, k, k);
+        for (size_t i = k + 1; i < n; i++) {
+            const dv_real_t f = EL(a, i, k) * inv;
+            if (f == DV_R(0.0)) {
+                continue;
+            }
+            for (size_t j = k; j < n; j++) {
+                EL(a, i, j) -= f * EL(a, k, j);
+            }
+            for (size_t j = 0; j < m; j++) {
+                EL(b, i, j) -= f * EL(b, k, j);
+            }
+        }
+    }
+    for (size_t kk = n; kk-- > 0;) {
+        const dv_real_t inv = DV_R(1.0) / EL(a, kk, kk);
+        for (size_t j = 0; j < m; j++) {
+            dv_real_t s = EL(b, kk, j);
+            for (size_t i = kk + 1; i < n; i++) {
+                s -= EL(a, kk, i) * EL(b, i, j);
+            }
+            EL(b, kk, j) = s * inv;
+        }
+    }
+    return DV_OK;
+}
+
+dv_status_t dv_mat_eig_sym(const dv_mat_t *s, dv_real_t *w, dv_mat_t *v, dv_real_t *work,
+                           size_t len)
+{
+    if (!mat_ok(s) || w == NULL || !mat_ok(v) || work == NULL || s->rows != s->cols ||
+        v->rows != s->rows || v->cols != s->cols) {
+        return DV_EINVAL;
+    }
+    const size_t n = s->rows;
+    if (len < DV_MAT_EIG_WORK_LEN(n)) {
+        return DV_ESIZE;
+    }
+    dv_mat_t a = {s->rows, s->cols, work};
+    dv_real_t scale = DV_R(0.0);
+    for (size_t i = 0; i < n; i++) {
+        for (size_t j = 0; j < n; j++) {
+            const dv_real_t x = i <= j ? EL(s, i, j) : EL(s, j, i);
+            if (!dv_priv_finite(x)) {
+                return DV_ENUMERIC;
+            }
+            EL(&a, i, j) = x;
+            EL(v, i, j) = i == j ? DV_R(1.0) : DV_R(0.0);
+            scale = DV_FABS(x) > scale ? DV_FABS(x) : scale;
+        }
+    }
+    bool converged = false;
+    for (uint32_t sweep = 0; sweep < DV_MAT_JACOBI_MAX_SWEEPS && !converged; sweep++) {
+        dv_real_t off = DV_R(0.0);
+        for (size_t p = 0; p < n; p++) {
+            for (size_t q = p + 1; q < n; q++) {
+                off += EL(&a, p, q) * EL(&a, p, q);
+            }
+        }
+        if (off <= DV_REAL_EPS * DV_REAL_EPS * scale * scale * DV_R(1e-4) || scale == DV_R(0.0)) {
+            converged = true;
+            break;
+        }
+        for (size_t p = 0; p < n; p++) {
+            for (size_t q = p + 1; q < n; q++) {
+                const dv_real_t apq = EL(&a, p, q);
+                if (apq == DV_R(0.0)) {
+                    continue;
+                }
+                /* Rutishauser's stable rotation: t = sgn(theta) / (|theta| + sqrt(theta^2+1)) */
+                const dv_real_t theta = (EL(&a, q, q) - EL(&a, p, p)) / (DV_R(2.0) * apq);
+                dv_real_t t = DV_R(1.0) / (DV_FABS(theta) + DV_SQRT(theta * theta + DV_R(1.0)));
+                if (theta < DV_R(0.0)) {
+                    t = -t;
+                }
+                const dv_real_t c = DV_R(1.0) / DV_SQRT(t * t + DV_R(1.0));
+                const dv_real_t sn = t * c;
+                for (size_t k = 0; k < n; k++) {
+                    const dv_real_t akp = EL(&a, k, p);
+                    const dv_real_t akq = EL(&a, k, q);
+                    EL(&a, k, p) = c * akp - sn * akq;
+                    EL(&a, k, q) = sn * akp + c * akq;
+                }
+                for (size_t k = 0; k < n; k++) {
+                    const dv_real_t apk = EL(&a, p, k);
+                    const dv_real_t aqk = EL(&a, q, k);
+                    EL(&a, p, k) = c * apk - sn * aqk;
+                    EL(&a, q, k) = sn * apk + c * aqk;
+                }
+                EL(&a, p, q) = DV_R(0.0);
+                EL(&a, q, p) = DV_R(0.0);
+                for (size_t k = 0; k < n; k++) {
+                    const dv_real_t vkp = EL(v, k, p);
+                    const dv_real_t vkq = EL(v, k, q);
+                    EL(v, k, p) = c * vkp - sn * vkq;
+                    EL(v, k, q) = sn * vkp + c * vkq;
+                }
+            }
+        }
+    }
+    if (!converged) {
+        /* one more test after the last sweep */
+        dv_real_t off = DV_R(0.0);
+        for (size_t p = 0; p < n; p++) {
+            for (size_t q = p + 1; q < n; q++) {
+                off += EL(&a, p, q) * EL(&a, p, q);
+            }
+        }
+        if (off > DV_REAL_EPS * scale * scale) {
+            return DV_EUNSTABLE;
+        }
+    }
+    for (size_t i = 0; i < n; i++) {
+        w[i] = EL(&a, i, i);
+    }
+    /* selection sort, ascending, carrying the columns of v */
+    for (size_t i = 0; i + 1 < n; i++) {
+        size_t k = i;
+        for (size_t j = i + 1; j < n; j++) {
+            if (w[j] < w[k]) {
+                k = j;
+            }
+        }
+        if (k != i) {
+            const dv_real_t t = w[i];
+            w[i] = w[k];
+            w[k] = t;
+            for (size_t r = 0; r < n; r++) {
+                const dv_real_t x = EL(v, r, i);
+                EL(v, r, i) = EL(v, r, k);
+                EL(v, r, k) = x;
+            }
+        }
+    }
+    for (size_t j = 0; j < n; j++) {
+        size_t big = 0;
+        for (size_t r = 1; r < n; r++) {
+            if (DV_FABS(EL(v, r, j)) > DV_FABS(EL(v, big, j))) {
+                big = r;
+            }
+        }
+        if (EL(v, big, j) < DV_R(0.0)) {
+            for (size_t r = 0; r < n; r++) {
+                EL(v, r, j) = -EL(v, r, j);
+            }
+        }
+    }
+    return DV_OK;
+}
+
+/* c = a * b for n x n blocks of raw storage (no aliasing). */
+static void sq_mul(size_t n, const dv_real_t *a, const dv_real_t *b, dv_real_t *c)
+{
+    for (size_t i = 0; i < n; i++) {
+        dv_real_t *ci = c + i * n;
+        for (size_t j = 0; j < n; j++) {
+            ci[j] = DV_R(0.0);
+        }
+        for (size_t k = 0; k < n; k++) {
+            const dv_real_t aik = a[i * n + k];
+            const dv_real_t *bk = b + k * n;
+            for (size_t j = 0; j < n; j++) {
+                ci[j] += aik * bk[j];
+            }
+        }
+    }
+}
+
+dv_status_t dv_mat_expm(const dv_mat_t *a, dv_mat_t *e, dv_real_t *work, size_t len)
+{
+    if (!mat_ok(a) || !mat_ok(e) || work == NULL || a->rows != a->cols || e->rows != a->rows ||
+        e->cols != a->cols) {
+        return DV_EINVAL;
+    }
+    const size_t n = a->rows;
+    const size_t nn = n * n;
+    if (len < DV_MAT_EXPM_WORK_LEN(n)) {
+        return DV_ESIZE;
+    }
+    dv_real_t *as = work;      /* scaled a */
+    dv_real_t *x = as + nn;    /* powers of as */
+    dv_real_t *num = x + nn;   /* Pade numerator */
+    dv_real_t *den = num + nn; /* Pade denominator */
+    dv_real_t *tmp = den + nn;
+
+    dv_real_t norm = DV_R(0.0);
+    for (size_t i = 0; i < n; i++) {
+        dv_real_t row = DV_R(0.0);
+        for (size_t j = 0; j < n; j++) {
+            const dv_real_t v = a->data[i * n + j];
+            if (!dv_priv_finite(v)) {
+                return DV_ENUMERIC;
+            }
+            row += DV_FABS(v);
+        }
+        norm = row > norm ? row : norm;
+    }
+    /* smallest s >= 0 with norm / 2^s <= 1/2 */
+    int s = 0;
+    dv_real_t sc = DV_R(1.0);
+    while (norm * sc > DV_R(0.5)) {
+        sc *= DV_R(0.5);
+        if (++s > 64) {
+            return DV_ENUMERIC;
+        }
+    }
+    for (size_t i = 0; i < nn; i++) {
+        as[i] = a->data[i] * sc;
+        x[i] = as[i];
+    }
+    const int q = 6;
+    dv_real_t c = DV_R(0.5);
+    for (size_t i = 0; i < nn; i++) {
+        const dv_real_t id = (i % (n + 1u)) == 0u ? DV_R(1.0) : DV_R(0.0);
+        num[i] = id + c * as[i];
+        den[i] = id - c * as[i];
+    }
+    for (int k = 2; k <= q; k++) {
+        c = c * (dv_real_t)(q - k + 1) / (dv_real_t)(k * (2 * q - k + 1));
+        sq_mul(n, as, x, tmp);
+        for (size_t i = 0; i < nn; i++) {
+            x[i] = tmp[i];
+            num[i] += c * x[i];
+            den[i] += ((k & 1) ? -c : c) * x[i];
+        }
+    }
+    dv_mat_t dm = {a->rows, a->cols, den};
+    dv_mat_t nm = {a->rows, a->cols, num};
+    if (dv_mat_solve(&dm, &nm) != DV_OK) {
+        return DV_EUNSTABLE;
+    }
+    for (int k = 0; k < s; k++) {
+        sq_mul(n, num, num, tmp);
+        for (size_t i = 0; i < nn; i++) {
+            num[i] = tmp[i];
+        }
+    }
+    for (size_t i = 0; i < nn; i++) {
+        if (!dv_priv_finite(num[i])) {
+            return DV_EUNSTABLE;
+        }
+        e->data[i] = num[i];
+    }
+    return DV_OK;
+}

@@ -1,0 +1,643 @@
+/* Fixed-step observer: one folded column-major product per sample, contact forces resolved
+ * at the sub-nodes with a fixed number of fixed-point iterations, DARE by doubling at init. */
+#include "dynval/dv_obs.h"
+#include "dv_priv.h"
+
+static size_t obs_len(size_t n, size_t nc, size_t nsub, size_t no)
+{
+    return DV_OBS_BUF_LEN(n, nc, nsub, no);
+}
+
+size_t dv_obs_buf_len(const dv_model_t *m)
+{
+    if (m == NULL || m->kmat == NULL) {
+        return 0u;
+    }
+    return obs_len(m->n_dof, m->n_contact, m->n_sub, m->n_out);
+}
+
+/* Fill the folded matrices from the model and the gain (o->gain, used when has_gain). */
+static void fold(dv_obs_t *o)
+{
+    const dv_model_t *m = o->m;
+    const size_t ns = o->ns;
+    const size_t no = o->no;
+    const size_t nf = o->nf;
+    const size_t nc = m->n_contact;
+    const size_t nr = o->nrows;
+    const size_t nco = o->ncol_open;
+    /* open loop: column j of [x+; yhat] for input column j of [x, u[k-1], u[k], g] */
+    for (size_t j = 0; j < nco; j++) {
+        dv_real_t *col = o->f_open + j * nr;
+        for (size_t r = 0; r < ns; r++) {
+            dv_real_t v;
+            if (j < ns) {
+                v = m->ad[r * ns + j];
+            } else if (j == ns) {
+                v = m->pa[r];
+            } else if (j == ns + 1u) {
+                v = m->pb[r];
+            } else {
+                v = m->vmat[r * nf + (j - ns - 2u)];
+            }
+            col[r] = v;
+        }
+        for (size_t q = 0; q < no; q++) {
+            dv_real_t s = DV_R(0.0);
+            for (size_t r = 0; r < ns; r++) {
+                s += m->cy[q * ns + r] * col[r];
+            }
+            if (j == ns) {
+                s += m->d1[q];
+            } else if (j == ns + 1u) {
+                s += m->d0[q];
+            } else if (j >= ns + 2u) {
+                const size_t f = j - ns - 2u;
+                if (f >= nf - nc) { /* forces at the end node act on the output directly */
+                    s += m->ey[q * nc + (f - (nf - nc))];
+                }
+            }
+            col[ns + q] = s;
+        }
+    }
+    if (!o->has_gain) {
+        return;
+    }
+    /* x+ = x- + L (y - yhat): rows of x- minus L times rows of yhat; y columns carry L */
+    for (size_t j = 0; j < o->ncol_gain; j++) {
+        dv_real_t *col = o->f_gain + j * nr;
+        if (j < nco) {
+            const dv_real_t *src = o->f_open + j * nr;
+            for (size_t r = 0; r < ns; r++) {
+                dv_real_t s = src[r];
+                for (size_t q = 0; q < no; q++) {
+                    s -= o->gain[r * no + q] * src[ns + q];
+                }
+                col[r] = s;
+            }
+            for (size_t q = 0; q < no; q++) {
+                col[ns + q] = src[ns + q];
+            }
+        } else {
+            const size_t q0 = j - nco;
+            for (size_t r = 0; r < ns; r++) {
+                col[r] = o->gain[r * no + q0];
+            }
+            for (size_t q = 0; q < no; q++) {
+                col[ns + q] = DV_R(0.0);
+            }
+        }
+    }
+}
+
+/* ---- DARE by the structure-preserving doubling algorithm (Chu, Fan, Lin 2005) ---------- */
+
+static void mm(size_t n, const dv_real_t *a, bool ta, const dv_real_t *b, bool tb, dv_real_t *c)
+{
+    for (size_t i = 0; i < n; i++) {
+        for (size_t j = 0; j < n; j++) {
+            dv_real_t s = DV_R(0.0);
+            for (size_t k = 0; k < n; k++) {
+                const dv_real_t aik = ta ? a[k * n + i] : a[i * n + k];
+                const dv_real_t bkj = tb ? b[j * n + k] : b[k * n + j];
+                s += aik * bkj;
+            }
+            c[i * n + j] = s;
+        }
+    }
+}
+
+/* X = A^T X (I + G X)^-1 A + H; returns X in h. A, G, H are n x n, overwritten. */
+static dv_status_t sda(size_t n, dv_real_t *a, dv_real_t *g, dv_real_t *h, dv_real_t *w)
+{
+    dv_real_t *wm = w;               /* I + G H */
+    dv_real_t *y = wm + n * n;       /* n x 2n: [W^-1 A, W^-1 G] */
+    dv_real_t *t1 = y + 2u * n * n;
+    dv_real_t *t2 = t1 + n * n;
+    dv_real_t *t3 = t2 + n * n;
+    dv_real_t *y1 = t3 + n * n;
+    dv_real_t *y2 = y1 + n * n;
+    const dv_real_t tol = DV_R(64.0) * DV_REAL_EPS;
+    for (uint32_t it = 0; it < DV_OBS_DARE_MAX_ITER; it++) {
+        mm(n, g, false, h, false, wm);
+        for (size_t i = 0; i < n; i++) {
+            wm[i * n + i] += DV_R(1.0);
+            for (size_t j = 0; j < n; j++) {
+                y[i * 2u * n + j] = a[i * n + j];
+                y[i * 2u * n + n + j] = g[i * n + j];
+            }
+        }
+        dv_mat_t wmat = {(uint16_t)n, (uint16_t)n, wm};
+        dv_mat_t ymat = {(uint16_t)n, (uint16_t)(2u * n), y};
+        if (dv_mat_solve(&wmat, &ymat) != DV_OK) {
+            return DV_EUNSTABLE;
+        }
+        for (size_t i = 0; i < n; i++) {
+            for (size_t j = 0; j < n; j++) {
+                y1[i * n + j] = y[i * 2u * n + j];
+                y2[i * n + j] = y[i * 2u * n + n + j];
+            }
+        }
+        /* H += A^T H Y1 */
+        mm(n, a, true, h, false, t1);
+        mm(n, t1, false, y1, false, t2);
+        dv_real_t dn = DV_R(0.0);
+        dv_real_t hn = DV_R(0.0);
+        for (size_t i = 0; i < n * n; i++) {
+            dn += DV_FABS(t2[i]);
+        }
+        /* G += A Y2 A^T */
+        mm(n, a, false, y2, false, t1);
+        mm(n, t1, false, a, true, t3);
+        /* A = A Y1 */
+        mm(n, a, false, y1, false, t1);
+        for (size_t i = 0; i < n; i++) {
+            for (size_t j = 0; j < n; j++) {
+                const size_t ij = i * n + j;
+                h[ij] += t2[ij];
+                g[ij] += t3[ij];
+                a[ij] = t1[ij];
+            }
+        }
+        for (size_t i = 0; i < n; i++) {
+            for (size_t j = i + 1u; j < n; j++) {
+                const dv_real_t hs = DV_R(0.5) * (h[i * n + j] + h[j * n + i]);
+                const dv_real_t gs = DV_R(0.5) * (g[i * n + j] + g[j * n + i]);
+                h[i * n + j] = h[j * n + i] = hs;
+                g[i * n + j] = g[j * n + i] = gs;
+            }
+        }
+        for (size_t i = 0; i < n * n; i++) {
+            if (!dv_priv_finite(h[i])) {
+                return DV_EUNSTABLE;
+            }
+            hn += DV_FABS(h[i]);
+        }
+        if (dn <= tol * hn) {
+            return DV_OK;
+        }
+    }
+    return DV_EUNSTABLE;
+}
+
+/* Steady-state Kalman gain L = P Cy^T (Cy P Cy^T + R)^-1 of the filter DARE. */
+static dv_status_t kalman_gain(dv_obs_t *o, const dv_obs_noise_t *nz)
+{
+    const dv_model_t *m = o->m;
+    const size_t n = m->n_dof;
+    const size_t ns = o->ns;
+    const size_t no = o->no;
+    dv_real_t *w = o->scratch;
+    /* process noise: Gw = int_0^T exp(A s) ds [0; M^-1] from exp([[A T, Bw T], [0, 0]]) */
+    const size_t na = ns + n;
+    dv_real_t *e = w;
+    dv_real_t *r = e + na * na;
+    dv_real_t *ew = r + na * na;
+    for (size_t i = 0; i < na * na; i++) {
+        e[i] = DV_R(0.0);
+    }
+    for (size_t i = 0; i < ns; i++) {
+        for (size_t j = 0; j < ns; j++) {
+            e[i * na + j] = m->ac[i * ns + j] * m->dt_s;
+        }
+    }
+    for (size_t i = 0; i < n; i++) {
+        e[(n + i) * na + ns + i] = m->dt_s / m->mass_kg[i];
+    }
+    dv_mat_t em = {(uint16_t)na, (uint16_t)na, e};
+    dv_mat_t rm = {(uint16_t)na, (uint16_t)na, r};
+    if (dv_mat_expm(&em, &rm, ew, DV_MAT_EXPM_WORK_LEN(na)) != DV_OK) {
+        return DV_EUNSTABLE;
+    }
+    /* the DARE blocks live after the exponential's storage is no longer needed */
+    dv_real_t *a = w + 0u;
+    dv_real_t *g = a + ns * ns;
+    dv_real_t *h = g + ns * ns;
+    dv_real_t *sw = h + ns * ns;
+    /* H = Q = Gw diag(q) Gw^T, computed from r before a/g/h overwrite it: use a temp copy */
+    dv_real_t *gw = sw + 7u * ns * ns; /* ns x n */
+    for (size_t i = 0; i < ns; i++) {
+        for (size_t j = 0; j < n; j++) {
+            gw[i * n + j] = r[i * na + ns + j];
+        }
+    }
+    for (size_t i = 0; i < ns; i++) {
+        for (size_t j = 0; j < ns; j++) {
+            dv_real_t s = DV_R(0.0);
+            for (size_t q = 0; q < n; q++) {
+                s += gw[i * n + q] * nz->q_force_n2[q] * gw[j * n + q];
+            }
+            h[i * ns + j] = s;
+        }
+    }
+    for (size_t i = 0; i < ns; i++) {
+        for (size_t j = 0; j < ns; j++) {
+            a[i * ns + j] = m->ad[j * ns + i]; /* A = Ad^T */
+            dv_real_t s = DV_R(0.0);
+            for (size_t q = 0; q < no; q++) {
+                s += m->cy[q * ns + i] * m->cy[q * ns + j] / nz->r_meas[q];
+            }
+            g[i * ns + j] = s; /* G = Cy^T R^-1 Cy */
+        }
+    }
+    dv_status_t st = sda(ns, a, g, h, sw);
+    if (st != DV_OK) {
+        return st;
+    }
+    /* S = Cy P Cy^T + R (no x no); solve S X = Cy P (no x ns); L = X^T */
+    dv_real_t *cp = sw;            /* no x ns */
+    dv_real_t *smat = cp + no * ns; /* no x no */
+    for (size_t q = 0; q < no; q++) {
+        for (size_t j = 0; j < ns; j++) {
+            dv_real_t s = DV_R(0.0);
+            for (size_t i = 0; i < ns; i++) {
+                s += m->cy[q * ns + i] * h[i * ns + j];
+            }
+            cp[q * ns + j] = s;
+        }
+    }
+    for (size_t q = 0; q < no; q++) {
+        for (size_t p = 0; p < no; p++) {
+            dv_real_t s = DV_R(0.0);
+            for (size_t j = 0; j < ns; j++) {
+                s += cp[q * ns + j] * m->cy[p * ns + j];
+            }
+            smat[q * no + p] = s + (q == p ? nz->r_meas[q] : DV_R(0.0));
+        }
+    }
+    dv_mat_t sm = {(uint16_t)no, (uint16_t)no, smat};
+    dv_mat_t xm = {(uint16_t)no, (uint16_t)ns, cp};
+    if (dv_mat_solve(&sm, &xm) != DV_OK) {
+        return DV_EUNSTABLE;
+    }
+    for (size_t i = 0; i < ns; i++) {
+        for (size_t q = 0; q < no; q++) {
+            o->gain[i * no + q] = cp[q * ns + i];
+        }
+    }
+    return DV_OK;
+}
+
+dv_status_t dv_obs_init(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_t *noise,
+                        dv_real_t *buf, size_t len)
+{
+    if (o == NULL || m == NULL || buf == NULL || m->kmat == NULL) {
+        return DV_EINVAL;
+    }
+    const size_t ns = m->n_state;
+    const size_t no = m->n_out;
+    const size_t nf = m->n_f;
+    if (noise != NULL) {
+        for (size_t i = 0; i < m->n_dof; i++) {
+            if (!dv_priv_finite(noise->q_force_n2[i]) || noise->q_force_n2[i] < DV_R(0.0)) {
+                return DV_EINVAL;
+            }
+        }
+        for (size_t q = 0; q < no; q++) {
+            if (!dv_priv_finite(noise->r_meas[q]) || !(noise->r_meas[q] > DV_R(0.0))) {
+                return DV_EINVAL;
+            }
+        }
+    }
+    const size_t need = dv_obs_buf_len(m);
+    if (len < need) {
+        return DV_ESIZE;
+    }
+    const dv_obs_t zero = {0};
+    *o = zero;
+    o->m = m;
+    o->ns = (uint16_t)ns;
+    o->no = (uint16_t)no;
+    o->nf = (uint16_t)nf;
+    o->nrows = (uint16_t)(ns + no);
+    o->ncol_open = (uint16_t)(ns + 2u + nf);
+    o->ncol_gain = (uint16_t)(ns + 2u + nf + no);
+    dv_real_t *p = buf;
+    o->sv = p;
+    p += o->ncol_gain;
+    o->z = p;
+    p += o->nrows;
+    o->resid = p;
+    p += no;
+    o->f_open = p;
+    p += (size_t)o->nrows * o->ncol_open;
+    o->f_gain = p;
+    p += (size_t)o->nrows * o->ncol_gain;
+    o->gain = p;
+    p += ns * no;
+    o->scratch = p;
+    o->scratch_len = len - (size_t)(p - buf);
+    for (size_t i = 0; i < ns * no; i++) {
+        o->gain[i] = DV_R(0.0);
+    }
+    if (noise != NULL) {
+        const dv_status_t st = kalman_gain(o, noise);
+        if (st != DV_OK) {
+            return st;
+        }
+        o->has_gain = true;
+    }
+    fold(o);
+    dv_obs_reset(o);
+    return DV_OK;
+}
+
+dv_status_t dv_obs_set_gain(dv_obs_t *o, const dv_real_t *gain, size_t len)
+{
+    if (o == NULL || o->m == NULL) {
+        return DV_EINVAL;
+    }
+    const size_t nl = (size_t)o->ns * o->no;
+    if (gain == NULL) {
+        o->has_gain = false;
+        for (size_t i = 0; i < nl; i++) {
+            o->gain[i] = DV_R(0.0);
+        }
+        return DV_OK;
+    }
+    if (len < nl) {
+        return DV_ESIZE;
+    }
+    for (size_t i = 0; i < nl; i++) {
+        if (!dv_priv_finite(gain[i])) {
+            return DV_EINVAL;
+        }
+    }
+    for (size_t i = 0; i < nl; i++) {
+        o->gain[i] = gain[i];
+    }
+    o->has_gain = true;
+    fold(o);
+    return DV_OK;
+}
+
+dv_status_t dv_obs_get_gain(const dv_obs_t *o, dv_real_t *gain, size_t len)
+{
+    if (o == NULL || gain == NULL || o->m == NULL) {
+        return DV_EINVAL;
+    }
+    const size_t nl = (size_t)o->ns * o->no;
+    if (len < nl) {
+        return DV_ESIZE;
+    }
+    for (size_t i = 0; i < nl; i++) {
+        gain[i] = o->gain[i];
+    }
+    return DV_OK;
+}
+
+void dv_obs_reset(dv_obs_t *o)
+{
+    DV_ASSERT(o != NULL);
+    for (size_t i = 0; i < o->ncol_gain; i++) {
+        o->sv[i] = DV_R(0.0);
+    }
+    for (size_t i = 0; i < o->nrows; i++) {
+        o->z[i] = DV_R(0.0);
+    }
+    for (size_t i = 0; i < o->no; i++) {
+        o->resid[i] = DV_R(0.0);
+    }
+    o->started = false;
+    o->flags = 0u;
+    o->n_steps = 0u;
+    o->n_bad_input = 0u;
+    o->n_bad_meas = 0u;
+}
+
+/* Sub-node contact forces g into sv[ns + 2 ..], from x = sv[0..ns), u[k-1], u[k]. */
+static void contact_forces(const dv_model_t *m, dv_real_t *sv, size_t ns, dv_real_t up,
+                           dv_real_t u)
+{
+    const size_t nc = m->n_contact;
+    const size_t nf = m->n_f;
+    const size_t nsub = m->n_sub;
+    dv_real_t *g = sv + ns + 2u;
+    dv_real_t lin[DV_MAX_CONTACT];
+    dv_real_t cur[DV_MAX_CONTACT];
+    for (size_t i = 0; i <= nsub; i++) {
+        const size_t f0 = i * nc;
+        for (size_t e = 0; e < nc; e++) {
+            const size_t f = f0 + e;
+            const dv_real_t *rx = m->rx + f * ns;
+            const dv_real_t *srow = m->smat + f * nf;
+            dv_real_t s = m->rxa[f] * up + m->rxb[f] * u;
+            for (size_t j = 0; j < ns; j++) {
+                s += rx[j] * sv[j];
+            }
+            for (size_t j = 0; j < f0; j++) {
+                s += srow[j] * g[j];
+            }
+            lin[e] = s;
+            cur[e] = i > 0u ? g[f0 - nc + e] : DV_R(0.0);
+        }
+        /* implicit in the node's own force: fixed-point iterations, a fixed number */
+        const uint32_t iters = i > 0u ? DV_MODEL_FP_ITERS : 1u;
+        for (uint32_t it = 0; it < iters; it++) {
+            for (size_t e = 0; e < nc; e++) {
+                const dv_real_t *srow = m->smat + (f0 + e) * nf + f0;
+                dv_real_t xr = lin[e];
+                for (size_t e2 = 0; e2 < nc; e2++) {
+                    xr += srow[e2] * cur[e2];
+                }
+                const dv_contact_desc_t *c = &m->contact[e];
+                g[f0 + e] = dv_priv_contact_g((int)c->side, c->gap_m, c->delta_m,
+                                              c->kb_n_per_m, xr);
+            }
+            for (size_t e = 0; e < nc; e++) {
+                cur[e] = g[f0 + e];
+            }
+        }
+    }
+}
+
+/* z = F s for column-major F (rows x cols). */
+static void matvec_cm(const dv_real_t *f, size_t rows, size_t cols, const dv_real_t *s,
+                      dv_real_t *z)
+{
+    for (size_t r = 0; r < rows; r++) {
+        z[r] = DV_R(0.0);
+    }
+    for (size_t j = 0; j < cols; j++) {
+        const dv_real_t sj = s[j];
+        const dv_real_t *col = f + j * rows;
+        for (size_t r = 0; r < rows; r++) {
+            z[r] += col[r] * sj;
+        }
+    }
+}
+
+static dv_status_t step(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool use_gain)
+{
+    const dv_model_t *m = o->m;
+    const size_t ns = o->ns;
+    const size_t no = o->no;
+    const size_t nf = o->nf;
+    dv_real_t *sv = o->sv;
+    if (!dv_priv_finite(u)) {
+        o->flags = DV_OBS_FLAG_BAD_INPUT;
+        o->n_bad_input++;
+        return DV_ENUMERIC;
+    }
+    uint32_t flags = 0u;
+    bool correct = use_gain && o->has_gain;
+    if (y == NULL) {
+        flags |= DV_OBS_FLAG_NO_MEAS;
+        correct = false;
+    } else {
+        for (size_t q = 0; q < no; q++) {
+            if (!dv_priv_finite(y[q])) {
+                flags |= DV_OBS_FLAG_BAD_MEAS;
+                correct = false;
+            }
+        }
+    }
+    dv_real_t *yhat = o->z + ns;
+    const bool first = !o->started;
+    if (first) {
+        /* first sample: the state is at t0 already; output only, then correct */
+        sv[ns] = u;
+        if (nf > 0u) {
+            contact_forces(m, sv, ns, u, u); /* every node sees the same state: use node 0 */
+        }
+        const size_t nc = m->n_contact;
+        for (size_t q = 0; q < no; q++) {
+            dv_real_t s = (m->d0[q] + m->d1[q]) * u;
+            for (size_t j = 0; j < ns; j++) {
+                s += m->cy[q * ns + j] * sv[j];
+            }
+            for (size_t e = 0; e < nc; e++) {
+                s += m->ey[q * nc + e] * sv[ns + 2u + e];
+            }
+            yhat[q] = s;
+        }
+        for (size_t j = 0; j < ns; j++) {
+            o->z[j] = sv[j];
+        }
+        o->started = true;
+    } else {
+        sv[ns + 1u] = u;
+        if (nf > 0u) {
+            contact_forces(m, sv, ns, sv[ns], u);
+        }
+        if (correct) {
+            for (size_t q = 0; q < no; q++) {
+                sv[ns + 2u + nf + q] = y[q];
+            }
+            matvec_cm(o->f_gain, o->nrows, o->ncol_gain, sv, o->z);
+        } else {
+            matvec_cm(o->f_open, o->nrows, o->ncol_open, sv, o->z);
+        }
+    }
+    for (size_t q = 0; q < no; q++) {
+        const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
+        o->resid[q] = yq - yhat[q];
+    }
+    if (first && correct) {
+        /* first sample: x += L r explicitly (the folded product was not used) */
+        for (size_t j = 0; j < ns; j++) {
+            dv_real_t s = DV_R(0.0);
+            for (size_t q = 0; q < no; q++) {
+                s += o->gain[j * no + q] * o->resid[q];
+            }
+            o->z[j] += s;
+        }
+    }
+    for (size_t j = 0; j < ns; j++) {
+        sv[j] = o->z[j];
+    }
+    sv[ns] = u;
+    o->flags = flags;
+    o->n_steps++;
+    if ((flags & DV_OBS_FLAG_BAD_MEAS) != 0u) {
+        o->n_bad_meas++;
+        return DV_ENUMERIC;
+    }
+    return DV_OK;
+}
+
+dv_status_t dv_obs_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas)
+{
+    DV_ASSERT(o != NULL && o->m != NULL);
+    return step(o, u, y_meas, true);
+}
+
+dv_status_t dv_obs_get(const dv_obs_t *o, dv_real_t *y_pred, dv_real_t *resid, size_t len)
+{
+    if (o == NULL || o->m == NULL) {
+        return DV_EINVAL;
+    }
+    if (o->n_steps == 0u) {
+        return DV_ENOTREADY;
+    }
+    if (len < o->no) {
+        return DV_ESIZE;
+    }
+    for (size_t q = 0; q < o->no; q++) {
+        if (y_pred != NULL) {
+            y_pred[q] = o->z[o->ns + q];
+        }
+        if (resid != NULL) {
+            resid[q] = o->resid[q];
+        }
+    }
+    return DV_OK;
+}
+
+dv_status_t dv_obs_get_state(const dv_obs_t *o, dv_real_t *x, size_t len)
+{
+    if (o == NULL || x == NULL || o->m == NULL) {
+        return DV_EINVAL;
+    }
+    if (len < o->ns) {
+        return DV_ESIZE;
+    }
+    for (size_t j = 0; j < o->ns; j++) {
+        x[j] = o->sv[j];
+    }
+    return DV_OK;
+}
+
+static dv_status_t run_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y_meas, size_t n,
+                             dv_real_t *y_pred, dv_real_t *resid, bool use_gain)
+{
+    const size_t no = o->no;
+    dv_status_t worst = DV_OK;
+    for (size_t k = 0; k < n; k++) {
+        const dv_real_t *yk = y_meas != NULL ? y_meas + k * no : NULL;
+        const dv_status_t st = step(o, u[k], yk, use_gain);
+        if (st != DV_OK) {
+            worst = st;
+        }
+        const dv_real_t *yh = o->z + o->ns;
+        for (size_t q = 0; q < no; q++) {
+            if (y_pred != NULL) {
+                y_pred[k * no + q] = yh[q];
+            }
+            if (resid != NULL) {
+                resid[k * no + q] = st == DV_OK || (o->flags & DV_OBS_FLAG_BAD_MEAS) != 0u
+                                        ? o->resid[q]
+                                        : DV_R(0.0);
+            }
+        }
+    }
+    return worst;
+}
+
+dv_status_t dv_obs_update_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y_meas,
+                                size_t n, dv_real_t *y_pred, dv_real_t *resid)
+{
+    if (o == NULL || o->m == NULL || (u == NULL && n > 0u)) {
+        return DV_EINVAL;
+    }
+    return run_block(o, u, y_meas, n, y_pred, resid, true);
+}
+
+dv_status_t dv_obs_simulate(dv_obs_t *o, const dv_real_t *u, size_t n, dv_real_t *y)
+{
+    if (o == NULL || o->m == NULL || y == NULL || (u == NULL && n > 0u)) {
+        return DV_EINVAL;
+    }
+    dv_obs_reset(o);
+    return run_block(o, u, NULL, n, y, NULL, false);
+}
