@@ -58,8 +58,13 @@ size_t dv_real_size(void);
 #endif
 #endif
 
-/* C99 compile-time check: a negative array size fails the build. */
+/* C99 compile-time check: a negative array size fails the build. (Empty for the cffi cdef,
+ * which is the preprocessed headers and has no use for it.) */
+#ifdef DV_CDEF
+#define DV_STATIC_ASSERT(cond, msg)
+#else
 #define DV_STATIC_ASSERT(cond, msg) typedef char dv_static_assert_##msg[(cond) ? 1 : -1]
+#endif
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,58 @@
+"""`dynval features FILE`: per-channel waveform features of a recorded test, by the C core."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from dynval import features
+from dynval.io import read_test
+
+COLUMNS = ("mean", "std", "rms", "skew", "kurt", "peak", "crest", "kfactor")
+TEMPORAL = ("energy", "central_time", "rms_duration")
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser("features", help="per-channel waveform features of a recorded test")
+    p.add_argument("file", type=Path, help="recorded test (CSV with a header: time_s,force_N,...)")
+    p.add_argument("--seg-len", type=int, default=64, help="segment length for segmented STD "
+                   "(%(default)s)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--lenient", action="store_true",
+                   help="turn recoverable file problems into counted warnings")
+    p.set_defaults(run=run)
+
+
+def compute(path: Path, seg_len: int = 64, lenient: bool = False) -> dict[str, Any]:
+    rec = read_test(path, lenient=lenient)
+    out: dict[str, Any] = {"test": rec.name, "fs_hz": rec.fs_hz, "n_samples": rec.n_samples,
+                           "sha256": rec.sha256, "warnings": len(rec.warnings), "channels": {}}
+    for ch in rec.channels:
+        st = features.moments(ch.data)
+        tm = features.temporal(ch.data, 1.0 / rec.fs_hz)
+        seg = features.segstd(ch.data, seg_len) if ch.data.size >= seg_len else None
+        row: dict[str, Any] = {"unit": ch.unit, "role": ch.role, **st.as_dict(),
+                               **{k: getattr(tm, k) for k in TEMPORAL}}
+        if seg is not None:
+            row["segstd_min"], row["segstd_max"] = float(seg.min()), float(seg.max())
+        out["channels"][ch.name] = row
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    res = compute(args.file, args.seg_len, args.lenient)
+    if args.json:
+        json.dump(res, sys.stdout, indent=1)
+        sys.stdout.write("\n")
+        return 0
+    print(f"{res['test']}: {res['n_samples']} samples at {res['fs_hz']:g} Hz")
+    names = list(res["channels"])
+    width = max(12, *(len(n) for n in names))
+    cols = (*COLUMNS, *TEMPORAL)
+    print(f"{'channel':<{width}} {'unit':<6} " + " ".join(f"{c:>12}" for c in cols))
+    for n in names:
+        r = res["channels"][n]
+        print(f"{n:<{width}} {r['unit']:<6} " + " ".join(f"{r[c]:>12.5g}" for c in cols))
+    return 0

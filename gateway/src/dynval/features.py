@@ -1,0 +1,197 @@
+"""Waveform features over numpy arrays, computed by the C core (dv_moments, dv_sliding,
+dv_segstd, dv_temporal, dv_corr, dv_chan): the same numbers the firmware produces."""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from dynval._core import DV_RECORD, as_doubles, check, ffi, lib, ptr
+
+STATS_NO_SHAPE = 0x1
+STATS_NO_CREST = 0x2
+
+
+@dataclass(frozen=True)
+class Stats:
+    """Basic statistics (report Table 15, eq. 11-12); population moments, kurtosis 3 = Gaussian."""
+
+    count: int
+    mean: float
+    var: float
+    std: float
+    rms: float
+    skew: float
+    kurt: float
+    peak: float
+    min: float
+    max: float
+    crest: float
+    kfactor: float
+    flags: int
+
+    @property
+    def shape_defined(self) -> bool:
+        """False for a constant signal: skew and kurt are then reported as 0."""
+        return not self.flags & STATS_NO_SHAPE
+
+    @property
+    def crest_defined(self) -> bool:
+        """False for an all-zero signal: crest is then reported as 0."""
+        return not self.flags & STATS_NO_CREST
+
+    def as_dict(self) -> dict[str, float]:
+        return {k: float(v) for k, v in asdict(self).items()}
+
+
+@dataclass(frozen=True)
+class Temporal:
+    """Temporal moments (report eq. 14-16, Table 16); times in s from the first sample."""
+
+    energy: float
+    central_time: float
+    rms_duration: float
+    central_skew: float
+    central_kurt: float
+    root_energy_amp: float
+    count: int
+
+    def as_dict(self) -> dict[str, float]:
+        return {k: float(v) for k, v in asdict(self).items()}
+
+
+def _stats(c: Any) -> Stats:
+    return Stats(int(c.count), c.mean, c.var, c.std, c.rms, c.skew, c.kurt, c.peak, c.min, c.max,
+                 c.crest, c.kfactor, int(c.flags))
+
+
+def _temporal(c: Any) -> Temporal:
+    return Temporal(c.energy, c.central_time, c.rms_duration, c.central_skew, c.central_kurt,
+                    c.root_energy_amp, int(c.count))
+
+
+def moments(x: Any) -> Stats:
+    """Statistics of the whole array (NaN/Inf samples are dropped; see nonfinite_count)."""
+    a = as_doubles(x)
+    s = ffi.new("dv_moments_t *")
+    check(lib.dv_moments_init(s), "dv_moments_init")
+    lib.dv_moments_update_block(s, ptr(a), a.size)
+    out = ffi.new("dv_stats_t *")
+    check(lib.dv_moments_get(s, out), "dv_moments_get")
+    return _stats(out)
+
+
+def sliding(x: Any, win_len: int) -> Stats:
+    """Statistics of the last win_len samples, computed by the streaming window."""
+    a = as_doubles(x)
+    s = ffi.new("dv_sliding_t *")
+    buf = ffi.new("double[]", 3 * win_len)
+    check(lib.dv_sliding_init(s, win_len, buf, 3 * win_len), "dv_sliding_init")
+    lib.dv_sliding_update_block(s, ptr(a), a.size)
+    out = ffi.new("dv_stats_t *")
+    check(lib.dv_sliding_get(s, out), "dv_sliding_get")
+    return _stats(out)
+
+
+def sliding_series(x: Any, win_len: int, every: int = 1) -> dict[str, np.ndarray]:
+    """Window RMS, peak, crest, STD after every `every` samples (NaN until the window is full)."""
+    a = as_doubles(x)
+    s = ffi.new("dv_sliding_t *")
+    buf = ffi.new("double[]", 3 * win_len)
+    check(lib.dv_sliding_init(s, win_len, buf, 3 * win_len), "dv_sliding_init")
+    n_out = a.size // every
+    res = {k: np.full(n_out, np.nan) for k in ("rms", "peak", "crest", "std")}
+    out = ffi.new("dv_stats_t *")
+    p = ptr(a)
+    for j in range(n_out):
+        lib.dv_sliding_update_block(s, p + j * every, every)
+        if lib.dv_sliding_get(s, out) == 0:
+            res["rms"][j], res["peak"][j], res["std"][j] = out.rms, out.peak, out.std
+            res["crest"][j] = out.crest if not out.flags & STATS_NO_CREST else np.nan
+    return res
+
+
+def segstd(x: Any, seg_len: int = 64, n_seg: int | None = None) -> np.ndarray:
+    """STD of each consecutive segment of seg_len samples over one record of n_seg segments
+    (default: as many whole segments as x holds)."""
+    a = as_doubles(x)
+    n_seg = a.size // seg_len if n_seg is None else n_seg
+    if n_seg < 1:
+        raise ValueError(f"segstd needs at least one segment of {seg_len} samples, got {a.size}")
+    s = ffi.new("dv_segstd_t *")
+    buf = ffi.new("double[]", 2 * n_seg)
+    check(lib.dv_segstd_init(s, seg_len, n_seg, buf, 2 * n_seg), "dv_segstd_init")
+    for v in a.tolist():
+        lib.dv_segstd_update(s, v)
+    out = np.empty(n_seg)
+    check(lib.dv_segstd_get(s, ptr(out), n_seg), "dv_segstd_get")
+    return out
+
+
+def temporal(x: Any, dt_s: float) -> Temporal:
+    """Temporal moments of the whole array as one record with sample period dt_s."""
+    a = as_doubles(x)
+    s = ffi.new("dv_temporal_t *")
+    check(lib.dv_temporal_init(s, dt_s), "dv_temporal_init")
+    lib.dv_temporal_update_block(s, ptr(a), a.size)
+    out = ffi.new("dv_temporal_out_t *")
+    check(lib.dv_temporal_get(s, out), "dv_temporal_get")
+    return _temporal(out)
+
+
+def corr(x: Any, y: Any) -> float:
+    """Correlation coefficient of two equally long channels (eq. 21)."""
+    a, b = as_doubles(x), as_doubles(y)
+    if a.size != b.size:
+        raise ValueError(f"corr needs equal lengths, got {a.size} and {b.size}")
+    s = ffi.new("dv_corr_t *")
+    check(lib.dv_corr_init(s), "dv_corr_init")
+    for u, v in zip(a.tolist(), b.tolist()):
+        lib.dv_corr_update(s, u, v)
+    r = ffi.new("double *")
+    check(lib.dv_corr_get(s, r), "dv_corr_get")
+    return float(r[0])
+
+
+@dataclass(frozen=True)
+class RecordFeatures:
+    """The per-channel feature set of one complete record, as the firmware reports it."""
+
+    index: int
+    stats: Stats
+    temporal: Temporal | None
+    segstd: np.ndarray
+    window: Stats | None
+
+
+def channel_records(x: Any, fs_hz: float, win_len: int = 256, seg_len: int = 64,
+                    n_seg: int = 64) -> tuple[list[RecordFeatures], int]:
+    """Run the firmware's per-channel bundle (dv_chan) over x: one RecordFeatures per complete
+    record of seg_len * n_seg samples. Returns (records, NaN/Inf samples dropped)."""
+    a = as_doubles(x)
+    cfg = ffi.new("dv_chan_config_t *", {"win_len": win_len, "seg_len": seg_len,
+                                         "n_seg": n_seg, "dt_s": 1.0 / fs_hz})
+    blen = 3 * win_len + 2 * n_seg
+    buf = ffi.new("double[]", blen)
+    s = ffi.new("dv_chan_t *")
+    check(lib.dv_chan_init(s, cfg, buf, blen), "dv_chan_init")
+    used = ffi.new("size_t *")
+    st = ffi.new("dv_stats_t *")
+    tm = ffi.new("dv_temporal_out_t *")
+    win = ffi.new("dv_stats_t *")
+    vec = np.empty(n_seg)
+    records: list[RecordFeatures] = []
+    off = 0
+    p = ptr(a)
+    while off < a.size:
+        r = check(lib.dv_chan_update_block(s, p + off, a.size - off, used), "dv_chan_update_block")
+        off += int(used[0])
+        if r == DV_RECORD:
+            tst = lib.dv_chan_get_record(s, st, tm)
+            check(lib.dv_segstd_get(ffi.addressof(s.seg), ptr(vec), n_seg), "dv_segstd_get")
+            wst = lib.dv_chan_get_window(s, win)
+            records.append(RecordFeatures(len(records), _stats(st),
+                                          _temporal(tm) if tst == 0 else None, vec.copy(),
+                                          _stats(win) if wst == 0 else None))
+    return records, int(s.n_nonfinite)

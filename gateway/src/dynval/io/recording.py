@@ -1,0 +1,74 @@
+"""A recorded test in memory: equally sampled channels with units and roles."""
+from __future__ import annotations
+
+import hashlib
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+_UNIT_SUFFIX = re.compile(r"^(?P<name>.+?)_(?P<unit>mps2|m_s2|N|m|mm|s|V|g|ms2|um|ue|lbf|in)$")
+_UNITS = {"mps2": "m/s^2", "m_s2": "m/s^2", "ms2": "m/s^2", "N": "N", "m": "m", "mm": "mm",
+          "s": "s", "V": "V", "g": "g", "um": "um", "ue": "microstrain", "lbf": "lbf", "in": "in"}
+
+
+@dataclass
+class Channel:
+    """One measured channel. role is 'input' (a force or prescribed motion) or 'output'."""
+
+    name: str
+    data: np.ndarray
+    unit: str = ""
+    role: str = "output"
+    dof: int | None = None
+    scale: float = 1.0
+
+
+@dataclass
+class Recording:
+    """Channels sampled at fs_hz, in file order, plus where they came from."""
+
+    name: str
+    fs_hz: float
+    channels: list[Channel]
+    source: Path | None = None
+    sha256: str = ""
+    warnings: list[str] = field(default_factory=list)
+    t0_s: float = 0.0
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.channels[0].data.size) if self.channels else 0
+
+    def channel(self, name: str) -> Channel:
+        for c in self.channels:
+            if c.name == name:
+                return c
+        raise KeyError(f"{self.name}: no channel '{name}' (have {', '.join(self.names)})")
+
+    @property
+    def names(self) -> list[str]:
+        return [c.name for c in self.channels]
+
+
+def split_unit(column: str) -> tuple[str, str]:
+    """'acc1_mps2' -> ('acc1', 'm/s^2'); a name without a known unit suffix keeps unit ''."""
+    m = _UNIT_SUFFIX.match(column)
+    if m is None:
+        return column, ""
+    return column, _UNITS[m.group("unit")]
+
+
+def default_role(column: str) -> str:
+    """Forces and prescribed motions are inputs by default; everything else an output."""
+    low = column.lower()
+    return "input" if low.startswith(("force", "f_", "stroke", "disp_in", "input")) else "output"
+
+
+def file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
