@@ -360,6 +360,11 @@ dv_status_t dv_ar_resid_update_block(dv_ar_resid_t *r, const dv_real_t *x, size_
     }
     size_t out = 0u, i = 0u;
     dv_status_t st = DV_OK;
+    /* The block kernel folds the mean into c0 and filters the raw samples: exact enough in
+     * double, but in float a large mean costs digits, so float with a mean goes sample-wise. */
+#ifndef DV_REAL_DOUBLE
+    finite = finite && r->mean == DV_R(0.0);
+#endif
     if (!finite) {
         for (; i < n; i++) {
             const dv_status_t s1 = dv_ar_resid_update(r, x[i], e + out);
