@@ -1,0 +1,63 @@
+#!/usr/bin/env bash
+# Every test of dynval, one command (README's second command; .ci/run calls it):
+# C library in float and double with gcc, clang, ASan+UBSan; Eigen cross-checks; the
+# fixed-memory symbol check; the Cortex-M4F cross build; a consumer project; the Python
+# package's tests; the firmware simulator's end-to-end tests on a real vcan bus; a bounded
+# fuzz run. Prints one summary line "N passed, N failed" and exits non-zero on any failure.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$(pwd)
+export CTEST_OUTPUT_ON_FAILURE=1
+passed=0
+failed=0
+failures=()
+
+step() { # step NAME COMMAND...
+    local name=$1
+    shift
+    echo
+    echo "=== $name"
+    local t0=$SECONDS
+    if "$@"; then
+        passed=$((passed + 1))
+        echo "--- ok: $name ($((SECONDS - t0)) s)"
+    else
+        failed=$((failed + 1))
+        failures+=("$name")
+        echo "--- FAILED: $name ($((SECONDS - t0)) s)"
+    fi
+}
+
+preset() { # configure, build and ctest one CMake preset
+    cmake --preset "$1" >/dev/null && cmake --build --preset "$1" -j2 >/dev/null &&
+        ctest --preset "$1" -j2
+}
+
+[ "${DV_SKIP_SETUP:-0}" = 1 ] || scripts/setup.sh || exit 1
+
+step "C float, gcc Debug (dev)" preset dev
+step "C double, gcc Release (f64)" preset f64
+step "C double, ASan+UBSan" preset asan
+step "C float, ASan+UBSan" preset asan-f32
+step "C double, clang" preset clang
+step "C++/Eigen cross-checks" preset xcheck
+step "no malloc/stdio/abort, no .data/.bss (float)" tests/scripts/check_lib_symbols.sh build/dev/libdynval-f32.a
+step "no malloc/stdio/abort, no .data/.bss (double)" tests/scripts/check_lib_symbols.sh build/f64/libdynval-f64.a
+step "no -ffast-math in the build" bash -c '! grep -rn -- "-ffast-math\|-Ofast" CMakeLists.txt CMakePresets.json cmake/ src/ gateway/pyproject.toml'
+step "Cortex-M4F cross build + size" tests/scripts/cross_m4.sh
+step "consumer: find_package and add_subdirectory" tests/consumer/run.sh
+step "Python package (pytest)" env DV_FEATURES_DUMP="$ROOT/build/f64/tests/dv_features_dump" \
+    python3 -m pytest -q -p no:cacheprovider gateway/tests tests/py
+if [ -x tests/e2e/run_e2e.sh ]; then
+    step "end-to-end on a real vcan bus" tests/e2e/run_e2e.sh
+fi
+if [ -x tests/fuzz/run_fuzz.sh ]; then
+    step "fuzz the CAN decoder (bounded)" tests/fuzz/run_fuzz.sh 30
+fi
+
+echo
+if [ "$failed" -gt 0 ]; then
+    printf 'failed: %s\n' "${failures[@]}"
+fi
+echo "checks: $passed passed, $failed failed"
+[ "$failed" -eq 0 ]
