@@ -64,6 +64,7 @@ class Link:
         self.features: dict[tuple[int, int, int], int] = {}
         self.repeats = 0
         self.last_status: bytes | None = None
+        self.n_status = 0
 
     def _take(self, m) -> bool:
         if m.arbitration_id == E.ID_FEATURE and len(m.data) == 8:
@@ -73,6 +74,7 @@ class Link:
             self.features[k] = v
         elif m.arbitration_id == E.ID_STATUS:
             self.last_status = bytes(m.data)
+            self.n_status += 1
             return True
         return False
 
@@ -83,12 +85,15 @@ class Link:
             self._take(m)
 
     def barrier(self, timeout: float = 60.0) -> bytes:
+        n0 = self.n_status  # the answer may already be taken while send() drains
         self.send(E.ctrl(E.CTRL_STATUS))
         deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
+        while self.n_status == n0 and time.monotonic() < deadline:
             m = self.bus.recv(timeout=1.0)
-            if m is not None and self._take(m):
-                return self.last_status
+            if m is not None:
+                self._take(m)
+        if self.n_status > n0:
+            return self.last_status
         raise TimeoutError("no DV_STATUS answer from firmware_sim")
 
     def send_all(self, frames: list[E.Frame], barrier_every: int) -> None:
@@ -187,21 +192,21 @@ def test_e2e_modbus_config_takes_effect(sim, bus):
         assert list(rr.registers) == [seg, nseg]
         bad = c.write_register(rm["SIM_HR_SEG_LEN"], 1)  # < 2: refused, nothing changes
         assert bad.isError() and bad.exception_code == 3
-    x = E.test_signal(2 * seg * nseg, seed=2)
+    x = E.test_signal(3 * seg * nseg, seed=2)  # whole frames, whole records
     lsbs = [E.lsb_for(x[:, c]) for c in range(E.N_CHAN)]
     frames = E.sample_frames(E.quantise(x, lsbs))
     link = Link(bus)
     link.send_all(setup_frames(lsbs) + frames, barrier_every=100)
     want = E.offline_features(E.accepted_stream(frames), lsbs, seg=seg, nseg=nseg)
     assert link.features == want
-    assert max(k[2] for k in want if k[1] == 0x01) == 2 * nseg - 1  # segments of 16 samples
+    assert max(k[2] for k in want if k[1] == 0x01) == 3 * nseg - 1  # segments of 16 samples
     with pymodbus_client.ModbusTcpClient("127.0.0.1", port=sim.port, timeout=10) as c:
         regs = E.read_inputs(c, 500)
     for ch in range(E.N_CHAN):
         b = rm["SIM_IR_CH_BASE"] + rm["SIM_IR_CH_STRIDE"] * ch
-        assert E.u32(regs, b + rm["SIM_IR_CH_RECORDS"]) == 2
-        assert E.u32(regs, b + rm["SIM_IR_CH_REC_STD"]) == want[(ch, 0x11, 1)]
-        assert E.u32(regs, b + rm["SIM_IR_CH_SEG_STD"]) == want[(ch, 0x01, 2 * nseg - 1)]
+        assert E.u32(regs, b + rm["SIM_IR_CH_RECORDS"]) == 3
+        assert E.u32(regs, b + rm["SIM_IR_CH_REC_STD"]) == want[(ch, 0x11, 2)]
+        assert E.u32(regs, b + rm["SIM_IR_CH_SEG_STD"]) == want[(ch, 0x01, 3 * nseg - 1)]
 
 
 def test_e2e_missing_interface_is_a_clear_error(outdir):
