@@ -1,5 +1,6 @@
-/* The firmware loop without sockets. See sim_core.h. Stages per accepted sample:
- * features (dv_chan), AR residual, observer; each stage returns the frames it produced. */
+/* The firmware loop without sockets. See sim_core.h. Stages per accepted sample, each
+ * appending its frames to the output: features (dv_chan), AR residual (dv_ar, baseline fit),
+ * observer (dv_model + dv_obs, driven by the force channel, one step per time index). */
 #include "sim_core.h"
 
 #include <math.h>
@@ -60,6 +61,33 @@ int sim_config_check(const struct sim_config *cfg)
         if (!isfinite(cfg->model[i])) {
             return SIM_HR_MODEL + 2 * i;
         }
+    }
+    const float *m = cfg->model;
+    const float nd = m[SIM_MODEL_N_DOF];
+    if (nd < 0.0f || nd > (float)DV_MAX_DOF || nd != floorf(nd)) {
+        return SIM_HR_MODEL + 2 * SIM_MODEL_N_DOF;
+    }
+    const int n = (int)nd;
+    for (int i = 0; i < n; i++) {
+        if (!(m[SIM_MODEL_MASS + i] > 0.0f)) {
+            return SIM_HR_MODEL + 2 * (SIM_MODEL_MASS + i);
+        }
+        if (m[SIM_MODEL_K + i] < 0.0f) {
+            return SIM_HR_MODEL + 2 * (SIM_MODEL_K + i);
+        }
+        if (m[SIM_MODEL_ZETA + i] < 0.0f) {
+            return SIM_HR_MODEL + 2 * (SIM_MODEL_ZETA + i);
+        }
+    }
+    if (m[SIM_MODEL_Q] < 0.0f) {
+        return SIM_HR_MODEL + 2 * SIM_MODEL_Q;
+    }
+    if (m[SIM_MODEL_Q] > 0.0f && !(m[SIM_MODEL_R] > 0.0f)) {
+        return SIM_HR_MODEL + 2 * SIM_MODEL_R;
+    }
+    const float in = m[SIM_MODEL_INPUT_DOF];
+    if (in < 0.0f || in != floorf(in) || (n > 0 && in >= nd)) {
+        return SIM_HR_MODEL + 2 * SIM_MODEL_INPUT_DOF;
     }
     return -1;
 }
@@ -133,6 +161,324 @@ static int chan_setup(struct sim_core *c, const struct sim_config *cfg, int i, d
     return 0;
 }
 
+/* ---- AR stage ------------------------------------------------------------------------- */
+
+static void ar_clear(struct sim_ar *a)
+{
+    free(a->rec);
+    a->rec = NULL;
+    a->n = 0;
+    a->phase = 0;
+    a->outliers = 0;
+    a->last_outliers = 0;
+}
+
+/* START: a fitted model is kept (it is the reference state); its filter restarts. */
+static void ar_restart(struct sim_ar *a)
+{
+    a->n = 0;
+    a->outliers = 0;
+    if (a->phase == 1) {
+        dv_ar_resid_reset(&a->res);
+    }
+    dv_moments_reset(&a->mom);
+}
+
+static void put_feature(struct sim_core *c, dv_can_frame_t *out, size_t *n, uint8_t id,
+                        unsigned ch, uint32_t index, dv_real_t value, float *latest)
+{
+    dv_msg_t m;
+    m.kind = DV_MSG_FEATURE;
+    m.u.feature.feat_id = id;
+    m.u.feature.channel = (uint8_t)ch;
+    m.u.feature.index = (uint16_t)(index & 0xFFFFu);
+    m.u.feature.value = (float)value;
+    if (latest != NULL) {
+        *latest = m.u.feature.value;
+    }
+    if (*n >= SIM_CORE_MAX_OUT) {
+        c->n.tx_errors++;
+        return;
+    }
+    dv_codec_encode(&m, &out[*n]);
+    (*n)++;
+}
+
+/* Stage 2: AR residual. Baseline record -> Burg fit of order cfg.ar_order; afterwards the
+ * one-step residual of every accepted sample, and at each record end its RMS and the number
+ * of residuals beyond (outlier_x100 / 100) x sigma of the fit. */
+static void stage_ar(struct sim_core *c, unsigned ch, dv_real_t x, dv_status_t feat_st,
+                     dv_can_frame_t *out, size_t *n)
+{
+    struct sim_chan *sc = &c->ch[ch];
+    struct sim_ar *a = &sc->ar;
+    const uint32_t p = c->cfg.ar_order;
+    if (p == 0 || feat_st == DV_ENUMERIC || a->phase < 0) {
+        return;
+    }
+    const uint32_t rec_len = (uint32_t)c->cfg.seg_len * c->cfg.n_seg;
+    if (a->phase == 0) {
+        if (a->rec == NULL) {
+            a->rec = malloc((size_t)rec_len * sizeof *a->rec);
+            if (a->rec == NULL) {
+                a->phase = -1;
+                c->ar_status = SIM_STAGE_ERROR;
+                return;
+            }
+        }
+        /* the baseline starts at a record boundary, like the records it is compared with */
+        if (a->n < rec_len) {
+            a->rec[a->n++] = x;
+        }
+        if (feat_st != DV_RECORD) {
+            return;
+        }
+        if (a->n < rec_len) { /* joined mid-record: wait for a whole one */
+            a->n = 0;
+            return;
+        }
+        const size_t wl = DV_AR_WORK_LEN(rec_len, p);
+        dv_real_t *work = malloc(wl * sizeof *work);
+        dv_status_t st = work == NULL ? DV_ESIZE
+                                      : dv_ar_fit(&a->model, DV_AR_BURG, p, a->rec, rec_len,
+                                                  work, wl);
+        free(work);
+        if (st == DV_OK) {
+            st = dv_ar_resid_init(&a->res, &a->model, a->hist, DV_AR_RESID_BUF_LEN(p));
+        }
+        free(a->rec);
+        a->rec = NULL;
+        a->n = 0;
+        if (st != DV_OK) {
+            a->phase = -1;
+            c->ar_status = SIM_STAGE_ERROR;
+            return;
+        }
+        a->phase = 1;
+        dv_moments_reset(&a->mom);
+        a->outliers = 0;
+        if (c->ar_status != SIM_STAGE_ERROR) {
+            c->ar_status = SIM_STAGE_RUNNING;
+        }
+        return;
+    }
+    dv_real_t e;
+    if (dv_ar_resid_update(&a->res, x, &e) == DV_OK) {
+        (void)dv_moments_update(&a->mom, e);
+        const dv_real_t k = (dv_real_t)c->cfg.outlier_x100 / (dv_real_t)100;
+        if (c->cfg.outlier_x100 != 0 && e * e > k * k * a->model.sigma2) {
+            a->outliers++;
+        }
+    }
+    if (feat_st != DV_RECORD) {
+        return;
+    }
+    dv_stats_t rs;
+    const uint32_t rec = sc->records - 1u; /* stage_features has counted this record */
+    if (dv_moments_get(&a->mom, &rs) == DV_OK) {
+        put_feature(c, out, n, DV_FEAT_AR_RESID_RMS, ch, rec, rs.rms, &sc->last.ar_resid);
+        if (c->cfg.outlier_x100 != 0) {
+            put_feature(c, out, n, DV_FEAT_AR_OUTLIERS, ch, rec, (dv_real_t)a->outliers, NULL);
+        }
+    }
+    a->last_outliers = a->outliers;
+    a->outliers = 0;
+    dv_moments_reset(&a->mom);
+}
+
+/* ---- observer stage -------------------------------------------------------------------- */
+
+static void obs_free(struct sim_obs *o)
+{
+    free(o->mbuf);
+    free(o->obuf);
+    for (int i = 0; i < SIM_MAX_CHAN; i++) {
+        free(o->q[i]);
+        o->q[i] = NULL;
+    }
+    o->mbuf = o->obuf = NULL;
+    o->on = 0;
+}
+
+static void obs_restart(struct sim_obs *o)
+{
+    if (o->on) {
+        dv_obs_reset(&o->obs);
+    }
+    memset(o->qh, 0, sizeof o->qh);
+    memset(o->qn, 0, sizeof o->qn);
+    o->steps = 0;
+}
+
+/* (Re)build model and observer from the configuration; status says how it went. */
+static void obs_setup(struct sim_core *c)
+{
+    struct sim_obs *o = &c->obs;
+    const struct sim_config *cfg = &c->cfg;
+    obs_free(o);
+    obs_restart(o);
+    o->overrun = 0;
+    const float *p = cfg->model;
+    const unsigned n_dof = (unsigned)p[SIM_MODEL_N_DOF];
+    if (n_dof == 0) {
+        c->obs_status = SIM_STAGE_NOT_CONFIGURED;
+        return;
+    }
+    c->obs_status = SIM_STAGE_ERROR;
+    dv_model_desc_t d;
+    dv_model_desc_default(&d);
+    d.n_dof = (uint16_t)n_dof;
+    for (unsigned i = 0; i < n_dof; i++) {
+        d.mass_kg[i] = (dv_real_t)p[SIM_MODEL_MASS + i];
+        d.k_n_per_m[i] = (dv_real_t)p[SIM_MODEL_K + i];
+        d.zeta[i] = (dv_real_t)p[SIM_MODEL_ZETA + i];
+    }
+    d.damp_kind = DV_DAMP_MODAL;
+    d.input_kind = DV_INPUT_FORCE;
+    d.input_dof = (uint16_t)p[SIM_MODEL_INPUT_DOF];
+    d.n_contact = 0;
+    /* measured channels: every channel but the force channel, in order, = acc of DOF 0.. */
+    uint16_t n_out = 0;
+    for (unsigned ch = 0; ch < cfg->n_chan && n_out < n_dof && n_out < DV_MAX_OUT; ch++) {
+        if (ch != cfg->force_chan) {
+            d.out[n_out].kind = DV_OUT_ACC;
+            d.out[n_out].index = n_out;
+            o->meas_ch[n_out] = (uint16_t)ch;
+            n_out++;
+        }
+    }
+    if (n_out == 0) {
+        return;
+    }
+    d.n_out = n_out;
+    o->n_out = n_out;
+    const dv_real_t dt = (dv_real_t)1 / (dv_real_t)cfg->fs_hz[cfg->force_chan];
+    const size_t ml = dv_model_buf_len(&d);
+    o->mbuf = ml ? malloc(ml * sizeof *o->mbuf) : NULL;
+    if (o->mbuf == NULL || dv_model_init(&o->model, &d, dt, o->mbuf, ml) != DV_OK) {
+        obs_free(o);
+        return;
+    }
+    dv_obs_noise_t nz;
+    memset(&nz, 0, sizeof nz);
+    for (unsigned i = 0; i < DV_MAX_DOF; i++) {
+        nz.q_force_n2[i] = (dv_real_t)p[SIM_MODEL_Q];
+    }
+    for (unsigned i = 0; i < DV_MAX_OUT; i++) {
+        nz.r_meas[i] = (dv_real_t)p[SIM_MODEL_R];
+    }
+    const size_t ol = dv_obs_buf_len(&o->model);
+    o->obuf = malloc(ol * sizeof *o->obuf);
+    if (o->obuf == NULL ||
+        dv_obs_init(&o->obs, &o->model, p[SIM_MODEL_Q] > 0.0f ? &nz : NULL, o->obuf, ol) !=
+            DV_OK) {
+        obs_free(o);
+        return;
+    }
+    for (int i = 0; i < SIM_MAX_CHAN; i++) {
+        o->q[i] = malloc(SIM_OBS_QCAP * sizeof *o->q[i]);
+        if (o->q[i] == NULL) {
+            obs_free(o);
+            return;
+        }
+    }
+    o->on = 1;
+    c->obs_status = SIM_STAGE_RUNNING;
+}
+
+static int obs_uses(const struct sim_core *c, unsigned ch)
+{
+    if (ch == c->cfg.force_chan) {
+        return 1;
+    }
+    for (unsigned j = 0; j < c->obs.n_out; j++) {
+        if (c->obs.meas_ch[j] == ch) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+static void obs_push(struct sim_obs *o, unsigned ch, dv_real_t x)
+{
+    if (o->qn[ch] == SIM_OBS_QCAP) { /* this channel ran far ahead: lose its oldest */
+        o->qh[ch] = (o->qh[ch] + 1u) % SIM_OBS_QCAP;
+        o->qn[ch]--;
+        o->overrun++;
+    }
+    o->q[ch][(o->qh[ch] + o->qn[ch]) % SIM_OBS_QCAP] = x;
+    o->qn[ch]++;
+}
+
+static dv_real_t obs_pop(struct sim_obs *o, unsigned ch)
+{
+    const dv_real_t x = o->q[ch][o->qh[ch]];
+    o->qh[ch] = (o->qh[ch] + 1u) % SIM_OBS_QCAP;
+    o->qn[ch]--;
+    return x;
+}
+
+/* Stage 3: queue the sample (NaN included: it holds its time slot); step the observer for
+ * every time index all its channels have delivered; residual frames every resid_decim steps. */
+static void stage_observer(struct sim_core *c, unsigned ch, dv_real_t x, dv_can_frame_t *out,
+                           size_t *n)
+{
+    struct sim_obs *o = &c->obs;
+    if (!o->on || !obs_uses(c, ch)) {
+        return;
+    }
+    obs_push(o, ch, x);
+    const unsigned fc = c->cfg.force_chan;
+    for (;;) {
+        if (o->qn[fc] == 0) {
+            return;
+        }
+        for (unsigned j = 0; j < o->n_out; j++) {
+            if (o->qn[o->meas_ch[j]] == 0) {
+                return;
+            }
+        }
+        dv_real_t y[DV_MAX_OUT], r[DV_MAX_OUT];
+        const dv_real_t u = obs_pop(o, fc);
+        for (unsigned j = 0; j < o->n_out; j++) {
+            y[j] = obs_pop(o, o->meas_ch[j]);
+        }
+        (void)dv_obs_step(&o->obs, u, y); /* NaN u: held; NaN y: predicted only */
+        const uint32_t step = o->steps++;
+        if (dv_obs_get(&o->obs, NULL, r, DV_MAX_OUT) != DV_OK) {
+            continue;
+        }
+        const int emit = c->cfg.resid_decim != 0 && step % c->cfg.resid_decim == 0;
+        for (unsigned j = 0; j < o->n_out; j++) {
+            const unsigned mc = o->meas_ch[j];
+            c->ch[mc].last.obs_resid = (float)r[j];
+            if (!emit) {
+                continue;
+            }
+            if (*n >= SIM_CORE_MAX_OUT) {
+                c->n.tx_errors++;
+                continue;
+            }
+            dv_msg_t m;
+            m.kind = DV_MSG_RESID;
+            m.u.resid.channel = (uint8_t)mc;
+            m.u.resid.flags = o->obs.has_gain ? 1u : 0u;
+            m.u.resid.step = (uint16_t)(step & 0xFFFFu);
+            m.u.resid.value = (float)r[j];
+            dv_codec_encode(&m, &out[(*n)++]);
+        }
+    }
+}
+
+/* A sequence gap of @p lost frames: NaN placeholders keep the observer's channels aligned. */
+static void stage_observer_gap(struct sim_core *c, unsigned ch, uint32_t lost,
+                               dv_can_frame_t *out, size_t *n)
+{
+    for (uint32_t i = 0; i < lost * DV_CODEC_SAMPLES_PER_FRAME; i++) {
+        stage_observer(c, ch, (dv_real_t)NAN, out, n);
+    }
+}
+
 int sim_core_configure(struct sim_core *c, const struct sim_config *cfg)
 {
     if (sim_config_check(cfg) >= 0) {
@@ -143,8 +489,16 @@ int sim_core_configure(struct sim_core *c, const struct sim_config *cfg)
     for (int i = 0; i < SIM_MAX_CHAN; i++) {
         same = same && cfg->fs_hz[i] == c->cfg.fs_hz[i];
     }
+    const int ar_same = cfg->ar_order == c->cfg.ar_order;
     if (same) { /* nothing the features depend on changed: no re-init */
         c->cfg = *cfg;
+        if (!ar_same) {
+            for (int i = 0; i < SIM_MAX_CHAN; i++) {
+                ar_clear(&c->ch[i].ar);
+            }
+        }
+        c->ar_status = SIM_STAGE_NOT_CONFIGURED;
+        obs_setup(c);
         c->n.cfg_writes++;
         return 0;
     }
@@ -163,10 +517,11 @@ int sim_core_configure(struct sim_core *c, const struct sim_config *cfg)
     for (int i = 0; i < SIM_MAX_CHAN; i++) {
         free(save[i].buf);
         c->ch[i].buf = bufs[i];
+        ar_clear(&c->ch[i].ar); /* new record length: a new baseline */
     }
     c->cfg = *cfg;
-    c->ar_status = SIM_STAGE_NOT_CONFIGURED;  /* TODO(dv_ar): SIM_STAGE_RUNNING when ar_order>0 */
-    c->obs_status = SIM_STAGE_NOT_CONFIGURED; /* TODO(dv_obs): build the model from cfg->model */
+    c->ar_status = SIM_STAGE_NOT_CONFIGURED; /* RUNNING once a baseline is fitted */
+    obs_setup(c);
     c->n.cfg_writes++;
     return 0;
 }
@@ -190,120 +545,74 @@ void sim_core_free(struct sim_core *c)
     for (int i = 0; i < SIM_MAX_CHAN; i++) {
         free(c->ch[i].buf);
         c->ch[i].buf = NULL;
+        ar_clear(&c->ch[i].ar);
     }
-}
-
-static void put_feature(dv_can_frame_t *out, size_t *n, uint8_t id, unsigned ch, uint32_t index,
-                        dv_real_t value, float *latest)
-{
-    dv_msg_t m;
-    m.kind = DV_MSG_FEATURE;
-    m.u.feature.feat_id = id;
-    m.u.feature.channel = (uint8_t)ch;
-    m.u.feature.index = (uint16_t)(index & 0xFFFFu);
-    m.u.feature.value = (float)value;
-    if (latest != NULL) {
-        *latest = m.u.feature.value;
-    }
-    dv_codec_encode(&m, &out[*n]);
-    (*n)++;
+    obs_free(&c->obs);
 }
 
 /* Stage 1: the dv_chan feature set. Segment ends send the segment STD and the window
  * statistics; record ends also send the record statistics and temporal moments. Values that
  * are undefined for the data (flags, zero energy) are not sent. */
-static size_t stage_features(struct sim_core *c, unsigned ch, dv_real_t x, dv_status_t *st_out,
-                             dv_can_frame_t *out)
+static dv_status_t stage_features(struct sim_core *c, unsigned ch, dv_real_t x,
+                                  dv_can_frame_t *out, size_t *np)
 {
     struct sim_chan *sc = &c->ch[ch];
     struct sim_latest *l = &sc->last;
-    size_t n = 0;
     const dv_status_t st = dv_chan_update(&sc->feat, x);
-    *st_out = st;
     if (st == DV_ENUMERIC) {
-        return 0;
+        return st;
     }
     sc->samples++;
     c->n.samples++;
     if (st != DV_DONE && st != DV_RECORD) {
-        return 0;
+        return st;
     }
     const uint32_t seg = sc->segments++;
     dv_real_t std;
     uint32_t idx;
     if (dv_segstd_last(&sc->feat.seg, &std, &idx) == DV_OK) {
-        put_feature(out, &n, DV_FEAT_SEG_STD, ch, seg, std, &l->seg_std);
+        put_feature(c, out, np, DV_FEAT_SEG_STD, ch, seg, std, &l->seg_std);
     }
     dv_stats_t w;
     if (dv_chan_get_window(&sc->feat, &w) == DV_OK) {
-        put_feature(out, &n, DV_FEAT_WIN_MEAN, ch, seg, w.mean, &l->win_mean);
-        put_feature(out, &n, DV_FEAT_WIN_STD, ch, seg, w.std, &l->win_std);
-        put_feature(out, &n, DV_FEAT_WIN_RMS, ch, seg, w.rms, &l->win_rms);
-        put_feature(out, &n, DV_FEAT_WIN_PEAK, ch, seg, w.peak, &l->win_peak);
+        put_feature(c, out, np, DV_FEAT_WIN_MEAN, ch, seg, w.mean, &l->win_mean);
+        put_feature(c, out, np, DV_FEAT_WIN_STD, ch, seg, w.std, &l->win_std);
+        put_feature(c, out, np, DV_FEAT_WIN_RMS, ch, seg, w.rms, &l->win_rms);
+        put_feature(c, out, np, DV_FEAT_WIN_PEAK, ch, seg, w.peak, &l->win_peak);
     }
     if (st != DV_RECORD) {
-        return n;
+        return st;
     }
     const uint32_t rec = sc->records++;
     dv_stats_t r;
     dv_temporal_out_t tm;
     const dv_status_t rs = dv_chan_get_record(&sc->feat, &r, &tm);
     if (rs != DV_OK && rs != DV_ENUMERIC) {
-        return n;
+        return st;
     }
-    put_feature(out, &n, DV_FEAT_REC_MEAN, ch, rec, r.mean, &l->rec_mean);
-    put_feature(out, &n, DV_FEAT_REC_STD, ch, rec, r.std, &l->rec_std);
-    put_feature(out, &n, DV_FEAT_REC_RMS, ch, rec, r.rms, &l->rec_rms);
+    put_feature(c, out, np, DV_FEAT_REC_MEAN, ch, rec, r.mean, &l->rec_mean);
+    put_feature(c, out, np, DV_FEAT_REC_STD, ch, rec, r.std, &l->rec_std);
+    put_feature(c, out, np, DV_FEAT_REC_RMS, ch, rec, r.rms, &l->rec_rms);
     if ((r.flags & DV_STATS_NO_SHAPE) == 0u) {
-        put_feature(out, &n, DV_FEAT_REC_SKEW, ch, rec, r.skew, &l->rec_skew);
-        put_feature(out, &n, DV_FEAT_REC_KURT, ch, rec, r.kurt, &l->rec_kurt);
+        put_feature(c, out, np, DV_FEAT_REC_SKEW, ch, rec, r.skew, &l->rec_skew);
+        put_feature(c, out, np, DV_FEAT_REC_KURT, ch, rec, r.kurt, &l->rec_kurt);
     }
-    put_feature(out, &n, DV_FEAT_REC_PEAK, ch, rec, r.peak, &l->rec_peak);
-    put_feature(out, &n, DV_FEAT_REC_MIN, ch, rec, r.min, NULL);
-    put_feature(out, &n, DV_FEAT_REC_MAX, ch, rec, r.max, NULL);
+    put_feature(c, out, np, DV_FEAT_REC_PEAK, ch, rec, r.peak, &l->rec_peak);
+    put_feature(c, out, np, DV_FEAT_REC_MIN, ch, rec, r.min, NULL);
+    put_feature(c, out, np, DV_FEAT_REC_MAX, ch, rec, r.max, NULL);
     if ((r.flags & DV_STATS_NO_CREST) == 0u) {
-        put_feature(out, &n, DV_FEAT_REC_CREST, ch, rec, r.crest, &l->rec_crest);
+        put_feature(c, out, np, DV_FEAT_REC_CREST, ch, rec, r.crest, &l->rec_crest);
     }
-    put_feature(out, &n, DV_FEAT_REC_KFACTOR, ch, rec, r.kfactor, NULL);
+    put_feature(c, out, np, DV_FEAT_REC_KFACTOR, ch, rec, r.kfactor, NULL);
     if (rs == DV_OK) {
-        put_feature(out, &n, DV_FEAT_TM_ENERGY, ch, rec, tm.energy, &l->tm_energy);
-        put_feature(out, &n, DV_FEAT_TM_CTIME, ch, rec, tm.central_time, &l->tm_ctime);
-        put_feature(out, &n, DV_FEAT_TM_RMSDUR, ch, rec, tm.rms_duration, &l->tm_rmsdur);
-        put_feature(out, &n, DV_FEAT_TM_CSKEW, ch, rec, tm.central_skew, NULL);
-        put_feature(out, &n, DV_FEAT_TM_CKURT, ch, rec, tm.central_kurt, NULL);
-        put_feature(out, &n, DV_FEAT_TM_AE, ch, rec, tm.root_energy_amp, NULL);
+        put_feature(c, out, np, DV_FEAT_TM_ENERGY, ch, rec, tm.energy, &l->tm_energy);
+        put_feature(c, out, np, DV_FEAT_TM_CTIME, ch, rec, tm.central_time, &l->tm_ctime);
+        put_feature(c, out, np, DV_FEAT_TM_RMSDUR, ch, rec, tm.rms_duration, &l->tm_rmsdur);
+        put_feature(c, out, np, DV_FEAT_TM_CSKEW, ch, rec, tm.central_skew, NULL);
+        put_feature(c, out, np, DV_FEAT_TM_CKURT, ch, rec, tm.central_kurt, NULL);
+        put_feature(c, out, np, DV_FEAT_TM_AE, ch, rec, tm.root_energy_amp, NULL);
     }
-    return n;
-}
-
-/* Stage 2: AR one-step residual per channel (DV_FEAT_AR_RESID_RMS at record ends).
- * TODO(dv_ar): the AR module (include/dynval/dv_ar*.h) had not landed when this was written;
- * wire it here: fit/update on accepted samples when cfg.ar_order > 0, send the record's
- * residual RMS when feat_st == DV_RECORD, set c->ar_status. Until then: not configured. */
-static size_t stage_ar(struct sim_core *c, unsigned ch, dv_real_t x, dv_status_t feat_st,
-                       dv_can_frame_t *out)
-{
-    (void)ch;
-    (void)x;
-    (void)feat_st;
-    (void)out;
-    c->ar_status = SIM_STAGE_NOT_CONFIGURED;
-    return 0;
-}
-
-/* Stage 3: the observer, driven by the force channel, residual per measured channel sent
- * every cfg.resid_decim steps (DV_RESID).
- * TODO(dv_obs): the model/observer modules (dv_model.h, dv_obs.h) had not landed when this
- * was written. An observer step needs u and every y of the same time step, so this stage
- * will buffer one step across channels (samples arrive per channel, 3 per frame) and call
- * dv_obs_step() when all n_chan channels have delivered sample k. Until then: not configured. */
-static size_t stage_observer(struct sim_core *c, unsigned ch, dv_real_t x, dv_can_frame_t *out)
-{
-    (void)ch;
-    (void)x;
-    (void)out;
-    c->obs_status = SIM_STAGE_NOT_CONFIGURED;
-    return 0;
+    return st;
 }
 
 static void start_record(struct sim_core *c)
@@ -316,7 +625,9 @@ static void start_record(struct sim_core *c)
         sc->segments = 0;
         sc->records = 0;
         nan_latest(&sc->last);
+        ar_restart(&sc->ar);
     }
+    obs_restart(&c->obs);
 }
 
 static void clear_counters(struct sim_core *c)
@@ -346,17 +657,22 @@ static size_t handle_samples(struct sim_core *c, const dv_msg_samples_t *s, dv_c
         c->n.ignored++;
         return 0;
     }
+    dv_seq_counts_t before, after;
+    dv_seq_get(&sc->seq, &before);
     const dv_seq_verdict_t v = dv_seq_update(&sc->seq, s->seq);
     if (v != DV_SEQ_OK && v != DV_SEQ_GAP) {
         return 0;
     }
     size_t n = 0;
+    if (v == DV_SEQ_GAP) {
+        dv_seq_get(&sc->seq, &after);
+        stage_observer_gap(c, s->channel, after.lost - before.lost, out, &n);
+    }
     for (unsigned i = 0; i < DV_CODEC_SAMPLES_PER_FRAME; i++) {
         const dv_real_t x = dv_codec_sample_value(s->raw[i], c->cfg.lsb[s->channel]);
-        dv_status_t st;
-        n += stage_features(c, s->channel, x, &st, out + n);
-        n += stage_ar(c, s->channel, x, st, out + n);
-        n += stage_observer(c, s->channel, x, out + n);
+        const dv_status_t st = stage_features(c, s->channel, x, out, &n);
+        stage_ar(c, s->channel, x, st, out, &n);
+        stage_observer(c, s->channel, x, out, &n);
     }
     return n;
 }
@@ -416,7 +732,9 @@ size_t sim_core_handle(struct sim_core *c, const dv_can_frame_t *in, dv_can_fram
         free(c->ch[ch].buf);
         c->ch[ch].buf = buf;
         c->ch[ch].enabled = (m.u.chcfg.flags & 1u) != 0u;
+        ar_clear(&c->ch[ch].ar); /* new scaling: a new baseline */
         c->cfg = cfg;
+        obs_setup(c);
         c->n.cfg_writes++;
         return 0;
     }
@@ -552,6 +870,8 @@ void sim_core_input_regs(const struct sim_core *c, uint16_t *ir)
     ir_u32(ir, SIM_IR_SAMPLES, c->n.samples);
     ir_u32(ir, SIM_IR_TX_ERRORS, c->n.tx_errors);
     ir_u32(ir, SIM_IR_CFG_WRITES, c->n.cfg_writes);
+    ir_u32(ir, SIM_IR_OBS_STEPS, c->obs.steps);
+    ir_u32(ir, SIM_IR_OBS_OVERRUN, c->obs.overrun);
     for (int i = 0; i < SIM_MAX_CHAN; i++) {
         const struct sim_chan *sc = &c->ch[i];
         const struct sim_latest *l = &sc->last;
@@ -582,6 +902,7 @@ void sim_core_input_regs(const struct sim_core *c, uint16_t *ir)
         ir_f32(ir, b + SIM_IR_CH_TM_RMSDUR, l->tm_rmsdur);
         ir_f32(ir, b + SIM_IR_CH_AR_RESID, l->ar_resid);
         ir_f32(ir, b + SIM_IR_CH_OBS_RESID, l->obs_resid);
+        ir_u32(ir, b + SIM_IR_CH_AR_OUTLIERS, sc->ar.last_outliers);
     }
 }
 

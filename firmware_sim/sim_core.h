@@ -15,9 +15,15 @@
 extern "C" {
 #endif
 
-/* Most frames one input frame can produce: 3 samples x (segment: 1 + 4 window frames,
- * record: 16 record/temporal frames + 1 AR) plus a status frame. */
-#define SIM_CORE_MAX_OUT 72
+/* Room for the frames one input frame can produce: 3 samples x (segment: 1 + 4 window
+ * frames, record: 16 record/temporal + 2 AR frames), plus the observer residuals of every
+ * step the frame completes: up to 3 x 127 steps after a gap (NaN placeholders), 7 residual
+ * frames each. Frames beyond it are counted in tx_errors, never written out of bounds. */
+#define SIM_CORE_MAX_OUT 3072
+
+/* Samples one channel may run ahead of the slowest observer channel before its oldest are
+ * discarded (counted in obs.overrun). */
+#define SIM_OBS_QCAP 4096
 
 struct sim_config {
     uint16_t n_chan;       /* 1..SIM_MAX_CHAN */
@@ -47,6 +53,34 @@ struct sim_latest {
     float tm_energy, tm_ctime, tm_rmsdur, ar_resid, obs_resid;
 };
 
+/* AR stage of one channel: the first complete record after configuration is the baseline
+ * the AR(p) model is fitted to (Burg); later records get its one-step residual. */
+struct sim_ar {
+    int phase;             /* 0 collecting the baseline, 1 fitted, -1 fit failed */
+    dv_real_t *rec;        /* baseline record (heap), seg_len * n_seg samples */
+    uint32_t n;            /* samples in rec */
+    dv_ar_model_t model;   /* fitted model */
+    dv_ar_resid_t res;     /* streaming residual */
+    dv_real_t hist[DV_AR_RESID_BUF_LEN(DV_AR_MAX_ORDER)]; /* residual filter history */
+    dv_moments_t mom;      /* residuals of the open record */
+    uint32_t outliers;     /* |e| > k sigma in the open record */
+    uint32_t last_outliers; /* in the last complete record */
+};
+
+/* Observer stage: one step per time index across the force channel and the measured ones. */
+struct sim_obs {
+    int on;                 /* model and observer built */
+    dv_model_t model;
+    dv_obs_t obs;
+    dv_real_t *mbuf, *obuf; /* model and observer storage (heap) */
+    uint16_t n_out;         /* measured channels = model outputs */
+    uint16_t meas_ch[DV_MAX_OUT]; /* channel of output j */
+    dv_real_t *q[SIM_MAX_CHAN]; /* per-channel sample queues (heap, SIM_OBS_QCAP) */
+    uint32_t qh[SIM_MAX_CHAN], qn[SIM_MAX_CHAN]; /* queue heads and fill */
+    uint32_t steps;         /* steps since the last START */
+    uint32_t overrun;       /* samples discarded from full queues */
+};
+
 struct sim_chan {
     dv_chan_t feat;        /* features */
     dv_real_t *buf;        /* DV_CHAN_BUF_LEN(win_len, n_seg) elements (heap) */
@@ -58,12 +92,14 @@ struct sim_chan {
     uint32_t nan_base;     /* NaN count of earlier feature instances (kept across re-init) */
     uint32_t samples;      /* samples accepted */
     struct sim_latest last;
+    struct sim_ar ar;      /* AR stage */
 };
 
 struct sim_core {
     struct sim_config cfg;
     struct sim_chan ch[SIM_MAX_CHAN];
     struct sim_counters n;
+    struct sim_obs obs;
     int obs_status;       /* SIM_STAGE_* */
     int ar_status;        /* SIM_STAGE_* */
     uint8_t beat;         /* heartbeat counter */

@@ -55,6 +55,13 @@ static void usage(const char *argv0)
             "  -n, --nseg N         segments per record (default 64)\n"
             "  -f, --fs HZ          sample rate of every channel (default 640)\n"
             "  -H, --heartbeat MS   DV_STATUS period, 0 = off (default 1000)\n"
+            "  -A, --ar-order P     AR stage order, 0 = off (default 0)\n"
+            "  -o, --outlier X100   AR outlier threshold, sigma x 100 (default 600)\n"
+            "  -F, --force-chan CH  observer input channel (default 0)\n"
+            "  -d, --resid-decim N  residual frame every N observer steps, 0 = none (default 1)\n"
+            "  -m, --model LIST     observer model: comma-separated floats in the order of\n"
+            "                       SIM_MODEL_* (sim_regmap.h): n_dof, 8 masses, 8 k, 8 zeta,\n"
+            "                       q, r, input_dof; missing values are 0\n"
             "  -v, --verbose        report startup and shutdown on stderr\n"
             "  -h, --help\n"
             "exit status: 0 clean shutdown (SIGINT/SIGTERM), 1 runtime error, 2 usage,\n"
@@ -71,6 +78,25 @@ static int parse_u16(const char *s, unsigned lo, unsigned hi, uint16_t *out)
         return -1;
     }
     *out = (uint16_t)v;
+    return 0;
+}
+
+static int parse_model(const char *s, float *model)
+{
+    char *end;
+    int i = 0;
+    memset(model, 0, SIM_N_MODEL * sizeof *model);
+    while (*s != '\0') {
+        if (i == SIM_N_MODEL) {
+            return -1;
+        }
+        errno = 0;
+        model[i++] = strtof(s, &end);
+        if (errno != 0 || end == s || (*end != ',' && *end != '\0')) {
+            return -1;
+        }
+        s = *end == ',' ? end + 1 : end;
+    }
     return 0;
 }
 
@@ -200,6 +226,9 @@ int main(int argc, char **argv)
         {"win", required_argument, NULL, 'w'},     {"seg", required_argument, NULL, 's'},
         {"nseg", required_argument, NULL, 'n'},    {"fs", required_argument, NULL, 'f'},
         {"heartbeat", required_argument, NULL, 'H'}, {"verbose", no_argument, NULL, 'v'},
+        {"ar-order", required_argument, NULL, 'A'}, {"outlier", required_argument, NULL, 'o'},
+        {"force-chan", required_argument, NULL, 'F'},
+        {"resid-decim", required_argument, NULL, 'd'}, {"model", required_argument, NULL, 'm'},
         {"help", no_argument, NULL, 'h'},          {NULL, 0, NULL, 0}};
     struct sim_ctx *x = calloc(1, sizeof *x);
     if (x == NULL) {
@@ -213,7 +242,7 @@ int main(int argc, char **argv)
     sim_config_default(&cfg);
     uint16_t port = 1502, fs = 640;
     int c;
-    while ((c = getopt_long(argc, argv, "i:p:a:l:r:c:w:s:n:f:H:vh", opts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "i:p:a:l:r:c:w:s:n:f:H:A:o:F:d:m:vh", opts, NULL)) != -1) {
         int bad = 0;
         switch (c) {
         case 'i': x->ifname = strcmp(optarg, "none") == 0 ? NULL : optarg; break;
@@ -227,6 +256,11 @@ int main(int argc, char **argv)
         case 'n': bad = parse_u16(optarg, 1, 4096, &cfg.n_seg); break;
         case 'f': bad = parse_u16(optarg, 1, 65535, &fs); break;
         case 'H': bad = parse_u16(optarg, 0, 65535, &cfg.heartbeat_ms); break;
+        case 'A': bad = parse_u16(optarg, 0, 32, &cfg.ar_order); break;
+        case 'o': bad = parse_u16(optarg, 0, 65535, &cfg.outlier_x100); break;
+        case 'F': bad = parse_u16(optarg, 0, SIM_MAX_CHAN - 1, &cfg.force_chan); break;
+        case 'd': bad = parse_u16(optarg, 0, 65535, &cfg.resid_decim); break;
+        case 'm': bad = parse_model(optarg, cfg.model); break;
         case 'v': x->verbose = 1; break;
         case 'h': usage(argv[0]); free(x); return 0;
         default: usage(argv[0]); free(x); return EXIT_USAGE;
@@ -248,8 +282,15 @@ int main(int argc, char **argv)
     for (int i = 0; i < SIM_MAX_CHAN; i++) {
         cfg.fs_hz[i] = fs;
     }
+    const int bad_reg = sim_config_check(&cfg);
+    if (bad_reg >= 0) {
+        fprintf(stderr, "firmware_sim: bad configuration (holding register %d)\n", bad_reg);
+        usage(argv[0]);
+        free(x);
+        return EXIT_USAGE;
+    }
     if (sim_core_init(&x->core, &cfg) != 0) {
-        fprintf(stderr, "firmware_sim: bad configuration or out of memory\n");
+        fprintf(stderr, "firmware_sim: out of memory\n");
         free(x);
         return EXIT_USAGE;
     }
@@ -291,9 +332,14 @@ int main(int argc, char **argv)
         goto out;
     }
     if (x->verbose) {
-        fprintf(stderr, "firmware_sim: CAN %s, Modbus TCP %s:%d, %u channels, real %zu bytes\n",
+        fprintf(stderr,
+                "firmware_sim: CAN %s, Modbus TCP %s:%d, %u channels, real %zu bytes, "
+                "AR order %u, observer %s\n",
                 x->ifname != NULL ? x->ifname : "none", x->mb_addr, x->mb_port,
-                (unsigned)cfg.n_chan, dv_real_size());
+                (unsigned)cfg.n_chan, dv_real_size(), (unsigned)cfg.ar_order,
+                x->core.obs_status == SIM_STAGE_RUNNING ? "running"
+                : x->core.obs_status == SIM_STAGE_ERROR ? "FAILED (model or gain)"
+                                                        : "off");
     }
     /* the "ready" line test fixtures wait for, instead of sleeping */
     printf("firmware_sim ready can=%s modbus=%s:%d\n", x->ifname != NULL ? x->ifname : "none",

@@ -16,7 +16,7 @@
 #define SIM_REGMAP_VERSION 1
 
 #define SIM_MAX_CHAN 8 /* channels a node serves; DV_SAMPLES.channel >= n_chan is counted */
-#define SIM_N_MODEL 10 /* model parameters (float32) passed to the observer stage */
+#define SIM_N_MODEL 32 /* model parameters (float32) of the observer stage, see SIM_MODEL_* */
 
 /* ---- input registers (read-only) ---------------------------------------------------------- */
 #define SIM_IR_VERSION 0   /* SIM_REGMAP_VERSION */
@@ -43,6 +43,8 @@
 #define SIM_IR_SAMPLES 36     /* samples fed to the features, all channels */
 #define SIM_IR_TX_ERRORS 38   /* frames that could not be written */
 #define SIM_IR_CFG_WRITES 40  /* configuration changes applied (Modbus or DV_CHCFG) */
+#define SIM_IR_OBS_STEPS 42   /* observer steps taken since the last START */
+#define SIM_IR_OBS_OVERRUN 44 /* observer input samples discarded (a channel stalled) */
 
 /* per-channel block: SIM_IR_CH(ch) + offset, ch < SIM_MAX_CHAN */
 #define SIM_IR_CH_BASE 100
@@ -71,7 +73,8 @@
 #define SIM_IR_CH_TM_CTIME 40   /* f32 central time T, s */
 #define SIM_IR_CH_TM_RMSDUR 42  /* f32 RMS duration D, s */
 #define SIM_IR_CH_AR_RESID 44   /* f32 RMS of the AR residual over the last record */
-#define SIM_IR_CH_OBS_RESID 46  /* f32 last observer residual */
+#define SIM_IR_CH_OBS_RESID 46  /* f32 last observer residual (measured channels) */
+#define SIM_IR_CH_AR_OUTLIERS 48 /* u32 AR residual outliers in the last record */
 /* features not yet computed read as NaN (0x7FC0 0x0000) */
 #define SIM_N_INPUT (SIM_IR_CH_BASE + SIM_IR_CH_STRIDE * SIM_MAX_CHAN)
 
@@ -92,9 +95,20 @@
 #define SIM_HR_FORCE_CHAN 8   /* input (force) channel of the observer, < n_chan (default 0) */
 #define SIM_HR_HEARTBEAT_MS 9 /* DV_STATUS period, ms, 0 = off (default 1000) */
 #define SIM_HR_RECORDING 10   /* 1 = accept samples, 0 = ignore them (default 1) */
-#define SIM_HR_MODEL 20       /* SIM_N_MODEL f32 model parameters: SIM_HR_MODEL + 2 i */
 #define SIM_HR_LSB 40         /* f32 lsb of channel ch (units/count): SIM_HR_LSB + 2 ch, > 0 */
 #define SIM_HR_FS_CH 60       /* u16 sample rate of channel ch, Hz: SIM_HR_FS_CH + ch, 1..65535 */
-#define SIM_N_HOLDING (SIM_HR_FS_CH + SIM_MAX_CHAN)
+#define SIM_HR_MODEL 100      /* SIM_N_MODEL f32 model parameters: SIM_HR_MODEL + 2 i */
+#define SIM_N_HOLDING (SIM_HR_MODEL + 2 * SIM_N_MODEL)
+
+/* Model parameter i (f32 at SIM_HR_MODEL + 2 i): a lumped-mass chain, modal damping, force
+ * input, the measured (non-force) channels in order = accelerations of DOF 0, 1, ...
+ * Observer off while n_dof is 0. Any write re-builds the model and the observer. */
+#define SIM_MODEL_N_DOF 0   /* 0 (off) or 1..8, integral */
+#define SIM_MODEL_MASS 1    /* 1..8: mass of DOF i, kg, > 0 */
+#define SIM_MODEL_K 9       /* 9..16: k[0] ground-DOF0, k[i] DOF i-1..i, N/m, >= 0 */
+#define SIM_MODEL_ZETA 17   /* 17..24: modal damping ratio of mode i (ascending), >= 0 */
+#define SIM_MODEL_Q 25      /* white force variance at each DOF, N^2, >= 0; 0 = open loop */
+#define SIM_MODEL_R 26      /* measurement noise variance per channel, > 0 when Q > 0 */
+#define SIM_MODEL_INPUT_DOF 27 /* DOF the force channel loads, < n_dof, integral */
 
 #endif /* SIM_REGMAP_H */

@@ -82,6 +82,7 @@ extern "C" {
 #define DV_FEAT_TM_CKURT 0x24u    /**< central kurtosis K, s */
 #define DV_FEAT_TM_AE 0x25u       /**< root energy amplitude A_e */
 #define DV_FEAT_AR_RESID_RMS 0x40u /**< RMS of the AR one-step residual over the record */
+#define DV_FEAT_AR_OUTLIERS 0x41u  /**< AR residuals beyond k sigma in the record (a count) */
 
 /** @brief One classic CAN frame as SocketCAN has it. */
 typedef struct {

@@ -192,21 +192,52 @@ def accepted_stream(frames: list[Frame]) -> dict[int, list[int]]:
     return per
 
 
-def offline_features(streams: dict[int, list[int]], lsbs: list[float],
-                     n_chan: int = N_CHAN, win: int = WIN, seg: int = SEG,
-                     nseg: int = NSEG, fs: int = FS_HZ) -> dict[tuple[int, int, int], int]:
-    """{(channel, feat_id, index): value bits} from tests/e2e/offline_features.c."""
+# LANL 4-DOF frame (../shared/data/synthetic/lanl4dof-*/declared_model.json) as the 32 model
+# registers of sim_regmap.h: n_dof, 8 masses, 8 k, 8 zeta, q, r, input_dof, 4 reserved
+LANL_MODEL = ([4.0] + [6.54, 6.66, 6.86, 6.8] + [0.0] * 4
+              + [10.0, 399790.0, 399790.0, 399790.0] + [0.0] * 4
+              + [0.01, 0.05, 0.01, 0.01] + [0.0] * 4 + [1.0, 0.04, 0.0] + [0.0] * 4)
+AR_ORDER, OUTLIER_X100 = 8, 300
+
+
+def model_arg(model: list[float]) -> str:
+    return ",".join(repr(v) for v in model)
+
+
+def offline_run(streams: dict[int, list[int]], lsbs: list[float], n_chan: int = N_CHAN,
+                win: int = WIN, seg: int = SEG, nseg: int = NSEG, fs: int = FS_HZ,
+                ar: tuple[int, int] | None = None, model: list[float] | None = None,
+                force_chan: int = 0, decim: int = 1):
+    """Feature frames {(channel, feat_id, index): value bits} and observer residual frames
+    {(channel, step): value bits} from tests/e2e/offline_features.c."""
     lines = [f"config {n_chan} {win} {seg} {nseg}"]
     lines += [f"chan {c} {fs} {f32_bits(lsbs[c]):08X}" for c in range(n_chan)]
+    if ar:
+        lines.append(f"ar {ar[0]} {ar[1]}")
+    if model:
+        lines.append(f"model {force_chan} {decim} "
+                     + " ".join(f"{f32_bits(v):08X}" for v in model))
     for c, s in streams.items():
         lines += [f"s {c} {v}" for v in s]
     r = subprocess.run([str(OFFLINE_BIN)], input="\n".join(lines) + "\n", capture_output=True,
                        text=True, check=True)
-    out = {}
+    feats, resid = {}, {}
     for ln in r.stdout.splitlines():
-        _, fid, ch, idx, bits = ln.split()
-        out[(int(ch), int(fid), int(idx))] = int(bits, 16)
-    return out
+        p = ln.split()
+        if p[0] == "F":
+            feats[(int(p[2]), int(p[1]), int(p[3]))] = int(p[4], 16)
+        else:
+            resid[(int(p[1]), int(p[2]))] = int(p[3], 16)
+    return feats, resid
+
+
+def offline_features(streams: dict[int, list[int]], lsbs: list[float], **kw):
+    return offline_run(streams, lsbs, **kw)[0]
+
+
+def resid_key(data: bytes) -> tuple[tuple[int, int], int]:
+    ch, _flags, step, bits = struct.unpack("<BBHI", data)
+    return (ch, step), bits
 
 
 def feature_key(data: bytes) -> tuple[tuple[int, int, int], int]:

@@ -62,6 +62,7 @@ class Link:
         self.bus = bus
         self.sent = 0
         self.features: dict[tuple[int, int, int], int] = {}
+        self.resid: dict[tuple[int, int], int] = {}
         self.repeats = 0
         self.last_status: bytes | None = None
         self.n_status = 0
@@ -72,6 +73,11 @@ class Link:
             if k in self.features:
                 self.repeats += 1
             self.features[k] = v
+        elif m.arbitration_id == E.ID_RESID and len(m.data) == 8:
+            k, v = E.resid_key(bytes(m.data))
+            if k in self.resid:
+                self.repeats += 1
+            self.resid[k] = v
         elif m.arbitration_id == E.ID_STATUS:
             self.last_status = bytes(m.data)
             self.n_status += 1
@@ -119,15 +125,36 @@ def modbus_counters(port: int) -> dict[str, int]:
     return out
 
 
+def f32_regs(values):
+    out = []
+    for v in values:
+        b = E.f32_bits(v)
+        out += [b >> 16, b & 0xFFFF]
+    return out
+
+
 def test_e2e_clean_stream_features_bit_exact(sim, bus):
+    """Features, AR residual features and observer residuals, all configured over Modbus."""
+    rm = E.regmap()
+    with pymodbus_client.ModbusTcpClient("127.0.0.1", port=sim.port, timeout=10) as c:
+        assert not c.write_register(rm["SIM_HR_AR_ORDER"], E.AR_ORDER).isError()
+        assert not c.write_register(rm["SIM_HR_OUTLIER_X100"], E.OUTLIER_X100).isError()
+        assert not c.write_register(rm["SIM_HR_RESID_DECIM"], 1).isError()
+        assert not c.write_registers(rm["SIM_HR_MODEL"], f32_regs(E.LANL_MODEL)).isError()
+        st = c.read_input_registers(rm["SIM_IR_OBS_STATUS"], count=1).registers[0]
+        assert st == rm["SIM_STAGE_RUNNING"]
     x = E.test_signal(N_SAMPLES)
     lsbs = [E.lsb_for(x[:, c]) for c in range(E.N_CHAN)]
     raw = E.quantise(x, lsbs)
     frames = E.sample_frames(raw)
     link = Link(bus)
     link.send_all(setup_frames(lsbs) + frames, barrier_every=100)
-    want = E.offline_features(E.accepted_stream(frames), lsbs)
-    assert len(want) == E.N_CHAN * (3 * E.NSEG * 5 - 4 * ((E.WIN - 1) // E.SEG) + 3 * 16)
+    want, want_resid = E.offline_run(E.accepted_stream(frames), lsbs,
+                                     ar=(E.AR_ORDER, E.OUTLIER_X100), model=E.LANL_MODEL)
+    n_ar = E.N_CHAN * 2 * 2  # records 1 and 2 (record 0 is the baseline): RMS + outliers
+    assert len(want) == E.N_CHAN * (3 * E.NSEG * 5 - 4 * ((E.WIN - 1) // E.SEG) + 3 * 16) + n_ar
+    assert len(want_resid) == 4 * N_SAMPLES
+    assert link.resid == want_resid
     missing = set(want) - set(link.features)
     extra = set(link.features) - set(want)
     assert not missing and not extra, (sorted(missing)[:5], sorted(extra)[:5])
@@ -136,7 +163,7 @@ def test_e2e_clean_stream_features_bit_exact(sim, bus):
     assert link.repeats == 0
     n = modbus_counters(sim.port)
     assert n["RX_FRAMES"] == link.sent
-    assert n["TX_FRAMES"] == len(want) + (link.sent - len(frames) - E.N_CHAN - 1)
+    assert n["TX_FRAMES"] == len(want) + len(want_resid) + (link.sent - len(frames) - E.N_CHAN - 1)
     for k in ("DROPPED", "LOST", "DUP", "LATE", "STALE", "BAD_DLC", "UNKNOWN_ID", "NAN_SAMPLES",
               "BAD_CHAN", "IGNORED", "BAD_CFG"):
         assert n[k] == 0, k

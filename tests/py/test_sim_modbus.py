@@ -30,13 +30,15 @@ def write_log(path: Path, frames: list[E.Frame]) -> None:
             f.write(f"({1700000000 + i * 1e-3:.6f}) vcan0 {ident}#{fr.data.hex().upper()}\n")
 
 
-def logged_features(path: Path) -> dict[tuple[int, int, int], int]:
+def logged_features(path: Path, ident_want: int = E.ID_FEATURE) -> dict:
     out = {}
     for ln in path.read_text().splitlines():
         _, _, fr = ln.split()
         ident, data = fr.split("#")
-        if int(ident, 16) == E.ID_FEATURE and len(ident) == 3:
-            k, v = E.feature_key(bytes.fromhex(data))
+        if int(ident, 16) == ident_want and len(ident) == 3:
+            key = E.feature_key if ident_want == E.ID_FEATURE else E.resid_key
+            k, v = key(bytes.fromhex(data))
+            assert k not in out, f"frame {k} sent twice"
             out[k] = v
     return out
 
@@ -84,6 +86,36 @@ def test_sim_replay_counters_and_features(sim, damaged):
                                              rm["SIM_STAGE_RUNNING"])
 
 
+def test_sim_replay_ar_and_observer_bit_exact(tmp_path):
+    """AR stage (baseline fit + residual RMS/outliers) and observer residual frames equal the
+    library run offline on the same samples."""
+    x = E.test_signal(3 * E.SEG * E.NSEG, seed=4)
+    lsbs = [E.lsb_for(x[:, c]) for c in range(E.N_CHAN)]
+    frames = E.sample_frames(E.quantise(x, lsbs))
+    setup = [E.chcfg(c, E.FS_HZ, lsbs[c]) for c in range(E.N_CHAN)] + [E.ctrl(E.CTRL_START)]
+    log = tmp_path / "in.log"
+    write_log(log, setup + frames)
+    s = E.Sim(["-i", "none", "--replay", str(log), *E.SIM_ARGS, "-A", str(E.AR_ORDER),
+               "-o", str(E.OUTLIER_X100), "-d", "3", "-m", E.model_arg(E.LANL_MODEL)], tmp_path)
+    try:
+        rm = E.regmap()
+        with pymodbus_client.ModbusTcpClient("127.0.0.1", port=s.port, timeout=10) as c:
+            regs = E.read_inputs(c, 200)
+        assert regs[rm["SIM_IR_OBS_STATUS"]] == rm["SIM_STAGE_RUNNING"]
+        assert regs[rm["SIM_IR_AR_STATUS"]] == rm["SIM_STAGE_RUNNING"]
+        assert E.u32(regs, rm["SIM_IR_OBS_STEPS"]) == 3 * E.SEG * E.NSEG
+    finally:
+        assert s.stop() == 0, s.stderr()
+    feats, resid = E.offline_run(E.accepted_stream(frames), lsbs, ar=(E.AR_ORDER, E.OUTLIER_X100),
+                                 model=E.LANL_MODEL, decim=3)
+    got = logged_features(s.log)
+    assert got == feats
+    assert {k for k in feats if k[1] == 0x40} == {(c, 0x40, r) for c in range(E.N_CHAN)
+                                                 for r in (1, 2)}
+    assert logged_features(s.log, E.ID_RESID) == resid
+    assert len(resid) == 4 * (3 * E.SEG * E.NSEG // 3)
+
+
 def test_sim_modbus_write_config_takes_effect(sim):
     rm = E.regmap()
     with pymodbus_client.ModbusTcpClient("127.0.0.1", port=sim.port, timeout=10) as c:
@@ -111,7 +143,7 @@ def test_sim_modbus_write_config_takes_effect(sim):
 def test_sim_modbus_bad_requests_get_exceptions(sim):
     rm = E.regmap()
     n_in = rm["SIM_IR_CH_BASE"] + rm["SIM_IR_CH_STRIDE"] * rm["SIM_MAX_CHAN"]
-    n_hold = rm["SIM_HR_FS_CH"] + rm["SIM_MAX_CHAN"]
+    n_hold = rm["SIM_HR_MODEL"] + 2 * rm["SIM_N_MODEL"]
     with pymodbus_client.ModbusTcpClient("127.0.0.1", port=sim.port, timeout=10) as c:
         r = c.read_input_registers(n_in - 1, count=2)  # runs past the end
         assert r.isError() and r.exception_code == 2
