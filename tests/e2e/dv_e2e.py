@@ -184,10 +184,18 @@ def inject_faults(frames: list[Frame], start: int, rng: np.random.Generator,
     return out, inj
 
 
-def accepted_stream(frames: list[Frame]) -> dict[int, list[int]]:
+def accepted_stream(frames: list[Frame], placeholders: bool = False) -> dict[int, list[int]]:
+    """Per channel, the raw samples firmware_sim feeds its stages, in order. With
+    @p placeholders, a sequence gap adds 3 missing samples per lost frame, as the firmware
+    does for the observer (the features drop missing samples, so they are unaffected)."""
     per: dict[int, list[int]] = {}
+    last: dict[int, int] = {}
     for f in frames:
         if f.id == ID_SAMPLES and f.use:
+            seq = f.data[1]
+            if placeholders and f.ch in last:
+                per[f.ch].extend([MISSING] * (3 * ((seq - last[f.ch] - 1) & 0xFF)))
+            last[f.ch] = seq
             per.setdefault(f.ch, []).extend(f.raw)
     return per
 

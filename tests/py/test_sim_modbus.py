@@ -116,6 +116,23 @@ def test_sim_replay_ar_and_observer_bit_exact(tmp_path):
     assert len(resid) == 4 * (3 * E.SEG * E.NSEG // 3)
 
 
+def test_sim_replay_observer_stays_aligned_across_faults(tmp_path, damaged):
+    """Lost frames become NaN placeholders for the observer: its residuals on a damaged stream
+    equal the library's on the same stream with the gaps filled by missing samples."""
+    log, frames, inj, lsbs = damaged
+    assert inj.lost > 0 and inj.late > 0
+    s = E.Sim(["-i", "none", "--replay", str(log), *E.SIM_ARGS, "-m", E.model_arg(E.LANL_MODEL)],
+              tmp_path)
+    assert s.stop() == 0, s.stderr()
+    feats, resid = E.offline_run(E.accepted_stream(frames, placeholders=True), lsbs,
+                                 model=E.LANL_MODEL)
+    assert logged_features(s.log) == feats
+    got = logged_features(s.log, E.ID_RESID)
+    assert got == resid
+    n_steps = min(len(v) for v in E.accepted_stream(frames, placeholders=True).values())
+    assert len(resid) == 4 * n_steps
+
+
 def test_sim_modbus_write_config_takes_effect(sim):
     rm = E.regmap()
     with pymodbus_client.ModbusTcpClient("127.0.0.1", port=sim.port, timeout=10) as c:
