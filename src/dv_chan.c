@@ -165,6 +165,13 @@ dv_status_t dv_chan_update(dv_chan_t *s, dv_real_t x)
     return close_ring_block(s);
 }
 
+/* Length of the next block when seg_pos samples of the segment are in. */
+static uint32_t block_len(const dv_chan_t *s, uint32_t seg_pos)
+{
+    const uint32_t seg_left = s->cfg.seg_len - seg_pos;
+    return s->blk_max < seg_left ? s->blk_max : seg_left;
+}
+
 dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, size_t *n_used)
 {
     DV_ASSERT(s != NULL);
@@ -173,17 +180,29 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
     }
     size_t used = 0u;
     while (used < n) {
-        size_t left = s->blk_max - s->blk;
-        const size_t seg_left = s->cfg.seg_len - s->seg_pos;
-        left = left < seg_left ? left : seg_left;
-        const size_t m = n - used < left ? n - used : left;
-        const dv_real_t *p = x + used;
-        bool finite = true;
-        for (size_t i = 0u; finite && i < m; i++) {
-            finite = dv_priv_finite(p[i]);
+        /* Whole blocks from here to the record's end (or the input's end) go straight from the
+         * caller's array; an open block, a short tail or a block with NaN/Inf goes through the
+         * per-sample path, which keeps its pending samples in the ring. */
+        size_t whole = 0u;
+        if (s->blk == 0u) {
+            const size_t rec_left = (size_t)(s->cfg.n_seg - s->seg.seg) * s->cfg.seg_len -
+                                    s->seg_pos;
+            const size_t stretch = n - used < rec_left ? n - used : rec_left;
+            uint32_t sp = s->seg_pos;
+            for (;;) {
+                const uint32_t m = block_len(s, sp);
+                if (whole + m > stretch) {
+                    break;
+                }
+                whole += m;
+                sp = sp + m == s->cfg.seg_len ? 0u : sp + m;
+            }
+            if (!dv_priv_all_finite(x + used, whole)) {
+                whole = 0u;
+            }
         }
-        if (!finite) { /* rare: this stretch goes sample by sample */
-            const dv_status_t st = dv_chan_update(s, p[0]);
+        if (whole == 0u) {
+            const dv_status_t st = dv_chan_update(s, x[used]);
             used++;
             if (st == DV_RECORD) {
                 *n_used = used;
@@ -191,15 +210,21 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
             }
             continue;
         }
-        (void)dv_sliding_update_block(&s->win, p, m);
-        s->blk += (uint32_t)m;
-        s->seg_pos += (uint32_t)m;
-        used += m;
-        if (s->blk == s->blk_max || s->seg_pos == s->cfg.seg_len) {
-            if (close_ring_block(s) == DV_RECORD) {
-                *n_used = used;
-                return DV_RECORD;
-            }
+        const dv_real_t *p = x + used;
+        dv_priv_sliding_push_finite(&s->win, p, whole);
+        dv_status_t st = DV_OK;
+        for (size_t off = 0u; off < whole;) {
+            const uint32_t m = block_len(s, s->seg_pos);
+            add_span(s, p + off, m, s->seg_pos == 0u);
+            s->blk = m;
+            s->seg_pos += m;
+            st = close_block(s);
+            off += m;
+        }
+        used += whole;
+        if (st == DV_RECORD) { /* only at the stretch's end: it stops at the record's end */
+            *n_used = used;
+            return DV_RECORD;
         }
     }
     *n_used = used;

@@ -10,6 +10,9 @@
 #include "dynval/dv_temporal.h"
 
 void dv_priv_sliding_turn_over(dv_sliding_t *s);
+
+/* dv_sliding_update_block() for samples known to be finite (the caller checked). */
+void dv_priv_sliding_push_finite(dv_sliding_t *s, const dv_real_t *x, size_t n);
 void dv_priv_temporal_flush(dv_temporal_t *s);
 
 /* Merge a complete block of n samples, given as power sums p[k] = sum (x - shift)^(k+1) and

@@ -34,23 +34,34 @@ void dv_sliding_reset(dv_sliding_t *s)
     s->n_nonfinite = 0u;
 }
 
-/* The ring has turned over and holds exactly the window. Recompute its sums from scratch about
- * its own mean (no add/subtract round-off survives a turn, and a drifting signal keeps small
- * d), and take the suffix extremes of this turn for the next one. */
+/* The ring has turned over and holds exactly the window. Recompute its power sums from scratch
+ * (no add/subtract round-off survives a turn) in one backward pass that also takes the suffix
+ * extremes for the next turn, then re-centre them on the window mean (exact algebra; the old
+ * shift is within a few STDs of it, so this is well conditioned) so a drifting signal keeps
+ * small deviations. */
 void dv_priv_sliding_turn_over(dv_sliding_t *s)
 {
     const dv_real_t *restrict r = s->ring;
     const uint32_t n = s->len;
     dv_real_t *restrict smax = s->sufmax;
     dv_real_t *restrict smin = s->sufmin;
+    const dv_real_t k = s->shift;
     dv_real_t mx = -DV_REAL_MAX, mn = DV_REAL_MAX;
-    dv_real_t a = DV_R(0.0), b = DV_R(0.0); /* two lanes: sum of x - shift */
-    const dv_real_t k0 = s->shift;
+    dv_real_t a1 = DV_R(0.0), a2 = DV_R(0.0), a3 = DV_R(0.0), a4 = DV_R(0.0);
+    dv_real_t b1 = DV_R(0.0), b2 = DV_R(0.0), b3 = DV_R(0.0), b4 = DV_R(0.0);
     uint32_t i = n;
     for (; i >= 2u; i -= 2u) {
         const dv_real_t v = r[i - 1u], w = r[i - 2u];
-        a += v - k0;
-        b += w - k0;
+        const dv_real_t u = v - k, z = w - k;
+        const dv_real_t u2 = u * u, z2 = z * z;
+        a1 += u;
+        b1 += z;
+        a2 += u2;
+        b2 += z2;
+        a3 += u2 * u;
+        b3 += z2 * z;
+        a4 += u2 * u2;
+        b4 += z2 * z2;
         mx = v > mx ? v : mx;
         mn = v < mn ? v : mn;
         smax[i - 1u] = mx;
@@ -61,39 +72,23 @@ void dv_priv_sliding_turn_over(dv_sliding_t *s)
         smin[i - 2u] = mn;
     }
     if (i == 1u) {
-        const dv_real_t v = r[0];
-        a += v - k0;
+        const dv_real_t v = r[0], u = v - k, u2 = u * u;
+        a1 += u;
+        a2 += u2;
+        a3 += u2 * u;
+        a4 += u2 * u2;
         mx = v > mx ? v : mx;
         mn = v < mn ? v : mn;
         smax[0] = mx;
         smin[0] = mn;
     }
-    const dv_real_t k = k0 + (a + b) / (dv_real_t)n; /* the window mean, to round-off */
-    dv_real_t p1[2] = {0}, p2[2] = {0}, p3[2] = {0}, p4[2] = {0};
-    for (i = 0u; i + 1u < n; i += 2u) {
-        const dv_real_t u = r[i] - k, v = r[i + 1u] - k;
-        const dv_real_t u2 = u * u, v2 = v * v;
-        p1[0] += u;
-        p1[1] += v;
-        p2[0] += u2;
-        p2[1] += v2;
-        p3[0] += u2 * u;
-        p3[1] += v2 * v;
-        p4[0] += u2 * u2;
-        p4[1] += v2 * v2;
-    }
-    if (i < n) {
-        const dv_real_t u = r[i] - k, u2 = u * u;
-        p1[0] += u;
-        p2[0] += u2;
-        p3[0] += u2 * u;
-        p4[0] += u2 * u2;
-    }
-    s->shift = k;
-    s->s[0] = p1[0] + p1[1]; /* ~0, but k is the mean only to round-off */
-    s->s[1] = p2[0] + p2[1];
-    s->s[2] = p3[0] + p3[1];
-    s->s[3] = p4[0] + p4[1];
+    s->s[0] = a1 + b1;
+    s->s[1] = a2 + b2;
+    s->s[2] = a3 + b3;
+    s->s[3] = a4 + b4;
+    const dv_real_t delta = s->s[0] / (dv_real_t)n; /* window mean - shift */
+    dv_priv_sums_shift(s->s, (dv_real_t)n, -delta);
+    s->shift = k + delta;
     s->premax = -DV_REAL_MAX;
     s->premin = DV_REAL_MAX;
     s->head = 0u;
@@ -116,22 +111,36 @@ dv_status_t dv_sliding_update_block(dv_sliding_t *s, const dv_real_t *x, size_t 
     if (x == NULL) {
         return n == 0u ? DV_OK : DV_EINVAL;
     }
-    dv_status_t st = DV_OK;
+    if (dv_priv_all_finite(x, n)) {
+        dv_priv_sliding_push_finite(s, x, n);
+        return DV_OK;
+    }
+    for (size_t i = 0u; i < n; i++) { /* rare: drop and count the bad samples one by one */
+        (void)dv_sliding_update(s, x[i]);
+    }
+    return DV_ENUMERIC;
+}
+
+void dv_priv_sliding_push_finite(dv_sliding_t *s, const dv_real_t *x, size_t n)
+{
     size_t i = 0u;
     while (i < n) {
-        /* The fast path needs a full window, finite samples and a stretch up to the turn. */
+        /* Stretches up to the next turn; the window must be full for add/subtract. */
         size_t m = s->len - s->head;
         m = m < n - i ? m : n - i;
-        bool fast = s->fill == s->len && m >= 8u;
         const dv_real_t *restrict p = x + i;
-        for (size_t j = 0u; fast && j < m; j++) {
-            fast = dv_priv_finite(p[j]);
-        }
-        if (!fast) {
-            if (dv_sliding_update(s, x[i]) != DV_OK) {
-                st = DV_ENUMERIC;
-            }
+        if (s->fill < s->len || m < 8u) {
+            dv_priv_sliding_push(s, x[i]);
             i++;
+            continue;
+        }
+        if (m == s->len) {
+            /* A whole turn replaces the window: the turn-over recomputes everything from it. */
+            for (size_t j = 0u; j < m; j++) {
+                s->ring[j] = p[j];
+            }
+            dv_priv_sliding_turn_over(s);
+            i += m;
             continue;
         }
         /* Sums of the entering minus the leaving samples, two interleaved lanes. */
@@ -193,7 +202,6 @@ dv_status_t dv_sliding_update_block(dv_sliding_t *s, const dv_real_t *x, size_t 
         }
         i += m;
     }
-    return st;
 }
 
 dv_status_t dv_sliding_get(const dv_sliding_t *s, dv_stats_t *out)

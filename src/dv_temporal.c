@@ -96,10 +96,11 @@ dv_status_t dv_temporal_update_block(dv_temporal_t *s, const dv_real_t *x, size_
             b1 += v1;
             a2 += w2;
             b2 += v2;
-            a3 += w2 * t;
-            b3 += v2 * u;
-            a4 += w2 * (t * t);
-            b4 += v2 * (u * u);
+            const dv_real_t w3 = w2 * t, v3 = v2 * u;
+            a3 += w3;
+            b3 += v3;
+            a4 += w3 * t;
+            b4 += v3 * u;
             t += DV_R(2.0);
         }
         if (!dv_priv_finite(a4 + b4 + a0 + b0)) {
