@@ -201,3 +201,18 @@ def test_sim_missing_can_interface(tmp_path):
     r = subprocess.run([str(E.SIM_BIN), "-i", "nosuchcan0", "-p", str(E.free_port())],
                        capture_output=True, text=True, timeout=20)
     assert r.returncode == 3 and "CAN" in r.stderr
+
+
+def test_sim_heartbeat_and_sigint(tmp_path):
+    """DV_STATUS every HEARTBEAT_MS (logged even without CAN); SIGINT is a clean shutdown."""
+    import signal
+    import time
+    s = E.Sim(["-i", "none", "-H", "100"], tmp_path)
+    time.sleep(1.05)
+    s.proc.send_signal(signal.SIGINT)
+    assert s.proc.wait(timeout=10) == 0
+    s.stop()
+    beats = [ln for ln in s.log.read_text().splitlines() if " 080#" in ln]
+    assert 8 <= len(beats) <= 11, len(beats)
+    counters = [int(b.split("#")[1][2:4], 16) for b in beats]
+    assert counters == list(range(counters[0], counters[0] + len(beats)))
