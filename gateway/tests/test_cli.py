@@ -26,7 +26,8 @@ def test_features_table_and_json(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert "force_N" in out and "acc1_mps2" in out and "200 samples at 100 Hz" in out
     assert main(["features", "--json", str(p)]) == 0
     res = json.loads(capsys.readouterr().out)
-    assert res["channels"]["force_N"]["mean"] == pytest.approx(sum((i % 7) - 3 for i in range(200)) / 200)
+    mean = sum((i % 7) - 3 for i in range(200)) / 200
+    assert res["channels"]["force_N"]["mean"] == pytest.approx(mean)
     assert res["fs_hz"] == pytest.approx(100.0)
 
 
@@ -48,7 +49,8 @@ def test_bad_files_exit_2_with_file_line_column(tmp_path: Path, caplog: pytest.L
     assert f"{p}{where}" in msgs[0] and what in msgs[0]
 
 
-def test_lenient_counts_instead_of_failing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_lenient_counts_instead_of_failing(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
     p = write(tmp_path, "time_s,force_N\n0,1\n0.01,nan\n0.02,3\n0.03,4\n0.04,5")
     assert main(["features", "--json", "--lenient", str(p)]) == 0
     res = json.loads(capsys.readouterr().out)

@@ -62,7 +62,8 @@ def test_segstd_and_temporal_match_numpy(x: np.ndarray) -> None:
     tc = np.sum(w * t) / np.sum(w)
     assert tm.energy == pytest.approx(np.sum(w) * dt, rel=1e-12)
     assert tm.central_time == pytest.approx(tc, rel=1e-12)
-    assert tm.rms_duration == pytest.approx(np.sqrt(np.sum(w * (t - tc) ** 2) / np.sum(w)), rel=1e-10)
+    d = np.sqrt(np.sum(w * (t - tc) ** 2) / np.sum(w))
+    assert tm.rms_duration == pytest.approx(d, rel=1e-10)
 
 
 def test_corr_matches_numpy(x: np.ndarray) -> None:

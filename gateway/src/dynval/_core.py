@@ -14,22 +14,26 @@ from dynval.errors import CoreError, CoreNotBuiltError
 _LIB_DIR = Path(__file__).resolve().parent / "_lib"
 
 
-def _load() -> tuple[FFI, Any]:
+def _load() -> tuple[FFI, Any]:  # (ffi, lib): lib's functions come from the cdef at run time
     cdef = _LIB_DIR / "dv_cdef.h"
-    libs = sorted(_LIB_DIR.glob("libdynval-f64*.so*")) + sorted(_LIB_DIR.glob("*dynval-f64*.dylib"))
+    libs = sorted(_LIB_DIR.glob("libdynval-f64*.so*"))
+    libs += sorted(_LIB_DIR.glob("*dynval-f64*.dylib"))
     if not cdef.is_file() or not libs:
         raise CoreNotBuiltError(
             f"the compiled dynval core is missing from {_LIB_DIR}: install the package with "
             "`pip install ./gateway` (its build step compiles the C library)")
     ffi = FFI()
     ffi.cdef(cdef.read_text(encoding="utf-8"))
-    lib = ffi.dlopen(str(libs[0]))
+    lib: Any = ffi.dlopen(str(libs[0]))
     if lib.dv_real_size() != 8:
-        raise CoreNotBuiltError("the dynval core was built with float samples; the binding needs double")
+        raise CoreNotBuiltError("the dynval core was built with float samples; "
+                                "the binding needs double")
     return ffi, lib
 
 
-ffi, lib = _load()
+_ffi, lib = _load()
+# cdata objects are dynamically typed: callers see Any, not cffi's opaque stub classes
+ffi: Any = _ffi
 
 DV_OK = 0
 DV_DONE = 1

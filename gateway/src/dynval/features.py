@@ -147,7 +147,7 @@ def corr(x: Any, y: Any) -> float:
         raise ValueError(f"corr needs equal lengths, got {a.size} and {b.size}")
     s = ffi.new("dv_corr_t *")
     check(lib.dv_corr_init(s), "dv_corr_init")
-    for u, v in zip(a.tolist(), b.tolist()):
+    for u, v in zip(a.tolist(), b.tolist(), strict=True):
         lib.dv_corr_update(s, u, v)
     r = ffi.new("double *")
     check(lib.dv_corr_get(s, r), "dv_corr_get")
