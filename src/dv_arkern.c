@@ -48,10 +48,10 @@ static void fir_c(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t *x
     /* Four outputs at a time share each coefficient load and give four independent chains. */
     for (; i + 4u <= n; i += 4u) {
         dv_real_t s0 = DV_R(0.0), s1 = DV_R(0.0), s2 = DV_R(0.0), s3 = DV_R(0.0);
-        const dv_real_t *xi = x + i;
+        const dv_real_t *xi = x + i - 1; /* x_{i-j} for j = 1 */
         for (size_t j = 1u; j <= p; j++) {
             const dv_real_t aj = a[j - 1u];
-            s0 += aj * xi[0] ;
+            s0 += aj * xi[0];
             s1 += aj * xi[1];
             s2 += aj * xi[2];
             s3 += aj * xi[3];

@@ -34,3 +34,16 @@ def features_dump() -> Path:
             pytest.fail(f"DV_FEATURES_DUMP={env} does not exist")
         pytest.skip("build the f64 preset for the C reference dump tool")
     return p
+
+
+@pytest.fixture
+def ar_dump() -> Path:
+    """The AR reference tool (tests/tools/dv_ar_dump.c, double build). CI sets DV_AR_DUMP and
+    then a missing tool is a failure, not a skip."""
+    env = os.environ.get("DV_AR_DUMP")
+    p = Path(env) if env else REPO / "build" / "f64" / "tests" / "dv_ar_dump"
+    if not p.is_file():
+        if env:
+            pytest.fail(f"DV_AR_DUMP={env} does not exist")
+        pytest.skip("build the f64 preset for the C reference dump tool dv_ar_dump")
+    return p
