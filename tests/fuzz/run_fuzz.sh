@@ -1,5 +1,6 @@
 #!/bin/sh
-# Build the codec fuzz target with clang (libFuzzer + ASan + UBSan) and run it for a bounded time.
+# Build the fuzz targets with clang (libFuzzer + ASan + UBSan) and run them for a bounded time:
+# the CAN decoder + sequence tracker (float and double builds) and firmware_sim's core loop.
 # usage: tests/fuzz/run_fuzz.sh [SECONDS=30] [OUTDIR=build/fuzz]
 # Exit status: 0 when the time ran out without a crash; libFuzzer's status otherwise.
 set -eu
@@ -14,6 +15,10 @@ for real in float double; do
         -I"$ROOT/include" "$ROOT/tests/fuzz/fuzz_codec.c" "$ROOT/src/dv_codec.c" \
         "$ROOT/src/dv_common.c" -lm -o "$OUT/fuzz_codec_$real"
 done
+"$CC" -std=c99 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
+    -I"$ROOT/include" -I"$ROOT/firmware_sim" "$ROOT/tests/fuzz/fuzz_sim_core.c" \
+    "$ROOT/firmware_sim/sim_core.c" "$ROOT"/src/*.c -lm -o "$OUT/fuzz_sim_core"
+mkdir -p "$OUT/corpus_sim"
 # a seed: one valid frame of each kind, then a sample stream with a gap and a duplicate
 python3 - "$OUT/corpus/seed" <<'PY' 2>/dev/null || true
 import struct, sys
@@ -25,14 +30,16 @@ for idsel, d in [(0, b"\x01"*8), (1, b"\x01\x00\x01\x02\x03\x04\x00\x00"),
     recs += struct.pack("<IB", idsel, 8) + d
 open(sys.argv[1], "wb").write(recs)
 PY
-half=$(( (SECS + 1) / 2 ))
+third=$(( (SECS + 2) / 3 ))
 rc=0
-for real in float double; do
+for t in codec_float codec_double sim_core; do
     r=0
-    "$OUT/fuzz_codec_$real" -max_total_time="$half" -max_len=1300 -print_final_stats=1 \
-        -artifact_prefix="$OUT/" "$OUT/corpus" >"$OUT/fuzz_$real.log" 2>&1 || r=$?
-    grep -E '^(Done|stat::number_of_executed_units)|ERROR|SUMMARY' "$OUT/fuzz_$real.log" || true
-    echo "fuzz_codec_$real: exit $r (log $OUT/fuzz_$real.log)"
+    corpus="$OUT/corpus"; [ "$t" = sim_core ] && corpus="$OUT/corpus_sim"
+    [ "$t" = sim_core ] && cp "$OUT/corpus/seed" "$corpus/" 2>/dev/null
+    "$OUT/fuzz_$t" -max_total_time="$third" -max_len=1300 -print_final_stats=1 \
+        -artifact_prefix="$OUT/" "$corpus" >"$OUT/fuzz_$t.log" 2>&1 || r=$?
+    grep -E '^(Done|stat::number_of_executed_units)|ERROR|SUMMARY' "$OUT/fuzz_$t.log" || true
+    echo "fuzz_$t: exit $r (log $OUT/fuzz_$t.log)"
     [ "$r" -eq 0 ] || rc=$r
 done
 exit "$rc"
