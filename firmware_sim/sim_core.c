@@ -540,6 +540,30 @@ int sim_core_init(struct sim_core *c, const struct sim_config *cfg)
     return 0;
 }
 
+struct sim_core *sim_core_new(const struct sim_config *cfg)
+{
+    struct sim_config def;
+    if (cfg == NULL) {
+        sim_config_default(&def);
+        cfg = &def;
+    }
+    struct sim_core *c = malloc(sizeof *c);
+    if (c != NULL && sim_core_init(c, cfg) != 0) {
+        sim_core_free(c);
+        free(c);
+        c = NULL;
+    }
+    return c;
+}
+
+void sim_core_delete(struct sim_core *c)
+{
+    if (c != NULL) {
+        sim_core_free(c);
+        free(c);
+    }
+}
+
 void sim_core_free(struct sim_core *c)
 {
     for (int i = 0; i < SIM_MAX_CHAN; i++) {

@@ -122,6 +122,11 @@ int sim_core_configure(struct sim_core *c, const struct sim_config *cfg);
 
 void sim_core_free(struct sim_core *c);
 
+/* For bindings (ctypes/cffi) that should not depend on the struct layout: a heap instance,
+ * with the defaults when @p cfg is NULL. NULL on a bad config or no memory. */
+struct sim_core *sim_core_new(const struct sim_config *cfg);
+void sim_core_delete(struct sim_core *c);
+
 /* Handle one received frame; writes up to SIM_CORE_MAX_OUT frames to @p out and returns how
  * many. Never fails: bad frames are counted. */
 size_t sim_core_handle(struct sim_core *c, const dv_can_frame_t *in, dv_can_frame_t *out);

@@ -24,7 +24,7 @@ fi
 echo "== build ($BUILD)"
 cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DDV_BUILD_SIM=ON -DDV_BUILD_TESTS=OFF \
     >"${TMPDIR:-/tmp}/dv_e2e_cmake.log" 2>&1 || { cat "${TMPDIR:-/tmp}/dv_e2e_cmake.log"; exit 1; }
-cmake --build "$BUILD" -j2 --target dv_sim dv_sim_offline >/dev/null
+cmake --build "$BUILD" -j2 --target dv_sim dv_sim_offline dv_simcore >/dev/null
 
 echo "== host: Modbus tests (no CAN)"
 DV_E2E_BUILD="$BUILD" $PYTEST "$ROOT/tests/py/test_sim_modbus.py"
