@@ -47,3 +47,16 @@ def ar_dump() -> Path:
             pytest.fail(f"DV_AR_DUMP={env} does not exist")
         pytest.skip("build the f64 preset for the C reference dump tool dv_ar_dump")
     return p
+
+
+@pytest.fixture
+def model_dump() -> Path:
+    """The model reference tool (tests/tools/dv_model_dump.c, double build). CI sets
+    DV_MODEL_DUMP and then a missing tool is a failure, not a skip."""
+    env = os.environ.get("DV_MODEL_DUMP")
+    p = Path(env) if env else REPO / "build" / "f64" / "tests" / "dv_model_dump"
+    if not p.is_file():
+        if env:
+            pytest.fail(f"DV_MODEL_DUMP={env} does not exist")
+        pytest.skip("build the f64 preset for the C reference dump tool dv_model_dump")
+    return p
