@@ -274,6 +274,8 @@ dv_status_t dv_ar_autocorr(const dv_real_t *x, size_t n, size_t maxlag, dv_real_
 
 /* ---- streaming residual ------------------------------------------------------------------ */
 
+DV_STATIC_ASSERT(DV_AR_RESID_NEW == 4u, ar_resid_keeps_four_newest);
+
 dv_status_t dv_ar_resid_init(dv_ar_resid_t *r, const dv_ar_model_t *m, dv_real_t *buf,
                              size_t buf_len)
 {
@@ -313,6 +315,9 @@ void dv_ar_resid_reset(dv_ar_resid_t *r)
     for (uint32_t j = 0u; j < 2u * r->p; j++) {
         r->hist[j] = DV_R(0.0);
     }
+    for (uint32_t j = 0u; j < DV_AR_RESID_NEW; j++) {
+        r->nw[j] = DV_R(0.0);
+    }
     r->head = 0u;
     r->count = 0u;
     r->n_nonfinite = 0u;
@@ -329,10 +334,22 @@ dv_status_t dv_ar_resid_update(dv_ar_resid_t *r, dv_real_t x, dv_real_t *e)
     const dv_real_t y = x - r->mean;
     dv_status_t st = DV_ENOTREADY;
     if (r->count >= p) {
-        /* hist[head .. head+p-1] holds the last p centred samples, oldest first. */
-        *e = y - dv_priv_ar_dot(r->c, r->hist + r->head, p, r->kern);
+        /* hist[head .. head+p-1] holds the last p centred samples, oldest first. The newest
+         * DV_AR_RESID_NEW of them are read from nw[] instead: their stores may still be in
+         * flight, and a wide load spanning them would wait for the stores to drain. */
+        const uint32_t k = p < DV_AR_RESID_NEW ? p : DV_AR_RESID_NEW, v = p - k;
+        dv_real_t acc = v > 0u ? dv_priv_ar_dot(r->c, r->hist + r->head, v, r->kern) : DV_R(0.0);
+        dv_real_t acc2 = DV_R(0.0);
+        for (uint32_t j = 0u; j < k; j++) {
+            acc2 += r->c[p - 1u - j] * r->nw[j];
+        }
+        *e = y - (acc + acc2);
         st = DV_OK;
     }
+    r->nw[3] = r->nw[2];
+    r->nw[2] = r->nw[1];
+    r->nw[1] = r->nw[0];
+    r->nw[0] = y;
     r->hist[r->head] = y;
     r->hist[r->head + p] = y;
     r->head = r->head + 1u == p ? 0u : r->head + 1u;
@@ -391,6 +408,9 @@ dv_status_t dv_ar_resid_update_block(dv_ar_resid_t *r, const dv_real_t *x, size_
             const dv_real_t y = x[n - p + j] - r->mean;
             r->hist[j] = y;
             r->hist[j + p] = y;
+        }
+        for (uint32_t j = 0u; j < DV_AR_RESID_NEW; j++) {
+            r->nw[j] = j < p ? r->hist[p - 1u - j] : DV_R(0.0);
         }
         r->head = 0u;
     }

@@ -138,31 +138,48 @@ DV_TGT_AVX2 static double dot_avx2(const double *a, const double *b, size_t n)
     return s;
 }
 
-/* Lags in groups of 32: one broadcast of x_i feeds 8 accumulators of 4 lags each. */
+/* Lags in groups of 32 (8 x 4 accumulators). Rows i are taken 4 apart (residue by residue), so
+ * the 8 windows x[i+g+4q .. +3] of row i+4 are those of row i shifted by one: one new load per
+ * row instead of 8 (the loads, mostly cache-line splits, were the bottleneck). */
 DV_TGT_AVX2 static void acf_avx2(const double *x, size_t n, size_t maxlag, double *r)
 {
     for (size_t g = 0u; g <= maxlag; g += 32u) {
-        __m256d acc[8];
-        for (int q = 0; q < 8; q++) {
-            acc[q] = _mm256_setzero_pd();
-        }
+        __m256d c0 = _mm256_setzero_pd(), c1 = c0, c2 = c0, c3 = c0, c4 = c0, c5 = c0, c6 = c0,
+                c7 = c0;
         const size_t imax = n > g + 31u ? n - g - 31u : 0u; /* rows whose 32 lags are in range */
-        for (size_t i = 0u; i < imax; i++) {
-            const __m256d xi = _mm256_broadcast_sd(x + i);
-            const double *xk = x + i + g;
-            acc[0] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk), acc[0]);
-            acc[1] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 4), acc[1]);
-            acc[2] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 8), acc[2]);
-            acc[3] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 12), acc[3]);
-            acc[4] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 16), acc[4]);
-            acc[5] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 20), acc[5]);
-            acc[6] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 24), acc[6]);
-            acc[7] = _mm256_fmadd_pd(xi, _mm256_loadu_pd(xk + 28), acc[7]);
+        for (size_t rho = 0u; rho < 4u && rho < imax; rho++) {
+            const double *w = x + rho + g;
+            __m256d w0 = _mm256_loadu_pd(w), w1 = _mm256_loadu_pd(w + 4), w2 = _mm256_loadu_pd(w + 8),
+                    w3 = _mm256_loadu_pd(w + 12), w4 = _mm256_loadu_pd(w + 16),
+                    w5 = _mm256_loadu_pd(w + 20), w6 = _mm256_loadu_pd(w + 24),
+                    w7 = _mm256_loadu_pd(w + 28);
+            for (size_t i = rho;;) {
+                const __m256d xi = _mm256_broadcast_sd(x + i);
+                c0 = _mm256_fmadd_pd(xi, w0, c0);
+                c1 = _mm256_fmadd_pd(xi, w1, c1);
+                c2 = _mm256_fmadd_pd(xi, w2, c2);
+                c3 = _mm256_fmadd_pd(xi, w3, c3);
+                c4 = _mm256_fmadd_pd(xi, w4, c4);
+                c5 = _mm256_fmadd_pd(xi, w5, c5);
+                c6 = _mm256_fmadd_pd(xi, w6, c6);
+                c7 = _mm256_fmadd_pd(xi, w7, c7);
+                i += 4u;
+                if (i >= imax) {
+                    break;
+                }
+                w0 = w1; w1 = w2; w2 = w3; w3 = w4; w4 = w5; w5 = w6; w6 = w7;
+                w7 = _mm256_loadu_pd(x + i + g + 28u);
+            }
         }
         double tmp[32];
-        for (int q = 0; q < 8; q++) {
-            _mm256_storeu_pd(tmp + 4 * q, acc[q]);
-        }
+        _mm256_storeu_pd(tmp, c0);
+        _mm256_storeu_pd(tmp + 4, c1);
+        _mm256_storeu_pd(tmp + 8, c2);
+        _mm256_storeu_pd(tmp + 12, c3);
+        _mm256_storeu_pd(tmp + 16, c4);
+        _mm256_storeu_pd(tmp + 20, c5);
+        _mm256_storeu_pd(tmp + 24, c6);
+        _mm256_storeu_pd(tmp + 28, c7);
         for (size_t l = 0u; l < 32u && g + l <= maxlag; l++) {
             const size_t k = g + l;
             double s = tmp[l];
@@ -174,32 +191,57 @@ DV_TGT_AVX2 static void acf_avx2(const double *x, size_t n, size_t maxlag, doubl
     }
 }
 
+/* 32 outputs at a time in 8 x 4 accumulators. Taps are taken 4 apart (j0, j0+4, ...): the 8
+ * windows x[i+4t-j .. +3] of tap j+4 are those of tap j shifted by one, so each tap costs one
+ * load, one broadcast and 8 FMAs. */
 DV_TGT_AVX2 static void fir_avx2(const double *a, size_t p, double c0, const double *x, size_t n,
                                  double *e)
 {
     const __m256d vc0 = _mm256_set1_pd(c0);
     size_t i = 0u;
     for (; i + 32u <= n; i += 32u) {
-        __m256d s[8];
-        for (int q = 0; q < 8; q++) {
-            s[q] = _mm256_sub_pd(_mm256_loadu_pd(x + i + 4 * q), vc0);
-        }
         const double *xi = x + i;
-        for (size_t j = 1u; j <= p; j++) {
-            const __m256d aj = _mm256_broadcast_sd(a + j - 1u);
-            const double *xj = xi - j;
-            s[0] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj), s[0]);
-            s[1] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 4), s[1]);
-            s[2] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 8), s[2]);
-            s[3] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 12), s[3]);
-            s[4] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 16), s[4]);
-            s[5] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 20), s[5]);
-            s[6] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 24), s[6]);
-            s[7] = _mm256_fnmadd_pd(aj, _mm256_loadu_pd(xj + 28), s[7]);
+        __m256d s0 = _mm256_sub_pd(_mm256_loadu_pd(xi), vc0);
+        __m256d s1 = _mm256_sub_pd(_mm256_loadu_pd(xi + 4), vc0);
+        __m256d s2 = _mm256_sub_pd(_mm256_loadu_pd(xi + 8), vc0);
+        __m256d s3 = _mm256_sub_pd(_mm256_loadu_pd(xi + 12), vc0);
+        __m256d s4 = _mm256_sub_pd(_mm256_loadu_pd(xi + 16), vc0);
+        __m256d s5 = _mm256_sub_pd(_mm256_loadu_pd(xi + 20), vc0);
+        __m256d s6 = _mm256_sub_pd(_mm256_loadu_pd(xi + 24), vc0);
+        __m256d s7 = _mm256_sub_pd(_mm256_loadu_pd(xi + 28), vc0);
+        for (size_t j0 = 1u; j0 <= 4u && j0 <= p; j0++) {
+            const double *w = xi - j0;
+            __m256d w0 = _mm256_loadu_pd(w), w1 = _mm256_loadu_pd(w + 4), w2 = _mm256_loadu_pd(w + 8),
+                    w3 = _mm256_loadu_pd(w + 12), w4 = _mm256_loadu_pd(w + 16),
+                    w5 = _mm256_loadu_pd(w + 20), w6 = _mm256_loadu_pd(w + 24),
+                    w7 = _mm256_loadu_pd(w + 28);
+            for (size_t j = j0;;) {
+                const __m256d aj = _mm256_broadcast_sd(a + j - 1u);
+                s0 = _mm256_fnmadd_pd(aj, w0, s0);
+                s1 = _mm256_fnmadd_pd(aj, w1, s1);
+                s2 = _mm256_fnmadd_pd(aj, w2, s2);
+                s3 = _mm256_fnmadd_pd(aj, w3, s3);
+                s4 = _mm256_fnmadd_pd(aj, w4, s4);
+                s5 = _mm256_fnmadd_pd(aj, w5, s5);
+                s6 = _mm256_fnmadd_pd(aj, w6, s6);
+                s7 = _mm256_fnmadd_pd(aj, w7, s7);
+                j += 4u;
+                if (j > p) {
+                    break;
+                }
+                w -= 4;
+                w7 = w6; w6 = w5; w5 = w4; w4 = w3; w3 = w2; w2 = w1; w1 = w0;
+                w0 = _mm256_loadu_pd(w);
+            }
         }
-        for (int q = 0; q < 8; q++) {
-            _mm256_storeu_pd(e + i + 4 * q, s[q]);
-        }
+        _mm256_storeu_pd(e + i, s0);
+        _mm256_storeu_pd(e + i + 4, s1);
+        _mm256_storeu_pd(e + i + 8, s2);
+        _mm256_storeu_pd(e + i + 12, s3);
+        _mm256_storeu_pd(e + i + 16, s4);
+        _mm256_storeu_pd(e + i + 20, s5);
+        _mm256_storeu_pd(e + i + 24, s6);
+        _mm256_storeu_pd(e + i + 28, s7);
     }
     for (; i + 4u <= n; i += 4u) {
         __m256d s = _mm256_sub_pd(_mm256_loadu_pd(x + i), vc0);
@@ -273,30 +315,46 @@ DV_TGT_AVX512 static double dot_avx512(const double *a, const double *b, size_t 
     return _mm512_reduce_add_pd(_mm512_add_pd(s0, s1));
 }
 
+/* As acf_avx2 with 8 x 8 lags and rows 8 apart. */
 DV_TGT_AVX512 static void acf_avx512(const double *x, size_t n, size_t maxlag, double *r)
 {
     for (size_t g = 0u; g <= maxlag; g += 64u) {
-        __m512d acc[8];
-        for (int q = 0; q < 8; q++) {
-            acc[q] = _mm512_setzero_pd();
-        }
+        __m512d c0 = _mm512_setzero_pd(), c1 = c0, c2 = c0, c3 = c0, c4 = c0, c5 = c0, c6 = c0,
+                c7 = c0;
         const size_t imax = n > g + 63u ? n - g - 63u : 0u;
-        for (size_t i = 0u; i < imax; i++) {
-            const __m512d xi = _mm512_set1_pd(x[i]);
-            const double *xk = x + i + g;
-            acc[0] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk), acc[0]);
-            acc[1] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 8), acc[1]);
-            acc[2] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 16), acc[2]);
-            acc[3] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 24), acc[3]);
-            acc[4] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 32), acc[4]);
-            acc[5] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 40), acc[5]);
-            acc[6] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 48), acc[6]);
-            acc[7] = _mm512_fmadd_pd(xi, _mm512_loadu_pd(xk + 56), acc[7]);
+        for (size_t rho = 0u; rho < 8u && rho < imax; rho++) {
+            const double *w = x + rho + g;
+            __m512d w0 = _mm512_loadu_pd(w), w1 = _mm512_loadu_pd(w + 8), w2 = _mm512_loadu_pd(w + 16),
+                    w3 = _mm512_loadu_pd(w + 24), w4 = _mm512_loadu_pd(w + 32),
+                    w5 = _mm512_loadu_pd(w + 40), w6 = _mm512_loadu_pd(w + 48),
+                    w7 = _mm512_loadu_pd(w + 56);
+            for (size_t i = rho;;) {
+                const __m512d xi = _mm512_set1_pd(x[i]);
+                c0 = _mm512_fmadd_pd(xi, w0, c0);
+                c1 = _mm512_fmadd_pd(xi, w1, c1);
+                c2 = _mm512_fmadd_pd(xi, w2, c2);
+                c3 = _mm512_fmadd_pd(xi, w3, c3);
+                c4 = _mm512_fmadd_pd(xi, w4, c4);
+                c5 = _mm512_fmadd_pd(xi, w5, c5);
+                c6 = _mm512_fmadd_pd(xi, w6, c6);
+                c7 = _mm512_fmadd_pd(xi, w7, c7);
+                i += 8u;
+                if (i >= imax) {
+                    break;
+                }
+                w0 = w1; w1 = w2; w2 = w3; w3 = w4; w4 = w5; w5 = w6; w6 = w7;
+                w7 = _mm512_loadu_pd(x + i + g + 56u);
+            }
         }
         double tmp[64];
-        for (int q = 0; q < 8; q++) {
-            _mm512_storeu_pd(tmp + 8 * q, acc[q]);
-        }
+        _mm512_storeu_pd(tmp, c0);
+        _mm512_storeu_pd(tmp + 8, c1);
+        _mm512_storeu_pd(tmp + 16, c2);
+        _mm512_storeu_pd(tmp + 24, c3);
+        _mm512_storeu_pd(tmp + 32, c4);
+        _mm512_storeu_pd(tmp + 40, c5);
+        _mm512_storeu_pd(tmp + 48, c6);
+        _mm512_storeu_pd(tmp + 56, c7);
         for (size_t l = 0u; l < 64u && g + l <= maxlag; l++) {
             const size_t k = g + l;
             double s = tmp[l];
@@ -308,32 +366,55 @@ DV_TGT_AVX512 static void acf_avx512(const double *x, size_t n, size_t maxlag, d
     }
 }
 
+/* As fir_avx2 with 8 x 8 outputs and taps 8 apart. */
 DV_TGT_AVX512 static void fir_avx512(const double *a, size_t p, double c0, const double *x,
                                      size_t n, double *e)
 {
     const __m512d vc0 = _mm512_set1_pd(c0);
     size_t i = 0u;
     for (; i + 64u <= n; i += 64u) {
-        __m512d s[8];
-        for (int q = 0; q < 8; q++) {
-            s[q] = _mm512_sub_pd(_mm512_loadu_pd(x + i + 8 * q), vc0);
-        }
         const double *xi = x + i;
-        for (size_t j = 1u; j <= p; j++) {
-            const __m512d aj = _mm512_set1_pd(a[j - 1u]);
-            const double *xj = xi - j;
-            s[0] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj), s[0]);
-            s[1] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 8), s[1]);
-            s[2] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 16), s[2]);
-            s[3] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 24), s[3]);
-            s[4] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 32), s[4]);
-            s[5] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 40), s[5]);
-            s[6] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 48), s[6]);
-            s[7] = _mm512_fnmadd_pd(aj, _mm512_loadu_pd(xj + 56), s[7]);
+        __m512d s0 = _mm512_sub_pd(_mm512_loadu_pd(xi), vc0);
+        __m512d s1 = _mm512_sub_pd(_mm512_loadu_pd(xi + 8), vc0);
+        __m512d s2 = _mm512_sub_pd(_mm512_loadu_pd(xi + 16), vc0);
+        __m512d s3 = _mm512_sub_pd(_mm512_loadu_pd(xi + 24), vc0);
+        __m512d s4 = _mm512_sub_pd(_mm512_loadu_pd(xi + 32), vc0);
+        __m512d s5 = _mm512_sub_pd(_mm512_loadu_pd(xi + 40), vc0);
+        __m512d s6 = _mm512_sub_pd(_mm512_loadu_pd(xi + 48), vc0);
+        __m512d s7 = _mm512_sub_pd(_mm512_loadu_pd(xi + 56), vc0);
+        for (size_t j0 = 1u; j0 <= 8u && j0 <= p; j0++) {
+            const double *w = xi - j0;
+            __m512d w0 = _mm512_loadu_pd(w), w1 = _mm512_loadu_pd(w + 8), w2 = _mm512_loadu_pd(w + 16),
+                    w3 = _mm512_loadu_pd(w + 24), w4 = _mm512_loadu_pd(w + 32),
+                    w5 = _mm512_loadu_pd(w + 40), w6 = _mm512_loadu_pd(w + 48),
+                    w7 = _mm512_loadu_pd(w + 56);
+            for (size_t j = j0;;) {
+                const __m512d aj = _mm512_set1_pd(a[j - 1u]);
+                s0 = _mm512_fnmadd_pd(aj, w0, s0);
+                s1 = _mm512_fnmadd_pd(aj, w1, s1);
+                s2 = _mm512_fnmadd_pd(aj, w2, s2);
+                s3 = _mm512_fnmadd_pd(aj, w3, s3);
+                s4 = _mm512_fnmadd_pd(aj, w4, s4);
+                s5 = _mm512_fnmadd_pd(aj, w5, s5);
+                s6 = _mm512_fnmadd_pd(aj, w6, s6);
+                s7 = _mm512_fnmadd_pd(aj, w7, s7);
+                j += 8u;
+                if (j > p) {
+                    break;
+                }
+                w -= 8;
+                w7 = w6; w6 = w5; w5 = w4; w4 = w3; w3 = w2; w2 = w1; w1 = w0;
+                w0 = _mm512_loadu_pd(w);
+            }
         }
-        for (int q = 0; q < 8; q++) {
-            _mm512_storeu_pd(e + i + 8 * q, s[q]);
-        }
+        _mm512_storeu_pd(e + i, s0);
+        _mm512_storeu_pd(e + i + 8, s1);
+        _mm512_storeu_pd(e + i + 16, s2);
+        _mm512_storeu_pd(e + i + 24, s3);
+        _mm512_storeu_pd(e + i + 32, s4);
+        _mm512_storeu_pd(e + i + 40, s5);
+        _mm512_storeu_pd(e + i + 48, s6);
+        _mm512_storeu_pd(e + i + 56, s7);
     }
     for (; i + 8u <= n; i += 8u) {
         __m512d s = _mm512_sub_pd(_mm512_loadu_pd(x + i), vc0);

@@ -122,6 +122,11 @@ dv_status_t dv_ar_order(dv_ar_order_t *o, dv_ar_method_t method, uint32_t pmax,
  */
 dv_status_t dv_ar_autocorr(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r);
 
+/** Newest samples the streaming residual keeps in the instance, outside the vector-read
+ *  history (a vector load of a sample stored by the previous call would stall on store
+ *  forwarding). */
+#define DV_AR_RESID_NEW 4u
+
 /** @brief Streaming AR residual (eq. 31), O(p) per sample. Fields are private. */
 typedef struct {
     dv_real_t c[DV_AR_MAX_ORDER]; /**< a_p..a_1 (reversed, for the history dot product) */
@@ -129,6 +134,7 @@ typedef struct {
     dv_real_t c0;                 /**< mean (1 - sum a_j): the mean folded out of the block kernel */
     dv_real_t *hist;              /**< double-length history, 2p: hist[j] == hist[j + p] */
     dv_real_t mean;               /**< subtracted from every input */
+    dv_real_t nw[DV_AR_RESID_NEW]; /**< newest centred samples, nw[0] = latest */
     uint32_t p;                   /**< order */
     uint32_t head;                /**< oldest history slot, 0..p-1 */
     uint32_t kern;                /**< kernel chosen at init (0 portable, 1 AVX2, 2 AVX-512) */

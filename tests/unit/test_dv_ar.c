@@ -347,6 +347,53 @@ static void test_ar_bad_input(void **state)
     assert_int_equal(dv_ar_resid_init(&r, &m, h, 8), DV_EINVAL);
 }
 
+// Every kernel tail: block lengths p .. p+140 (all residues of the 4/32/64-output tiles) and
+// orders 1..13 (small p, p below the newest-sample cache) against a direct double sum. Model mean
+// 0 so that float builds take the block kernel too (fir_c).
+static void test_ar_resid_block_tails_match_direct_sum(void **state)
+{
+    (void)state;
+    size_t n = load("ar4");
+    assert_true(n >= 400);
+    dv_real_t h[DV_AR_RESID_BUF_LEN(PMAX)];
+    const uint32_t orders[] = {1, 2, 3, 4, 5, 8, 13, 60};
+    for (int o = 0; o < 8; o++) {
+        const uint32_t p = orders[o];
+        dv_ar_model_t m;
+        memset(&m, 0, sizeof m);
+        m.order = p;
+        for (uint32_t j = 0; j < p; j++) m.a[j] = (dv_real_t)(0.5 / (j + 1.0) * (j % 2 ? -1 : 1));
+        for (size_t len = p; len <= (size_t)p + 140; len += o == 7 ? 1 : 7) {
+            dv_ar_resid_t r;
+            assert_int_equal(dv_ar_resid_init(&r, &m, h, sizeof h / sizeof *h), DV_OK);
+            size_t got = 0;
+            assert_int_equal(dv_ar_resid_update_block(&r, xr, len, eb, &got), DV_OK);
+            assert_int_equal(got, len - p);
+            for (size_t i = p; i < len; i++) {
+                double d = xr[i], sc = fabs(xr[i]);
+                for (uint32_t j = 1; j <= p; j++) {
+                    d -= (double)m.a[j - 1] * xr[i - j];
+                    sc += fabs((double)m.a[j - 1] * xr[i - j]);
+                }
+                if (!dv_test_close(eb[i - p], d, DV_TEST_RTOL * 10, sc))
+                    fprintf(stderr, "p=%u len=%zu i=%zu: %g vs %g\n", p, len, i, (double)eb[i - p], d);
+                assert_true(dv_test_close(eb[i - p], d, DV_TEST_RTOL * 10, sc));
+            }
+            // then per-sample updates continue the same history (newest-sample cache included)
+            for (size_t i = len; i < len + 6; i++) {
+                dv_real_t e1 = 0;
+                assert_int_equal(dv_ar_resid_update(&r, xr[i], &e1), DV_OK);
+                double d = xr[i], sc = fabs(xr[i]);
+                for (uint32_t j = 1; j <= p; j++) {
+                    d -= (double)m.a[j - 1] * xr[i - j];
+                    sc += fabs((double)m.a[j - 1] * xr[i - j]);
+                }
+                assert_true(dv_test_close(e1, d, DV_TEST_RTOL * 10, sc));
+            }
+        }
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -358,6 +405,7 @@ int main(void)
         cmocka_unit_test(test_ar_residual_is_white),
         cmocka_unit_test(test_ar_resid_single_and_block_match_definition),
         cmocka_unit_test(test_ar_resid_nan_is_dropped_and_counted),
+        cmocka_unit_test(test_ar_resid_block_tails_match_direct_sum),
         cmocka_unit_test(test_ar_bad_input),
     };
     return cmocka_run_group_tests_name("dv_ar", tests, NULL, NULL);
