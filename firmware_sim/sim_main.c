@@ -331,6 +331,9 @@ int main(int argc, char **argv)
         status = 1;
         goto out;
     }
+    if (x->log != NULL) {
+        fflush(x->log); /* the replayed part is complete in the log once "ready" is out */
+    }
     if (x->verbose) {
         fprintf(stderr,
                 "firmware_sim: CAN %s, Modbus TCP %s:%d, %u channels, real %zu bytes, "
