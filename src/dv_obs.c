@@ -16,7 +16,12 @@ size_t dv_obs_buf_len(const dv_model_t *m)
     return obs_len(m->n_dof, m->n_contact, m->n_sub, m->n_out);
 }
 
-/* Fill the folded matrices from the model and the gain (o->gain, used when has_gain). */
+/* Fill the folded matrices from the model and the gain (o->gain, used when has_gain).
+ * Layout of each: the state rows first, column-major (ns rows, one column per entry of sv:
+ * [x, u[k-1], u[k], g, y]), then the output rows, column-major (no rows, columns
+ * [x, u[k-1], u[k], g] only: the prediction never depends on y). Keeping the two row sets
+ * apart lets the step skip the zero y columns of the output rows and gives short columns
+ * that fit vector registers. */
 static void fold(dv_obs_t *o)
 {
     const dv_model_t *m = o->m;
@@ -24,11 +29,13 @@ static void fold(dv_obs_t *o)
     const size_t no = o->no;
     const size_t nf = o->nf;
     const size_t nc = m->n_contact;
-    const size_t nr = o->nrows;
     const size_t nco = o->ncol_open;
+    dv_real_t col[2u * DV_MAX_DOF + DV_MAX_OUT];
+    dv_real_t *fyo = o->f_open + ns * nco;
+    dv_real_t *fxg = o->f_gain;
+    dv_real_t *fyg = o->f_gain + ns * (size_t)o->ncol_gain;
     /* open loop: column j of [x+; yhat] for input column j of [x, u[k-1], u[k], g] */
     for (size_t j = 0; j < nco; j++) {
-        dv_real_t *col = o->f_open + j * nr;
         for (size_t r = 0; r < ns; r++) {
             dv_real_t v;
             if (j < ns) {
@@ -59,33 +66,28 @@ static void fold(dv_obs_t *o)
             }
             col[ns + q] = s;
         }
-    }
-    if (!o->has_gain) {
-        return;
-    }
-    /* x+ = x- + L (y - yhat): rows of x- minus L times rows of yhat; y columns carry L */
-    for (size_t j = 0; j < o->ncol_gain; j++) {
-        dv_real_t *col = o->f_gain + j * nr;
-        if (j < nco) {
-            const dv_real_t *src = o->f_open + j * nr;
-            for (size_t r = 0; r < ns; r++) {
-                dv_real_t s = src[r];
+        for (size_t r = 0; r < ns; r++) {
+            o->f_open[j * ns + r] = col[r];
+        }
+        for (size_t q = 0; q < no; q++) {
+            fyo[j * no + q] = col[ns + q];
+            fyg[j * no + q] = col[ns + q];
+        }
+        /* x+ = x- + L (y - yhat): rows of x- minus L times rows of yhat */
+        for (size_t r = 0; r < ns; r++) {
+            dv_real_t s = col[r];
+            if (o->has_gain) {
                 for (size_t q = 0; q < no; q++) {
-                    s -= o->gain[r * no + q] * src[ns + q];
+                    s -= o->gain[r * no + q] * col[ns + q];
                 }
-                col[r] = s;
             }
-            for (size_t q = 0; q < no; q++) {
-                col[ns + q] = src[ns + q];
-            }
-        } else {
-            const size_t q0 = j - nco;
-            for (size_t r = 0; r < ns; r++) {
-                col[r] = o->gain[r * no + q0];
-            }
-            for (size_t q = 0; q < no; q++) {
-                col[ns + q] = DV_R(0.0);
-            }
+            fxg[j * ns + r] = s;
+        }
+    }
+    /* y columns of the gain rows carry L */
+    for (size_t q0 = 0; q0 < no; q0++) {
+        for (size_t r = 0; r < ns; r++) {
+            fxg[(nco + q0) * ns + r] = o->gain[r * no + q0];
         }
     }
 }
@@ -451,31 +453,216 @@ static void contact_forces(const dv_model_t *m, dv_real_t *sv, size_t ns, dv_rea
     }
 }
 
-/* z = F s for column-major F (rows x cols): one axpy per column over contiguous memory, which
- * compilers vectorise (restrict: z, F and s never alias). */
-static void matvec_cm(const dv_real_t *restrict f, size_t rows, size_t cols,
-                      const dv_real_t *restrict s, dv_real_t *restrict z)
+/* The step product. State rows: x+ = sum over every column j of sv of fx[:, j] sv[j]
+ * (columns [x, u[k-1], u[k], g, y], the last ny = no or 0 of them); output rows:
+ * yhat = sum over [x, u[k-1], u[k], g] of fy[:, j] sv[j]. The input columns are summed first
+ * and the state columns last in two interleaved partial sums, so the chain from the previous
+ * state to the next is short. static inline with the sizes as arguments: the call with
+ * constant ns and no gets fixed trip counts over the rows, unrolled and vectorised. xo and yo
+ * must not alias sv (restrict). */
+static void kernel(size_t ns, size_t no, size_t nin, size_t ny,
+                          const dv_real_t *restrict fx, const dv_real_t *restrict fy,
+                          const dv_real_t *restrict sv, dv_real_t *restrict xo,
+                          dv_real_t *restrict yo)
 {
-    dv_real_t acc[2u * DV_MAX_DOF + DV_MAX_OUT];
-    const dv_real_t s0 = s[0];
-    for (size_t r = 0; r < rows; r++) {
-        acc[r] = f[r] * s0;
+    dv_real_t a[2u * DV_MAX_DOF];
+    dv_real_t b[2u * DV_MAX_DOF];
+    dv_real_t c[2u * DV_MAX_DOF];
+    dv_real_t ya[DV_MAX_OUT];
+    dv_real_t yb[DV_MAX_OUT];
+    const dv_real_t *restrict in = sv + ns;
+    const dv_real_t *restrict fxi = fx + ns * ns;
+    const dv_real_t *restrict fyi = fy + no * ns;
+    /* inputs (u[k-1], u[k], contact forces, measurements): off the state chain */
+    for (size_t r = 0; r < ns; r++) {
+        a[r] = fxi[r] * in[0];
     }
-    for (size_t j = 1; j < cols; j++) {
-        const dv_real_t sj = s[j];
-        const dv_real_t *restrict col = f + j * rows;
-        for (size_t r = 0; r < rows; r++) {
-            acc[r] += col[r] * sj;
+    for (size_t q = 0; q < no; q++) {
+        ya[q] = fyi[q] * in[0];
+    }
+    for (size_t j = 1; j < nin; j++) {
+        const dv_real_t sj = in[j];
+        for (size_t r = 0; r < ns; r++) {
+            a[r] += fxi[j * ns + r] * sj;
+        }
+        for (size_t q = 0; q < no; q++) {
+            ya[q] += fyi[j * no + q] * sj;
         }
     }
-    for (size_t r = 0; r < rows; r++) {
-        z[r] = acc[r];
+    for (size_t j = nin; j < nin + ny; j++) {
+        const dv_real_t sj = in[j];
+        for (size_t r = 0; r < ns; r++) {
+            a[r] += fxi[j * ns + r] * sj;
+        }
     }
+    /* the state columns, even and odd apart (ns is even) */
+    for (size_t r = 0; r < ns; r++) {
+        b[r] = fx[r] * sv[0];
+        c[r] = fx[ns + r] * sv[1];
+    }
+    for (size_t q = 0; q < no; q++) {
+        ya[q] += fy[q] * sv[0];
+        yb[q] = fy[no + q] * sv[1];
+    }
+    for (size_t j = 2; j < ns; j += 2u) {
+        const dv_real_t s0 = sv[j];
+        const dv_real_t s1 = sv[j + 1u];
+        for (size_t r = 0; r < ns; r++) {
+            b[r] += fx[j * ns + r] * s0;
+            c[r] += fx[(j + 1u) * ns + r] * s1;
+        }
+        for (size_t q = 0; q < no; q++) {
+            ya[q] += fy[j * no + q] * s0;
+            yb[q] += fy[(j + 1u) * no + q] * s1;
+        }
+    }
+    for (size_t r = 0; r < ns; r++) {
+        xo[r] = a[r] + (b[r] + c[r]);
+    }
+    for (size_t q = 0; q < no; q++) {
+        yo[q] = ya[q] + yb[q];
+    }
+}
+
+/* gcc's loop vectoriser turns the column loops below into two-columns-at-a-time code full of
+ * shuffles (several times slower); its basic-block vectoriser alone gives the clean form (one
+ * broadcast, then mul/add on register pairs per column). Other compilers: no effect. */
+#if defined(__GNUC__) && !defined(__clang__)
+#define OBS_NO_LOOP_VEC __attribute__((optimize("no-tree-loop-vectorize")))
+#else
+#define OBS_NO_LOOP_VEC
+#endif
+
+/* One partial sum of kernel() for 8 rows: acc = sum_{j < ncol} f[:, j] s[j] (ncol >= 1). The
+ * rows live in eight scalars, so the compiler keeps them in (vector) registers. */
+OBS_NO_LOOP_VEC
+static void colsum8(size_t ncol, const dv_real_t *restrict f, const dv_real_t *restrict s,
+                    dv_real_t *restrict acc)
+{
+    const dv_real_t s0 = s[0];
+    dv_real_t a0 = f[0] * s0, a1 = f[1] * s0, a2 = f[2] * s0, a3 = f[3] * s0;
+    dv_real_t a4 = f[4] * s0, a5 = f[5] * s0, a6 = f[6] * s0, a7 = f[7] * s0;
+    for (size_t j = 1; j < ncol; j++) {
+        const dv_real_t *restrict c = f + 8u * j;
+        const dv_real_t sj = s[j];
+        a0 += c[0] * sj;
+        a1 += c[1] * sj;
+        a2 += c[2] * sj;
+        a3 += c[3] * sj;
+        a4 += c[4] * sj;
+        a5 += c[5] * sj;
+        a6 += c[6] * sj;
+        a7 += c[7] * sj;
+    }
+    acc[0] = a0;
+    acc[1] = a1;
+    acc[2] = a2;
+    acc[3] = a3;
+    acc[4] = a4;
+    acc[5] = a5;
+    acc[6] = a6;
+    acc[7] = a7;
+}
+
+/* The same for 4 rows. */
+OBS_NO_LOOP_VEC
+static void colsum4(size_t ncol, const dv_real_t *restrict f, const dv_real_t *restrict s,
+                    dv_real_t *restrict acc)
+{
+    const dv_real_t s0 = s[0];
+    dv_real_t a0 = f[0] * s0, a1 = f[1] * s0, a2 = f[2] * s0, a3 = f[3] * s0;
+    for (size_t j = 1; j < ncol; j++) {
+        const dv_real_t *restrict c = f + 4u * j;
+        const dv_real_t sj = s[j];
+        a0 += c[0] * sj;
+        a1 += c[1] * sj;
+        a2 += c[2] * sj;
+        a3 += c[3] * sj;
+    }
+    acc[0] = a0;
+    acc[1] = a1;
+    acc[2] = a2;
+    acc[3] = a3;
+}
+
+/* kernel() for 8 states and 4 outputs (the 4-DOF chain, four channels), with the rest of a
+ * regular step folded in: sv[0..8) is overwritten by the new state, yo gets the prediction and,
+ * with y (4 finite measurements, used for the correction when ny = 4), resid = y - yo. */
+OBS_NO_LOOP_VEC
+static void kernel_8x4(size_t nin, size_t ny, const dv_real_t *restrict fx,
+                       const dv_real_t *restrict fy, dv_real_t *restrict sv,
+                       const dv_real_t *restrict y, dv_real_t *restrict yo,
+                       dv_real_t *restrict resid)
+{
+    dv_real_t a[8], b[8], c[8], ya[4], yb[4];
+    colsum8(nin, fx + 64, sv + 8, a); /* inputs, off the state chain */
+    if (ny > 0u) {
+        colsum8(ny, fx + 8u * (8u + nin), y, c);
+    } else {
+        for (size_t r = 0; r < 8u; r++) {
+            c[r] = DV_R(0.0);
+        }
+    }
+    colsum8(8u, fx, sv, b);
+    colsum4(nin, fy + 32, sv + 8, ya);
+    colsum4(8u, fy, sv, yb);
+    for (size_t r = 0; r < 8u; r++) {
+        sv[r] = (a[r] + c[r]) + b[r];
+    }
+    for (size_t q = 0; q < 4u; q++) {
+        yo[q] = ya[q] + yb[q];
+    }
+    if (y != NULL) {
+        for (size_t q = 0; q < 4u; q++) {
+            resid[q] = y[q] - yo[q];
+        }
+    }
+}
+
+/* First sample: the state is at t0 already; output only, then correct. */
+static void step_first(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool correct)
+{
+    const dv_model_t *m = o->m;
+    const size_t ns = o->ns;
+    const size_t no = o->no;
+    const size_t nc = m->n_contact;
+    dv_real_t *sv = o->sv;
+    dv_real_t *yhat = o->z + ns;
+    sv[ns] = u;
+    if (o->nf > 0u) {
+        contact_forces(m, sv, ns, u, u); /* every node sees the same state: use node 0 */
+    }
+    for (size_t q = 0; q < no; q++) {
+        dv_real_t s = (m->d0[q] + m->d1[q]) * u;
+        for (size_t j = 0; j < ns; j++) {
+            s += m->cy[q * ns + j] * sv[j];
+        }
+        for (size_t e = 0; e < nc; e++) {
+            s += m->ey[q * nc + e] * sv[ns + 2u + e];
+        }
+        yhat[q] = s;
+    }
+    for (size_t q = 0; q < no; q++) {
+        const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
+        o->resid[q] = yq - yhat[q];
+    }
+    if (correct) {
+        for (size_t j = 0; j < ns; j++) {
+            dv_real_t s = DV_R(0.0);
+            for (size_t q = 0; q < no; q++) {
+                s += o->gain[j * no + q] * o->resid[q];
+            }
+            sv[j] += s;
+        }
+    }
+    for (size_t j = 0; j < ns; j++) {
+        o->z[j] = sv[j];
+    }
+    o->started = true;
 }
 
 static dv_status_t step(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool use_gain)
 {
-    const dv_model_t *m = o->m;
     const size_t ns = o->ns;
     const size_t no = o->no;
     const size_t nf = o->nf;
@@ -488,69 +675,69 @@ static dv_status_t step(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool use_g
     uint32_t flags = 0u;
     bool correct = use_gain && o->has_gain;
     if (y == NULL) {
-        flags |= DV_OBS_FLAG_NO_MEAS;
+        flags = DV_OBS_FLAG_NO_MEAS;
         correct = false;
-    } else {
-        for (size_t q = 0; q < no; q++) {
-            if (!dv_priv_finite(y[q])) {
-                flags |= DV_OBS_FLAG_BAD_MEAS;
-                correct = false;
-            }
-        }
+    } else if (no == 4u ? !dv_priv_all_finite(y, 4u) : !dv_priv_all_finite(y, no)) {
+        flags = DV_OBS_FLAG_BAD_MEAS;
+        correct = false;
     }
     dv_real_t *yhat = o->z + ns;
-    const bool first = !o->started;
-    if (first) {
-        /* first sample: the state is at t0 already; output only, then correct */
-        sv[ns] = u;
+    if (ns == 8u && no == 4u && o->started) {
+        /* the 4-DOF, 4-channel case: constant sizes, one call */
+        sv[9] = u;
         if (nf > 0u) {
-            contact_forces(m, sv, ns, u, u); /* every node sees the same state: use node 0 */
+            contact_forces(o->m, sv, 8u, sv[8], u);
         }
-        const size_t nc = m->n_contact;
-        for (size_t q = 0; q < no; q++) {
-            dv_real_t s = (m->d0[q] + m->d1[q]) * u;
-            for (size_t j = 0; j < ns; j++) {
-                s += m->cy[q * ns + j] * sv[j];
+        if (flags == 0u) {
+            if (correct) {
+                kernel_8x4(2u + nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
+                           yhat, o->resid);
+            } else {
+                kernel_8x4(2u + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, y,
+                           yhat, o->resid);
             }
-            for (size_t e = 0; e < nc; e++) {
-                s += m->ey[q * nc + e] * sv[ns + 2u + e];
+        } else {
+            kernel_8x4(2u + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, NULL,
+                       yhat, o->resid);
+            for (size_t q = 0; q < 4u; q++) {
+                const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
+                o->resid[q] = yq - yhat[q];
             }
-            yhat[q] = s;
         }
-        for (size_t j = 0; j < ns; j++) {
-            o->z[j] = sv[j];
-        }
-        o->started = true;
+    } else if (!o->started) {
+        step_first(o, u, y, correct);
     } else {
         sv[ns + 1u] = u;
         if (nf > 0u) {
-            contact_forces(m, sv, ns, sv[ns], u);
+            contact_forces(o->m, sv, ns, sv[ns], u);
         }
+        const dv_real_t *fx = o->f_open;
+        const dv_real_t *fy = o->f_open + ns * (size_t)o->ncol_open;
+        size_t ny = 0u;
         if (correct) {
+            dv_real_t *ys = sv + ns + 2u + nf;
             for (size_t q = 0; q < no; q++) {
-                sv[ns + 2u + nf + q] = y[q];
+                ys[q] = y[q];
             }
-            matvec_cm(o->f_gain, o->nrows, o->ncol_gain, sv, o->z);
-        } else {
-            matvec_cm(o->f_open, o->nrows, o->ncol_open, sv, o->z);
+            fx = o->f_gain;
+            fy = o->f_gain + ns * (size_t)o->ncol_gain;
+            ny = no;
         }
-    }
-    for (size_t q = 0; q < no; q++) {
-        const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
-        o->resid[q] = yq - yhat[q];
-    }
-    if (first && correct) {
-        /* first sample: x += L r explicitly (the folded product was not used) */
+        dv_real_t xn[2u * DV_MAX_DOF];
+        kernel(ns, no, 2u + nf, ny, fx, fy, sv, xn, yhat);
         for (size_t j = 0; j < ns; j++) {
-            dv_real_t s = DV_R(0.0);
-            for (size_t q = 0; q < no; q++) {
-                s += o->gain[j * no + q] * o->resid[q];
-            }
-            o->z[j] += s;
+            sv[j] = xn[j];
         }
-    }
-    for (size_t j = 0; j < ns; j++) {
-        sv[j] = o->z[j];
+        if (flags == 0u) {
+            for (size_t q = 0; q < no; q++) {
+                o->resid[q] = y[q] - yhat[q];
+            }
+        } else {
+            for (size_t q = 0; q < no; q++) {
+                const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
+                o->resid[q] = yq - yhat[q];
+            }
+        }
     }
     sv[ns] = u;
     o->flags = flags;

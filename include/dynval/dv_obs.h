@@ -66,8 +66,8 @@ typedef struct {
     dv_real_t *sv;       /**< [x (ns), u[k-1], u[k], g (nf), y (no)] */
     dv_real_t *z;        /**< [x (ns), yhat (no)] product */
     dv_real_t *resid;    /**< no residuals of the last step */
-    dv_real_t *f_open;   /**< nrows x ncol_open, column-major, L = 0 */
-    dv_real_t *f_gain;   /**< nrows x ncol_gain, column-major, with L */
+    dv_real_t *f_open;   /**< L = 0: ns x ncol_open state rows, then no x ncol_open output rows, each column-major */
+    dv_real_t *f_gain;   /**< with L: ns x ncol_gain state rows, then no x ncol_open output rows, each column-major */
     dv_real_t *gain;     /**< L, ns x no row-major */
     dv_real_t *scratch;  /**< init-time scratch */
     size_t scratch_len;  /**< elements in scratch */
