@@ -36,10 +36,11 @@ LINE = re.compile(r"case=(\S+) units=(\d+) unit=(\S+) ns=([0-9.eE+-]+)")
 def build(real: str) -> Path:
     bdir = ROOT / "build" / f"bench-{'f64' if real == 'double' else 'f32'}"
     subprocess.run(["cmake", "-S", str(ROOT), "-B", str(bdir), "-DCMAKE_BUILD_TYPE=Release",
-                    f"-DDV_REAL_TYPE={real}", "-DDV_BUILD_TESTS=OFF", "-DDV_BUILD_BENCH=ON"],
+                    f"-DDV_REAL_TYPE={real}", "-DDV_BUILD_TESTS=OFF", "-DDV_BUILD_BENCH=ON",
+                    "-DDV_BUILD_SIM=ON"],
                    check=True, stdout=subprocess.DEVNULL)
     subprocess.run(["cmake", "--build", str(bdir), "-j2"], check=True, stdout=subprocess.DEVNULL)
-    return bdir / "bench"
+    return bdir
 
 
 def run_case(exe: Path, case: str, reps: int) -> tuple[int, str, float]:
@@ -98,7 +99,8 @@ def main() -> int:
     sizes: list[str] = []
     for real in ("double", "float"):
         bdir = build(real)
-        for exe in sorted(bdir.glob("bench_*")):
+        # bench/ holds the library's benchmarks, firmware_sim/ the firmware loop's
+        for exe in sorted([*bdir.glob("bench/bench_*"), *bdir.glob("firmware_sim/bench_*")]):
             if not os.access(exe, os.X_OK) or exe.suffix:
                 continue
             if args.only and exe.name not in args.only.split(","):
