@@ -8,6 +8,7 @@
 #      each under qemu-system-arm with semihosting (timeout M4_TIMEOUT s, default 300)
 #   4. build and run the host twin (same source, gcc, host float library)
 #   5. tests/m4/compare_m4.py: every check passed on both, and which outputs are bit-identical
+# --build-only: steps 1-3 without running (also builds the typical-set images for mem_budget.py)
 # Exit status non-zero on any failure. Needs: gcc-arm-none-eabi libnewlib-arm-none-eabi
 # qemu-system-arm (apt), python3 with numpy.
 set -euo pipefail
@@ -55,6 +56,13 @@ link_image() { # out.elf, optflag, lib, sources...
 }
 link_image "$B/selftest-os.elf" -Os "$B/lib-os/libdynval-f32.a" "$T/m4_selftest.c" "$T/m4_fmt.c"
 link_image "$B/selftest-o2.elf" -O2 "$B/lib-o2/libdynval-f32.a" "$T/m4_selftest.c" "$T/m4_fmt.c"
+# the typical firmware set (memory budget) and its instruction-count variant (mem_budget.py)
+for v in os o2; do
+    opt=-Os; [ $v = o2 ] && opt=-O2
+    link_image "$B/typical-$v.elf" $opt "$B/lib-$v/libdynval-f32.a" "$T/m4_typical.c" "$T/m4_fmt.c"
+    link_image "$B/icount-$v.elf" $opt "$B/lib-$v/libdynval-f32.a" -DM4_ICOUNT "$T/m4_typical.c" "$T/m4_fmt.c"
+done
+[ "${1:-}" = "--build-only" ] && exit 0
 
 run_qemu() { # elf, log
     local st=0
@@ -70,6 +78,13 @@ for v in os o2; do
     grep '^CHECK FAIL\|^FATAL' "$B/selftest-$v.log" || true
     [ "$st" -eq 0 ] || status=1
     [ "$st" -eq 124 ] && echo "  timeout after ${TIMEOUT}s"
+done
+
+for v in os o2; do  # the typical firmware set runs 8192 samples and checks its own outputs
+    st=0
+    run_qemu "$B/typical-$v.elf" "$B/typical-$v.log" || st=$?
+    echo "typical firmware set (-${v^}): $(grep -E '^(TYPICAL|STACK|LIVE)' "$B/typical-$v.log" | tr '\n' ' ')"
+    [ "$st" -eq 0 ] || status=1
 done
 
 # ---- 4. host twin --------------------------------------------------------------------------
