@@ -103,10 +103,12 @@ class Input:
 @dataclass(frozen=True)
 class Output:
     """One predicted channel. ``index``: DOF (acc/vel/disp, 1-based), story (story_force: story i
-    is k_i), element (contact_force: 1-based into Model.elements); ignored for reaction."""
+    is k_i), element (contact_force: 1-based into Model.elements); ignored for reaction. ``gain``:
+    the sensor's gain (1 = calibrated); the prediction is gain x the model's quantity."""
 
     kind: str
     index: int = 0
+    gain: float = 1.0  # sensor gain: the channel reads gain x the model's quantity
 
 
 @dataclass(frozen=True)
@@ -387,7 +389,8 @@ def _from_dynval(d: Mapping[str, Any], ctx: _Ctx) -> Model:
         ok = ctx.choice(ctx.get(o, "kind", w), f"{w}.kind", OUTPUT_KINDS)
         key = {"acc": "dof", "vel": "dof", "disp": "dof", "story_force": "story",
                "contact_force": "element"}.get(ok)
-        outs[str(name)] = Output(ok, ctx.int_(ctx.get(o, key, w), f"{w}.{key}") if key else 0)
+        outs[str(name)] = Output(ok, ctx.int_(ctx.get(o, key, w), f"{w}.{key}") if key else 0,
+                                 gain=ctx.num(o.get("gain", 1.0), f"{w}.gain"))
     elems: list[Element] = []
     er = d.get("elements", [])
     if not isinstance(er, (list, tuple)):
@@ -549,6 +552,8 @@ def validate(m: Model, ctx: _Ctx | None = None) -> None:
         if o.kind == "contact_force" and not (
                 1 <= o.index <= len(m.elements) and isinstance(m.elements[o.index - 1], Contact)):
             raise c.err(f"{w}.element", f"element {o.index} is not a contact element")
+        if not (math.isfinite(o.gain) and o.gain > 0):
+            raise c.err(f"{w}.gain", f"sensor gain must be > 0, got {o.gain!r}")
     if len(m.contacts) > MAX_CONTACT:
         raise c.err("elements", f"{len(m.contacts)} contacts; this core supports {MAX_CONTACT}")
     for i, e in enumerate(m.elements):
@@ -596,6 +601,8 @@ def to_dict(m: Model) -> dict[str, Any]:
         key = {"acc": "dof", "vel": "dof", "disp": "dof", "story_force": "story",
                "contact_force": "element"}.get(o.kind)
         outs[name] = {"kind": o.kind, key: o.index} if key else {"kind": o.kind}
+        if o.gain != 1.0:
+            outs[name]["gain"] = o.gain
     elems: list[dict[str, Any]] = []
     for e in m.elements:
         ed: dict[str, Any] = {"type": e.type}
@@ -822,7 +829,8 @@ def simulate(m: Model, force_or_motion: Any, fs_hz: float, *,
         else:
             check(st, "dv_obs_simulate")
     y = y[::r]
-    return {name: np.ascontiguousarray(y[:, j]) for j, name in enumerate(m.outputs)}
+    return {name: np.ascontiguousarray(y[:, j]) * o.gain if o.gain != 1.0 else
+            np.ascontiguousarray(y[:, j]) for j, (name, o) in enumerate(m.outputs.items())}
 
 
 def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
@@ -871,6 +879,9 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
             check(st, "dv_obs_simulate")
         if on_progress is not None:
             on_progress(i + 1, len(param_sets))
+    gains = np.array([o.gain for o in m.outputs.values()])
+    if np.any(gains != 1.0):
+        out *= gains
     return out
 
 
