@@ -9,7 +9,9 @@ prints `case=CASE units=U unit=UNIT ns=X` (median ns per unit over REPS). Times 
 several processes (this host is shared and noisy); instruction counts come from valgrind
 callgrind as the difference between two REPS values (setup cancels), which is repeatable.
 bench/compare_<mod>.py modules give the same-run comparisons (numpy/scipy), and
-bench/targets.json the targets each figure is judged against.
+bench/targets.json the targets each figure is judged against. Sections measured by their own
+scripts (bench/RESULTS.<topic>.md: the Cortex-M4 memory budget, the gateway, validation) are
+appended as they are.
 """
 from __future__ import annotations
 
@@ -167,9 +169,10 @@ def main() -> int:
         out += ["## State sizes", "", "| program | real | size |", "|---|---|---|", *sizes, ""]
     for c in comps.get("_failed", []):
         out.append(f"- comparison not run: {c['what']}")
-    extra = BENCH / "RESULTS.extra.md"
-    if extra.exists():
-        out += ["", extra.read_text()]
+    # Figures measured by their own scripts (each file says how to regenerate it):
+    # RESULTS.m4.md (tests/m4/mem_budget.py), RESULTS.gateway.md, RESULTS.validate.md, ...
+    for extra in sorted(BENCH.glob("RESULTS.*.md")):
+        out += ["", f"<!-- from bench/{extra.name} -->", extra.read_text().rstrip()]
     args.out.write_text("\n".join(out) + "\n")
     log.info("wrote %s", args.out.relative_to(ROOT))
     return 0

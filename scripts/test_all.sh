@@ -47,6 +47,7 @@ step "no malloc/stdio/abort, no .data/.bss (float)" tests/scripts/check_lib_symb
 step "no malloc/stdio/abort, no .data/.bss (double)" tests/scripts/check_lib_symbols.sh build/f64/libdynval-f64.a
 step "no -ffast-math in the build" bash -c '! grep -rn -- "-ffast-math\|-Ofast" CMakeLists.txt CMakePresets.json cmake/ src/ gateway/pyproject.toml'
 step "Cortex-M4F cross build + size" tests/scripts/cross_m4.sh
+step "Cortex-M4F self-test on an emulated MCU (qemu mps2-an386)" tests/m4/run_m4.sh
 step "consumer: find_package and add_subdirectory" tests/consumer/run.sh
 step "Python package (pytest)" env DV_FEATURES_DUMP="$ROOT/build/f64/tests/dv_features_dump" \
     python3 -m pytest -q -p no:cacheprovider gateway/tests tests/py
