@@ -124,33 +124,48 @@ static dv_status_t run(dv_ar_method_t method, uint32_t pmax, const dv_real_t *x,
             ro->reached = m;
         }
     } else {
-        /* f[j] = f(j+1), b[j] = b(j): the order-0 errors are the centred record itself. */
+        /* Burg, two stages per sweep of the error arrays (they do not fit L1: the sweeps are
+         * what costs). A sweep returns the new errors' lag-0 and lag-1 sums; stage m's
+         * reflection coefficient comes from the lag-0 sums, stage m+1's from all seven through
+         * the one-stage update written out (exact in exact arithmetic). */
         dv_real_t *b = work + n;
         for (size_t i = 0u; i < n; i++) {
             b[i] = y[i];
         }
-        const dv_real_t r0 = dv_priv_ar_dot(b, b, n, kern) / nn;
+        const dv_real_t r0s = dv_priv_ar_dot(b, b, n, kern);
+        const dv_real_t r0 = r0s / nn;
         ro->r0 = r0;
         if (!dv_priv_finite(r0) || is_constant(r0, mean)) {
             return DV_ENUMERIC;
         }
+        const dv_real_t r1s = dv_priv_ar_dot(y, y + 1, n - 1u, kern);
+        const dv_real_t r2s = n > 2u ? dv_priv_ar_dot(y, y + 2, n - 2u, kern) : DV_R(0.0);
+        const dv_real_t y0 = b[0], y1 = b[1], yl = b[n - 1u], yl1 = b[n - 2u];
+        /* order-0 errors: f[j] = y[j+1], b[j] = y[j], j < n-1; their seven sums from r0..r2 */
+        dv_real_t sm[7];
+        sm[0] = r0s - y0 * y0;
+        sm[1] = r0s - yl * yl;
+        sm[2] = r1s;
+        sm[3] = r2s;
+        sm[4] = r1s - y1 * y0;
+        sm[5] = r1s - yl * yl1;
+        sm[6] = r0s - y0 * y0 - yl * yl;
         dv_real_t *f = y;
         for (size_t i = 0u; i + 1u < n; i++) {
             f[i] = y[i + 1u];
         }
         size_t len = n - 1u;
-        dv_real_t num = dv_priv_ar_dot(f, b, len, kern);
-        dv_real_t den = dv_priv_ar_dot(f, f, len, kern) + dv_priv_ar_dot(b, b, len, kern);
         dv_real_t err = r0;
-        for (uint32_t m = 1u; m <= pmax; m++) {
+        for (uint32_t m = 1u; m <= pmax; m += 2u) {
+            const dv_real_t den = sm[0] + sm[1];
             if (!(den > DV_R(0.0))) {
                 break;
             }
-            const dv_real_t k = DV_R(2.0) * num / den;
+            const dv_real_t k = DV_R(2.0) * sm[2] / den;
             if (!(DV_FABS(k) < DV_R(1.0))) {
                 break;
             }
-            const dv_real_t e2 = err * (DV_R(1.0) - k * k);
+            dv_real_t e2 = err * (DV_R(1.0) - k * k);
             if (!(e2 > DV_R(0.0))) {
                 break;
             }
@@ -159,10 +174,37 @@ static dv_status_t run(dv_ar_method_t method, uint32_t pmax, const dv_real_t *x,
             refl[m - 1u] = k;
             sig[m - 1u] = err;
             ro->reached = m;
-            if (m < pmax) {
-                dv_priv_ar_burg_step(f, b, len, k, &num, &den, kern);
-                len--;
+            if (m == pmax) {
+                break;
             }
+            /* stage m+1: sums of the stage-m errors f'[j] = f[j+1] - k b[j+1],
+             * b'[j] = b[j] - k f[j], j < len-1, from the sums of f and b */
+            const dv_real_t f0 = f[0], b0 = b[0], fl = f[len - 1u], bl = b[len - 1u];
+            const dv_real_t num2 = sm[3] - k * (sm[4] + sm[5]) + k * k * sm[6];
+            const dv_real_t den2 = (sm[0] - f0 * f0) - DV_R(2.0) * k * (sm[2] - f0 * b0) +
+                                   k * k * (sm[1] - b0 * b0) + (sm[1] - bl * bl) -
+                                   DV_R(2.0) * k * (sm[2] - bl * fl) + k * k * (sm[0] - fl * fl);
+            if (!(den2 > DV_R(0.0))) {
+                break;
+            }
+            const dv_real_t k2 = DV_R(2.0) * num2 / den2;
+            if (!(DV_FABS(k2) < DV_R(1.0))) {
+                break;
+            }
+            e2 = err * (DV_R(1.0) - k2 * k2);
+            if (!(e2 > DV_R(0.0))) {
+                break;
+            }
+            order_update(ak, m + 1u, k2, tmp);
+            err = e2;
+            refl[m] = k2;
+            sig[m] = err;
+            ro->reached = m + 1u;
+            if (m + 1u == pmax) {
+                break;
+            }
+            dv_priv_ar_burg2(f, b, len, k, k2, sm, kern);
+            len -= 2u;
         }
     }
     for (uint32_t j = 0u; j < ro->reached; j++) {

@@ -1,4 +1,4 @@
-/* AR inner loops: autocorrelation, dot product, multi-output FIR and the Burg stage.
+/* AR inner loops: autocorrelation, dot product, multi-output FIR and two Burg stages per sweep.
  *
  * The portable versions keep 4 independent partial sums, because C compilers may not reorder
  * floating-point sums and one accumulator chain is latency-bound (4 cycles per add). On x86-64
@@ -71,35 +71,37 @@ static void fir_c(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t *x
     }
 }
 
-static void burg_c(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k, dv_real_t *num,
-                   dv_real_t *den)
+
+/* Two stages per pass: the error arrays (the memory traffic) are swept half as often. Stage-1
+ * values at j and j+1 feed stage 2; the new values' lag-1 products use the previous element. */
+static void burg2_c(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_real_t k2,
+                    dv_real_t s[7])
 {
-    dv_real_t n0 = DV_R(0.0), n1 = DV_R(0.0), d0 = DV_R(0.0), d1 = DV_R(0.0);
-    size_t j = 0u;
-    for (; j + 2u < len; j += 2u) {
-        const dv_real_t b0 = b[j] - k * f[j];
-        const dv_real_t b1 = b[j + 1u] - k * f[j + 1u];
-        const dv_real_t f0 = f[j + 1u] - k * b[j + 1u];
-        const dv_real_t f1 = f[j + 2u] - k * b[j + 2u];
-        b[j] = b0;
-        b[j + 1u] = b1;
-        f[j] = f0;
-        f[j + 1u] = f1;
-        n0 += f0 * b0;
-        n1 += f1 * b1;
-        d0 += f0 * f0 + b0 * b0;
-        d1 += f1 * f1 + b1 * b1;
+    dv_real_t s0 = DV_R(0.0), s1 = DV_R(0.0), s2 = DV_R(0.0), s3 = DV_R(0.0), s4 = DV_R(0.0),
+              s5 = DV_R(0.0), s6 = DV_R(0.0), fp = DV_R(0.0), bp = DV_R(0.0);
+    for (size_t j = 0u; j + 2u < len; j++) {
+        const dv_real_t fa = f[j + 1u] - k1 * b[j + 1u], ba = b[j] - k1 * f[j];
+        const dv_real_t fb = f[j + 2u] - k1 * b[j + 2u], bb = b[j + 1u] - k1 * f[j + 1u];
+        const dv_real_t fn = fb - k2 * bb, bn = ba - k2 * fa;
+        f[j] = fn;
+        b[j] = bn;
+        s0 += fn * fn;
+        s1 += bn * bn;
+        s2 += fn * bn;
+        s3 += fn * bp;
+        s4 += fn * fp;
+        s5 += bn * bp;
+        s6 += bn * fp;
+        fp = fn;
+        bp = bn;
     }
-    for (; j + 1u < len; j++) {
-        const dv_real_t b0 = b[j] - k * f[j];
-        const dv_real_t f0 = f[j + 1u] - k * b[j + 1u];
-        b[j] = b0;
-        f[j] = f0;
-        n0 += f0 * b0;
-        d0 += f0 * f0 + b0 * b0;
-    }
-    *num = n0 + n1;
-    *den = d0 + d1;
+    s[0] = s0;
+    s[1] = s1;
+    s[2] = s2;
+    s[3] = s3;
+    s[4] = s4;
+    s[5] = s5;
+    s[6] = s6;
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -255,42 +257,72 @@ DV_TGT_AVX2 static void fir_avx2(const double *a, size_t p, double c0, const dou
     }
 }
 
-DV_TGT_AVX2 static void burg_avx2(double *f, double *b, size_t len, double k, double *num,
-                                  double *den)
+/* burg2_c with 4 lanes; the previous element of each lane comes from a lane rotation. */
+DV_TGT_AVX2 static __m256d prev4(__m256d v, __m256d vprev)
 {
-    const __m256d vk = _mm256_set1_pd(k);
-    __m256d n0 = _mm256_setzero_pd(), n1 = _mm256_setzero_pd();
-    __m256d d0 = _mm256_setzero_pd(), d1 = _mm256_setzero_pd();
+    /* [vprev3, v0, v1, v2] */
+    const __m256d r = _mm256_permute4x64_pd(v, 0x93), rp = _mm256_permute4x64_pd(vprev, 0x93);
+    return _mm256_blend_pd(r, rp, 0x1);
+}
+
+DV_TGT_AVX2 static void burg2_avx2(double *f, double *b, size_t len, double k1, double k2,
+                                   double s[7])
+{
+    const __m256d v1 = _mm256_set1_pd(k1), v2 = _mm256_set1_pd(k2);
+    __m256d a0 = _mm256_setzero_pd(), a1 = a0, a2 = a0, a3 = a0, a4 = a0, a5 = a0, a6 = a0;
+    __m256d fprev = a0, bprev = a0;
     size_t j = 0u;
-    /* All loads of an iteration precede its stores; f[j+1..j+8] and b[j+1..j+8] are still old. */
-    for (; j + 8u < len; j += 8u) {
-        const __m256d fa = _mm256_loadu_pd(f + j), fb = _mm256_loadu_pd(f + j + 4u);
-        const __m256d ba = _mm256_loadu_pd(b + j), bb = _mm256_loadu_pd(b + j + 4u);
-        const __m256d f1a = _mm256_loadu_pd(f + j + 1u), f1b = _mm256_loadu_pd(f + j + 5u);
-        const __m256d b1a = _mm256_loadu_pd(b + j + 1u), b1b = _mm256_loadu_pd(b + j + 5u);
-        const __m256d nba = _mm256_fnmadd_pd(vk, fa, ba), nbb = _mm256_fnmadd_pd(vk, fb, bb);
-        const __m256d nfa = _mm256_fnmadd_pd(vk, b1a, f1a), nfb = _mm256_fnmadd_pd(vk, b1b, f1b);
-        _mm256_storeu_pd(b + j, nba);
-        _mm256_storeu_pd(b + j + 4u, nbb);
-        _mm256_storeu_pd(f + j, nfa);
-        _mm256_storeu_pd(f + j + 4u, nfb);
-        n0 = _mm256_fmadd_pd(nfa, nba, n0);
-        n1 = _mm256_fmadd_pd(nfb, nbb, n1);
-        d0 = _mm256_fmadd_pd(nfa, nfa, _mm256_fmadd_pd(nba, nba, d0));
-        d1 = _mm256_fmadd_pd(nfb, nfb, _mm256_fmadd_pd(nbb, nbb, d1));
+    for (; j + 4u + 2u <= len; j += 4u) {
+        const __m256d f0 = _mm256_loadu_pd(f + j), f1 = _mm256_loadu_pd(f + j + 1u),
+                      f2 = _mm256_loadu_pd(f + j + 2u);
+        const __m256d b0 = _mm256_loadu_pd(b + j), b1 = _mm256_loadu_pd(b + j + 1u),
+                      b2 = _mm256_loadu_pd(b + j + 2u);
+        const __m256d fa = _mm256_fnmadd_pd(v1, b1, f1), ba = _mm256_fnmadd_pd(v1, f0, b0);
+        const __m256d fb = _mm256_fnmadd_pd(v1, b2, f2), bb = _mm256_fnmadd_pd(v1, f1, b1);
+        const __m256d fn = _mm256_fnmadd_pd(v2, bb, fb), bn = _mm256_fnmadd_pd(v2, fa, ba);
+        _mm256_storeu_pd(f + j, fn);
+        _mm256_storeu_pd(b + j, bn);
+        const __m256d fs = prev4(fn, fprev), bs = prev4(bn, bprev);
+        a0 = _mm256_fmadd_pd(fn, fn, a0);
+        a1 = _mm256_fmadd_pd(bn, bn, a1);
+        a2 = _mm256_fmadd_pd(fn, bn, a2);
+        a3 = _mm256_fmadd_pd(fn, bs, a3);
+        a4 = _mm256_fmadd_pd(fn, fs, a4);
+        a5 = _mm256_fmadd_pd(bn, bs, a5);
+        a6 = _mm256_fmadd_pd(bn, fs, a6);
+        fprev = fn;
+        bprev = bn;
     }
-    double sn = hsum256(_mm256_add_pd(n0, n1));
-    double sd = hsum256(_mm256_add_pd(d0, d1));
-    for (; j + 1u < len; j++) {
-        const double b0 = b[j] - k * f[j];
-        const double f0 = f[j + 1u] - k * b[j + 1u];
-        b[j] = b0;
-        f[j] = f0;
-        sn += f0 * b0;
-        sd += f0 * f0 + b0 * b0;
+    double t[4];
+    _mm256_storeu_pd(t, fprev);
+    double fp = t[3];
+    _mm256_storeu_pd(t, bprev);
+    double bp = t[3];
+    double s0 = hsum256(a0), s1 = hsum256(a1), s2 = hsum256(a2), s3 = hsum256(a3),
+           s4 = hsum256(a4), s5 = hsum256(a5), s6 = hsum256(a6);
+    for (; j + 2u < len; j++) {
+        const double fa = f[j + 1u] - k1 * b[j + 1u], ba = b[j] - k1 * f[j];
+        const double fb = f[j + 2u] - k1 * b[j + 2u], bb = b[j + 1u] - k1 * f[j + 1u];
+        const double fn = fb - k2 * bb, bn = ba - k2 * fa;
+        f[j] = fn;
+        b[j] = bn;
+        s0 += fn * fn;
+        s1 += bn * bn;
+        s2 += fn * bn;
+        s3 += fn * bp;
+        s4 += fn * fp;
+        s5 += bn * bp;
+        s6 += bn * fp;
+        fp = fn;
+        bp = bn;
     }
-    *num = sn;
-    *den = sd;
+    s[0] = s0;
+    s[1] = s1;
+    s[2] = s2;
+    s[3] = s3;
+    s[4] = s4;
+    s[5] = s5;
+    s[6] = s6;
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -428,41 +460,73 @@ DV_TGT_AVX512 static void fir_avx512(const double *a, size_t p, double c0, const
     }
 }
 
-DV_TGT_AVX512 static void burg_avx512(double *f, double *b, size_t len, double k, double *num,
-                                      double *den)
+DV_TGT_AVX512 static __m512d prev8(__m512d v, __m512d vprev)
 {
-    const __m512d vk = _mm512_set1_pd(k);
-    __m512d n0 = _mm512_setzero_pd(), n1 = _mm512_setzero_pd();
-    __m512d d0 = _mm512_setzero_pd(), d1 = _mm512_setzero_pd();
+    /* [vprev7, v0 .. v6] */
+    return _mm512_castsi512_pd(
+        _mm512_alignr_epi64(_mm512_castpd_si512(v), _mm512_castpd_si512(vprev), 7));
+}
+
+DV_TGT_AVX512 static void burg2_avx512(double *f, double *b, size_t len, double k1, double k2,
+                                       double s[7])
+{
+    const __m512d v1 = _mm512_set1_pd(k1), v2 = _mm512_set1_pd(k2);
+    __m512d a0 = _mm512_setzero_pd(), a1 = a0, a2 = a0, a3 = a0, a4 = a0, a5 = a0, a6 = a0;
+    __m512d fprev = a0, bprev = a0;
     size_t j = 0u;
-    for (; j + 16u < len; j += 16u) {
-        const __m512d fa = _mm512_loadu_pd(f + j), fb = _mm512_loadu_pd(f + j + 8u);
-        const __m512d ba = _mm512_loadu_pd(b + j), bb = _mm512_loadu_pd(b + j + 8u);
-        const __m512d f1a = _mm512_loadu_pd(f + j + 1u), f1b = _mm512_loadu_pd(f + j + 9u);
-        const __m512d b1a = _mm512_loadu_pd(b + j + 1u), b1b = _mm512_loadu_pd(b + j + 9u);
-        const __m512d nba = _mm512_fnmadd_pd(vk, fa, ba), nbb = _mm512_fnmadd_pd(vk, fb, bb);
-        const __m512d nfa = _mm512_fnmadd_pd(vk, b1a, f1a), nfb = _mm512_fnmadd_pd(vk, b1b, f1b);
-        _mm512_storeu_pd(b + j, nba);
-        _mm512_storeu_pd(b + j + 8u, nbb);
-        _mm512_storeu_pd(f + j, nfa);
-        _mm512_storeu_pd(f + j + 8u, nfb);
-        n0 = _mm512_fmadd_pd(nfa, nba, n0);
-        n1 = _mm512_fmadd_pd(nfb, nbb, n1);
-        d0 = _mm512_fmadd_pd(nfa, nfa, _mm512_fmadd_pd(nba, nba, d0));
-        d1 = _mm512_fmadd_pd(nfb, nfb, _mm512_fmadd_pd(nbb, nbb, d1));
+    for (; j + 8u + 2u <= len; j += 8u) {
+        const __m512d f0 = _mm512_loadu_pd(f + j), f1 = _mm512_loadu_pd(f + j + 1u),
+                      f2 = _mm512_loadu_pd(f + j + 2u);
+        const __m512d b0 = _mm512_loadu_pd(b + j), b1 = _mm512_loadu_pd(b + j + 1u),
+                      b2 = _mm512_loadu_pd(b + j + 2u);
+        const __m512d fa = _mm512_fnmadd_pd(v1, b1, f1), ba = _mm512_fnmadd_pd(v1, f0, b0);
+        const __m512d fb = _mm512_fnmadd_pd(v1, b2, f2), bb = _mm512_fnmadd_pd(v1, f1, b1);
+        const __m512d fn = _mm512_fnmadd_pd(v2, bb, fb), bn = _mm512_fnmadd_pd(v2, fa, ba);
+        _mm512_storeu_pd(f + j, fn);
+        _mm512_storeu_pd(b + j, bn);
+        const __m512d fs = prev8(fn, fprev), bs = prev8(bn, bprev);
+        a0 = _mm512_fmadd_pd(fn, fn, a0);
+        a1 = _mm512_fmadd_pd(bn, bn, a1);
+        a2 = _mm512_fmadd_pd(fn, bn, a2);
+        a3 = _mm512_fmadd_pd(fn, bs, a3);
+        a4 = _mm512_fmadd_pd(fn, fs, a4);
+        a5 = _mm512_fmadd_pd(bn, bs, a5);
+        a6 = _mm512_fmadd_pd(bn, fs, a6);
+        fprev = fn;
+        bprev = bn;
     }
-    double sn = _mm512_reduce_add_pd(_mm512_add_pd(n0, n1));
-    double sd = _mm512_reduce_add_pd(_mm512_add_pd(d0, d1));
-    for (; j + 1u < len; j++) {
-        const double b0 = b[j] - k * f[j];
-        const double f0 = f[j + 1u] - k * b[j + 1u];
-        b[j] = b0;
-        f[j] = f0;
-        sn += f0 * b0;
-        sd += f0 * f0 + b0 * b0;
+    double t[8];
+    _mm512_storeu_pd(t, fprev);
+    double fp = t[7];
+    _mm512_storeu_pd(t, bprev);
+    double bp = t[7];
+    double s0 = _mm512_reduce_add_pd(a0), s1 = _mm512_reduce_add_pd(a1),
+           s2 = _mm512_reduce_add_pd(a2), s3 = _mm512_reduce_add_pd(a3),
+           s4 = _mm512_reduce_add_pd(a4), s5 = _mm512_reduce_add_pd(a5),
+           s6 = _mm512_reduce_add_pd(a6);
+    for (; j + 2u < len; j++) {
+        const double fa = f[j + 1u] - k1 * b[j + 1u], ba = b[j] - k1 * f[j];
+        const double fb = f[j + 2u] - k1 * b[j + 2u], bb = b[j + 1u] - k1 * f[j + 1u];
+        const double fn = fb - k2 * bb, bn = ba - k2 * fa;
+        f[j] = fn;
+        b[j] = bn;
+        s0 += fn * fn;
+        s1 += bn * bn;
+        s2 += fn * bn;
+        s3 += fn * bp;
+        s4 += fn * fp;
+        s5 += bn * bp;
+        s6 += bn * fp;
+        fp = fn;
+        bp = bn;
     }
-    *num = sn;
-    *den = sd;
+    s[0] = s0;
+    s[1] = s1;
+    s[2] = s2;
+    s[3] = s3;
+    s[4] = s4;
+    s[5] = s5;
+    s[6] = s6;
 }
 
 #endif /* DV_AR_X86 */
@@ -532,19 +596,19 @@ void dv_priv_ar_fir(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t 
     fir_c(a, p, c0, x, n, e);
 }
 
-void dv_priv_ar_burg_step(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k, dv_real_t *num,
-                          dv_real_t *den, uint32_t kern)
+void dv_priv_ar_burg2(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_real_t k2,
+                      dv_real_t s[7], uint32_t kern)
 {
 #if DV_AR_X86
     if (kern == 2u) {
-        burg_avx512(f, b, len, k, num, den);
+        burg2_avx512(f, b, len, k1, k2, s);
         return;
     }
     if (kern == 1u) {
-        burg_avx2(f, b, len, k, num, den);
+        burg2_avx2(f, b, len, k1, k2, s);
         return;
     }
 #endif
     (void)kern;
-    burg_c(f, b, len, k, num, den);
+    burg2_c(f, b, len, k1, k2, s);
 }

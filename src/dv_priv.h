@@ -95,12 +95,6 @@ dv_real_t dv_priv_ar_dot(const dv_real_t *a, const dv_real_t *b, size_t n, uint3
 void dv_priv_ar_fir(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
                     dv_real_t *e, uint32_t kern);
 
-/* One Burg stage on aligned errors f[0..len), b[0..len) (f[j] = f(i), b[j] = b(i-1)):
- * b[j] -= k f[j]; f[j] = f[j+1] - k b[j+1] (old values), j < len-1; returns the next stage's
- * num = sum f b and den = sum f^2 + b^2 over j < len-1. */
-void dv_priv_ar_burg_step(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k, dv_real_t *num,
-                          dv_real_t *den, uint32_t kern);
-
 /* Contact force law of dv_model.h, one side: s = X - gap; 0, then kB s^2 / (2 delta) on the
  * transition, then kB (s - delta / 2). Continuous force and tangent stiffness. */
 static inline dv_real_t dv_priv_contact_g1(dv_real_t s, dv_real_t delta, dv_real_t kb)
@@ -127,5 +121,14 @@ static inline dv_real_t dv_priv_contact_g(int side, dv_real_t gap, dv_real_t del
     }
     return g;
 }
+
+/* Two Burg stages in one pass on aligned errors f[0..len), b[0..len) (f[j] = f(i),
+ * b[j] = b(i-1)); one stage with k is b[j] -= k f[j]; f[j] = f[j+1] - k b[j+1] (old values),
+ * j < len-1; first k1, then k2. Leaves len-2 values and returns the sums the next two stages need, over
+ * the new values F, B (j < len-2): s[0] = sum F^2, s[1] = sum B^2, s[2] = sum F B, and the lag-1
+ * sums s[3] = sum F[j+1] B[j], s[4] = sum F[j+1] F[j], s[5] = sum B[j+1] B[j],
+ * s[6] = sum B[j+1] F[j]. Needs len >= 3. */
+void dv_priv_ar_burg2(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_real_t k2,
+                      dv_real_t s[7], uint32_t kern);
 
 #endif /* DV_PRIV_H */
