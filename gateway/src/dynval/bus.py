@@ -1,0 +1,411 @@
+"""The CAN side of the gateway: the dynval protocol through the C codec (dv_codec, via the
+binding: nothing is encoded or decoded by a second implementation), sequence tracking
+(dv_seq_t), the frame plan of a recorded test and a drift-free replay scheduler.
+
+Frame plan of one test (one record): DV_CTRL CLEAR, one DV_CHCFG per channel (rate and lsb),
+DV_CTRL START (record_id), the DV_SAMPLES frames (channels interleaved, 3 samples per frame,
+sent at the time of the frame's last sample), DV_CTRL STOP.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from dynval._core import ffi, lib
+from dynval.errors import ConfigError, DynvalError
+from dynval.io.recording import Recording
+
+log = logging.getLogger(__name__)
+
+SAMPLES_PER_FRAME = 3
+RAW_MISSING = -32768
+CTRL_START, CTRL_STOP, CTRL_CLEAR, CTRL_STATUS = 1, 2, 3, 4
+
+KIND_NAMES = {int(lib.DV_MSG_STATUS): "status", int(lib.DV_MSG_CTRL): "ctrl",
+              int(lib.DV_MSG_CHCFG): "chcfg", int(lib.DV_MSG_SAMPLES): "samples",
+              int(lib.DV_MSG_FEATURE): "feature", int(lib.DV_MSG_RESID): "resid"}
+
+FEATURE_NAMES = {0x01: "seg_std", 0x08: "win_mean", 0x09: "win_std", 0x0A: "win_rms",
+                 0x0B: "win_peak", 0x10: "rec_mean", 0x11: "rec_std", 0x12: "rec_rms",
+                 0x13: "rec_skew", 0x14: "rec_kurt", 0x15: "rec_peak", 0x16: "rec_min",
+                 0x17: "rec_max", 0x18: "rec_crest", 0x19: "rec_kfactor", 0x20: "tm_energy",
+                 0x21: "tm_central_time", 0x22: "tm_rms_duration", 0x23: "tm_central_skew",
+                 0x24: "tm_central_kurt", 0x25: "tm_root_energy_amp", 0x40: "ar_resid_rms",
+                 0x41: "ar_outliers"}
+
+SEQ_VERDICTS = ("ok", "gap", "dup", "late", "stale")
+
+
+class BusError(DynvalError):
+    """The CAN bus cannot be opened or refuses frames."""
+
+
+# ---- the codec (C) ---------------------------------------------------------------------------
+_msg = ffi.new("dv_msg_t *")
+_frame = ffi.new("dv_can_frame_t *")
+
+
+def _encode() -> tuple[int, bytes]:
+    st = lib.dv_codec_encode(_msg, _frame)
+    if st != 0:
+        raise ConfigError(f"dv_codec_encode refused a message (status {st})")
+    return int(_frame.id), bytes(ffi.buffer(_frame.data, 8))
+
+
+def encode_ctrl(cmd: int, record_id: int = 0) -> tuple[int, bytes]:
+    """(id, 8 bytes) of a DV_CTRL frame."""
+    _msg.kind = lib.DV_MSG_CTRL
+    _msg.u.ctrl.cmd = cmd
+    _msg.u.ctrl.record_id = record_id & 0xFFFFFFFF
+    return _encode()
+
+
+def encode_chcfg(channel: int, fs_hz: int, lsb: float, flags: int = 1) -> tuple[int, bytes]:
+    """(id, 8 bytes) of a DV_CHCFG frame."""
+    _msg.kind = lib.DV_MSG_CHCFG
+    _msg.u.chcfg.channel = channel
+    _msg.u.chcfg.flags = flags
+    _msg.u.chcfg.fs_hz = fs_hz
+    _msg.u.chcfg.lsb = lsb
+    return _encode()
+
+
+def encode_samples(channel: int, seq: int, raw: Sequence[int] | np.ndarray) -> tuple[int, bytes]:
+    """(id, 8 bytes) of a DV_SAMPLES frame with three raw counts."""
+    _msg.kind = lib.DV_MSG_SAMPLES
+    s = _msg.u.samples
+    s.channel = channel
+    s.seq = seq & 0xFF
+    s.raw[0], s.raw[1], s.raw[2] = int(raw[0]), int(raw[1]), int(raw[2])
+    return _encode()
+
+
+def _ids() -> dict[str, int]:
+    out = {"ctrl": encode_ctrl(CTRL_STATUS)[0], "chcfg": encode_chcfg(0, 1, 1.0)[0],
+           "samples": encode_samples(0, 0, (0, 0, 0))[0]}
+    for kind, name in ((lib.DV_MSG_STATUS, "status"), (lib.DV_MSG_FEATURE, "feature"),
+                       (lib.DV_MSG_RESID, "resid")):
+        _msg.kind = kind
+        out[name] = _encode()[0]
+    return out
+
+
+#: the protocol's identifiers, as the C codec encodes them
+IDS = _ids()
+ID_STATUS, ID_CTRL, ID_CHCFG = IDS["status"], IDS["ctrl"], IDS["chcfg"]
+ID_SAMPLES, ID_FEATURE, ID_RESID = IDS["samples"], IDS["feature"], IDS["resid"]
+_dframe = ffi.new("dv_can_frame_t *")
+_dmsg = ffi.new("dv_msg_t *")
+
+
+@dataclass
+class Decoded:
+    """A decoded frame: kind is one of KIND_NAMES' values, fields the message's members."""
+
+    kind: str
+    fields: dict[str, Any]
+
+
+def decode(can_id: int, data: bytes, extended: bool = False) -> Decoded | int:
+    """Decode a frame with the C codec. Returns Decoded, or the codec's negative status
+    (unknown id / bad DLC / bad config value) for a frame it refuses."""
+    _dframe.id = (can_id | 0x80000000) if extended else can_id
+    n = len(data)
+    _dframe.dlc = n if n <= 8 else 9
+    ffi.memmove(_dframe.data, data[:8], min(n, 8))
+    st = int(lib.dv_codec_decode(_dframe, _dmsg))
+    if st != 0:
+        return st
+    k = int(_dmsg.kind)
+    u = _dmsg.u
+    if k == lib.DV_MSG_SAMPLES:
+        s = u.samples
+        return Decoded("samples", {"channel": s.channel, "seq": s.seq,
+                                   "raw": [s.raw[0], s.raw[1], s.raw[2]]})
+    if k == lib.DV_MSG_FEATURE:
+        f = u.feature
+        return Decoded("feature", {"feat_id": f.feat_id, "channel": f.channel,
+                                   "index": f.index, "value": float(f.value)})
+    if k == lib.DV_MSG_RESID:
+        r = u.resid
+        return Decoded("resid", {"channel": r.channel, "flags": r.flags, "step": r.step,
+                                 "value": float(r.value)})
+    if k == lib.DV_MSG_STATUS:
+        s = u.status
+        return Decoded("status", {"state": s.state, "beat": s.beat, "lost": s.lost,
+                                  "dup": s.dup, "late": s.late, "bad_dlc": s.bad_dlc,
+                                  "unknown": s.unknown})
+    if k == lib.DV_MSG_CTRL:
+        return Decoded("ctrl", {"cmd": u.ctrl.cmd, "record_id": u.ctrl.record_id})
+    c = u.chcfg
+    return Decoded("chcfg", {"channel": c.channel, "flags": c.flags, "fs_hz": c.fs_hz,
+                             "lsb": float(c.lsb)})
+
+
+def sample_value(raw: int, lsb: float) -> float:
+    """raw * lsb in channel units, NaN for a missing sample (dv_codec_sample_value)."""
+    return float(lib.dv_codec_sample_value(raw, lsb))
+
+
+def quantise(x: np.ndarray, lsb: float) -> np.ndarray:
+    """int16 counts of x by dv_codec_sample_raw (rounded, clamped, NaN -> missing)."""
+    f = lib.dv_codec_sample_raw
+    return np.fromiter((f(v, lsb) for v in x.tolist()), dtype=np.int16, count=x.size)
+
+
+def dequantise(raw: np.ndarray, lsb: float) -> np.ndarray:
+    """Channel values of raw counts, exactly as the firmware converts them."""
+    f = lib.dv_codec_sample_value
+    return np.fromiter((f(int(v), lsb) for v in raw.tolist()), dtype=np.float64,
+                       count=raw.size)
+
+
+def lsb_for(x: np.ndarray, headroom: float = 30000.0) -> float:
+    """Power-of-two lsb (exact in binary32) putting the channel's peak near 30000 counts."""
+    finite = x[np.isfinite(x)]
+    peak = float(np.max(np.abs(finite))) if finite.size else 0.0
+    if peak == 0.0:
+        return 2.0 ** -10
+    return float(2.0 ** math.ceil(math.log2(peak / headroom)))
+
+
+class SeqTracker:
+    """dv_seq_t of one channel (the firmware's own sequence rules)."""
+
+    def __init__(self) -> None:
+        self._s = ffi.new("dv_seq_t *")
+        lib.dv_seq_init(self._s)
+        self._c = ffi.new("dv_seq_counts_t *")
+
+    def update(self, seq: int) -> str:
+        return SEQ_VERDICTS[int(lib.dv_seq_update(self._s, seq & 0xFF))]
+
+    def counts(self) -> dict[str, int]:
+        lib.dv_seq_get(self._s, self._c)
+        c = self._c
+        return {"ok": c.ok, "lost": c.lost, "dup": c.dup, "late": c.late, "stale": c.stale}
+
+
+# ---- the frame plan of a recorded test --------------------------------------------------------
+@dataclass
+class Plan:
+    """What replay sends for one recording: setup frames, timed sample frames, stop frames.
+    raw[c] holds channel c's counts (padded with RAW_MISSING to whole frames)."""
+
+    rec: Recording
+    lsb: list[float]
+    raw: list[np.ndarray]
+    fs_hz: int
+    record_id: int = 1
+    padded: int = 0
+    setup: list[tuple[int, bytes]] = field(default_factory=list)
+    stop: list[tuple[int, bytes]] = field(default_factory=list)
+
+    @property
+    def n_frames_per_channel(self) -> int:
+        return int(self.raw[0].size // SAMPLES_PER_FRAME) if self.raw else 0
+
+    @property
+    def n_sample_frames(self) -> int:
+        return self.n_frames_per_channel * len(self.raw)
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.setup) + self.n_sample_frames + len(self.stop)
+
+    def values(self, c: int) -> np.ndarray:
+        """The values the firmware sees on channel c (NaN for padding), before padding."""
+        return dequantise(self.raw[c][: self.rec.n_samples], self.lsb[c])
+
+    def batches(self) -> Iterator[tuple[int, list[tuple[int, bytes]]]]:
+        """(offset_ns from the first sample, frames) in send order; every sample frame is due
+        at the time of its last sample; setup at 0, stop one frame period after the last."""
+        yield 0, list(self.setup)
+        nch = len(self.raw)
+        per = SAMPLES_PER_FRAME
+        t_last = 0
+        for k in range(self.n_frames_per_channel):
+            due = round((k * per + per - 1) * 1e9 / self.fs_hz)
+            frames = [encode_samples(c, k, self.raw[c][k * per:(k + 1) * per])
+                      for c in range(nch)]
+            t_last = due
+            yield due, frames
+        yield t_last + round(per * 1e9 / self.fs_hz), list(self.stop)
+
+
+def make_plan(rec: Recording, record_id: int = 1, lsb: Sequence[float] | None = None) -> Plan:
+    """Quantise a recording for the bus: per channel a power-of-two lsb (or the given ones),
+    counts by the C codec, missing samples for NaN and for the padding of the last frame."""
+    if not rec.channels:
+        raise ConfigError(f"{rec.name}: no channels to send")
+    if len(rec.channels) > 8:
+        raise ConfigError(f"{rec.name}: {len(rec.channels)} channels; the protocol's node "
+                          "serves at most 8 (use a channel map to choose)")
+    fs = int(round(rec.fs_hz))
+    if not 1 <= fs <= 65535 or abs(fs - rec.fs_hz) > 1e-6 * rec.fs_hz:
+        raise ConfigError(f"{rec.name}: sample rate {rec.fs_hz:g} Hz is not an integer "
+                          "1..65535 Hz (DV_CHCFG.fs_hz)")
+    lsbs = list(lsb) if lsb is not None else [lsb_for(c.data) for c in rec.channels]
+    n = rec.n_samples
+    pad = (-n) % SAMPLES_PER_FRAME
+    raw = []
+    for c, step in zip(rec.channels, lsbs, strict=True):
+        q = quantise(np.asarray(c.data, dtype=np.float64), step)
+        if pad:
+            q = np.concatenate([q, np.full(pad, RAW_MISSING, dtype=np.int16)])
+        raw.append(q)
+    if pad:
+        log.info("%s: last frame padded with %d missing sample(s) per channel", rec.name, pad)
+    setup = [(ID_CTRL, encode_ctrl(CTRL_CLEAR)[1])]
+    setup += [encode_chcfg(c, fs, lsbs[c]) for c in range(len(raw))]
+    setup.append(encode_ctrl(CTRL_START, record_id))
+    stop = [encode_ctrl(CTRL_STOP, record_id)]
+    return Plan(rec, lsbs, raw, fs, record_id, pad, setup, stop)
+
+
+# ---- timing ------------------------------------------------------------------------------------
+class TimingStats:
+    """Streaming statistics of send-time errors (bounded memory): count, mean, max, a 1-us
+    histogram for the 95th percentile, and a least-squares drift slope of error vs time."""
+
+    BINS = 200_000  # 1 us bins up to 200 ms; beyond goes to the last bin
+
+    def __init__(self) -> None:
+        self.n = 0
+        self.sum = 0.0
+        self.max = -math.inf
+        self.min = math.inf
+        self.hist = np.zeros(self.BINS, dtype=np.int64)
+        self._sx = self._sy = self._sxx = self._sxy = 0.0
+        self.first_err: float | None = None
+        self.t_span_s = 0.0
+
+    def add_batch(self, t_s: float, errs_ns: Sequence[int]) -> None:
+        for e in errs_ns:
+            ev = float(e)
+            self.n += 1
+            self.sum += ev
+            self.max = max(self.max, ev)
+            self.min = min(self.min, ev)
+            self.hist[min(self.BINS - 1, max(0, int(ev // 1000)))] += 1
+            self._sx += t_s
+            self._sy += ev
+            self._sxx += t_s * t_s
+            self._sxy += t_s * ev
+        self.t_span_s = max(self.t_span_s, t_s)
+
+    def percentile_ns(self, q: float) -> float:
+        if self.n == 0:
+            return math.nan
+        c = np.cumsum(self.hist)
+        i = int(np.searchsorted(c, q / 100.0 * self.n))
+        return (i + 1) * 1000.0
+
+    def drift_ns_per_s(self) -> float:
+        """Slope of the error over the run (0 = no accumulation)."""
+        d = self.n * self._sxx - self._sx * self._sx
+        if self.n < 2 or d <= 0:
+            return 0.0
+        return (self.n * self._sxy - self._sx * self._sy) / d
+
+    def report(self) -> dict[str, float]:
+        mean = self.sum / self.n if self.n else math.nan
+        slope = self.drift_ns_per_s()
+        return {"frames": float(self.n), "mean_us": mean / 1e3,
+                "p95_us": self.percentile_ns(95.0) / 1e3,
+                "max_us": (self.max if self.n else math.nan) / 1e3,
+                "drift_us_per_s": slope / 1e3,
+                "drift_us_over_run": slope * self.t_span_s / 1e3,
+                "duration_s": self.t_span_s}
+
+
+@dataclass
+class ReplayResult:
+    frames_sent: int
+    sample_frames: int
+    wall_s: float
+    timing: dict[str, float]
+    send_errors: int = 0
+
+    @property
+    def frames_per_s(self) -> float:
+        return self.frames_sent / self.wall_s if self.wall_s > 0 else math.inf
+
+
+SPIN_NS = 300_000  # the last 0.3 ms before a deadline is waited by polling the clock
+
+
+def wait_until(deadline_ns: int) -> None:
+    """Sleep to ~0.3 ms before an absolute perf_counter_ns deadline, then poll to it."""
+    while True:
+        rem = deadline_ns - time.perf_counter_ns()
+        if rem <= 0:
+            return
+        if rem > SPIN_NS:
+            time.sleep((rem - SPIN_NS) / 1e9)
+
+
+def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
+           on_progress: Callable[[int], None] | None = None,
+           send: Callable[[int, bytes], None] | None = None) -> ReplayResult:
+    """Send a plan on a python-can bus. Paced: every batch is due at start + offset / speed
+    (absolute deadlines: an early or late batch does not shift the later ones), and the
+    send-time error (send return minus deadline) of every frame is recorded. asap: no pacing.
+    on_progress(n) is called with the number of sample frames sent since the last call."""
+    import can
+
+    if not asap and not speed > 0:
+        raise ConfigError(f"--speed must be > 0, got {speed}")
+
+    def _send(can_id: int, data: bytes) -> None:
+        bus.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False))
+
+    tx = send or _send
+    stats = TimingStats()
+    sent = errors = 0
+    sample_frames = 0
+    t0 = time.perf_counter_ns() + (0 if asap else 2_000_000)  # 2 ms to settle
+    last_prog = 0
+    for off, frames in plan.batches():
+        due = t0 + int(off / speed) if not asap else 0
+        if not asap:
+            wait_until(due)
+        errs = []
+        for can_id, data in frames:
+            try:
+                tx(can_id, data)
+            except can.CanError as exc:
+                errors += 1
+                log.warning("send of 0x%03X failed: %s", can_id, exc)
+                continue
+            sent += 1
+            if not asap:
+                errs.append(time.perf_counter_ns() - due)
+            if can_id == ID_SAMPLES:
+                sample_frames += 1
+        if errs:
+            stats.add_batch(off / speed / 1e9, errs)
+        if on_progress is not None and sample_frames - last_prog >= 512:
+            on_progress(sample_frames - last_prog)
+            last_prog = sample_frames
+    wall = (time.perf_counter_ns() - t0) / 1e9
+    if on_progress is not None and sample_frames > last_prog:
+        on_progress(sample_frames - last_prog)
+    rep = stats.report() if not asap else {"frames": float(sent)}
+    return ReplayResult(sent, sample_frames, wall, rep, errors)
+
+
+def open_bus(interface: str, channel: str, **kw: Any) -> Any:
+    """A python-can bus, or BusError with the reason (e.g. a kernel without CAN)."""
+    import can
+
+    try:
+        return can.Bus(interface=interface, channel=channel, **kw)
+    except (OSError, can.CanError, ValueError) as exc:
+        raise BusError(f"cannot open {interface} bus '{channel}': {exc}") from exc

@@ -1,0 +1,90 @@
+"""`dynval inspect FILE.mcap`: topics, message counts, rates, gaps, counters (also of a file
+a killed logger left: read up to its last complete chunk)."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from dynval.io.mcapfile import Scan, iter_messages
+
+GAP_FACTOR = 5.0  # an interval this many times the median interval is a gap
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser("inspect", help="summarise an MCAP file written by dynval")
+    p.add_argument("file", type=Path)
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(run=run)
+
+
+def inspect(path: Path) -> dict[str, Any]:
+    sc = Scan()
+    topics: dict[str, dict[str, Any]] = {}
+    events: dict[str, int] = {}
+    last_status: dict[str, Any] | None = None
+    for m in iter_messages(path, scan_out=sc):
+        t = topics.get(m.topic)
+        if t is None:
+            t = topics[m.topic] = {"count": 0, "first_ns": m.log_time, "last_ns": m.log_time,
+                                   "dts": []}
+        if t["count"]:
+            t["dts"].append(m.log_time - t["last_ns"])
+        t["count"] += 1
+        t["last_ns"] = m.log_time
+        if m.topic == "/dv/events":
+            events[m.data["event"]] = events.get(m.data["event"], 0) + int(m.data["count"])
+        elif m.topic == "/dv/status":
+            last_status = m.data
+    out: dict[str, Any] = {"file": str(path), "complete": sc.complete, "bytes": sc.size,
+                           "chunks": sc.chunks, "unreadable_tail_bytes": sc.truncated_bytes,
+                           "error": sc.error, "topics": {}, "events": events,
+                           "last_status": last_status}
+    for name, t in sorted(topics.items()):
+        span = (t["last_ns"] - t["first_ns"]) / 1e9
+        dts = sorted(t.pop("dts"))
+        med = dts[len(dts) // 2] if dts else 0
+        gaps = [d for d in dts if med > 0 and d > GAP_FACTOR * med]
+        out["topics"][name] = {"count": t["count"], "span_s": span,
+                               "rate_hz": (t["count"] - 1) / span if span > 0 else 0.0,
+                               "gaps": len(gaps), "max_gap_ms": (dts[-1] / 1e6) if dts else 0.0}
+    md = sc.metadata
+    out["metadata"] = md.get("dynval", {})
+    if "dynval.summary" in md:
+        out["summary"] = {k: json.loads(v) for k, v in md["dynval.summary"].items()}
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    r = inspect(args.file)
+    if args.json:
+        json.dump(r, sys.stdout, indent=1)
+        sys.stdout.write("\n")
+        return 0
+    md = r["metadata"]
+    state = "complete" if r["complete"] else (
+        f"NO FOOTER: read up to the last complete chunk, {r['unreadable_tail_bytes']} bytes "
+        "unreadable")
+    print(f"{r['file']}: {r['bytes']} bytes, {r['chunks']} chunks, {state}")
+    if r["error"]:
+        print(f"  read error: {r['error']}")
+    if md:
+        print(f"  test {md.get('test', '?')} ({md.get('source', '')}, sha256 "
+              f"{md.get('source_sha256', '')[:12]}), fs {md.get('fs_hz', '?')} Hz, "
+              f"{md.get('software', '')}")
+    print(f"  {'topic':<28} {'messages':>9} {'rate/s':>10} {'span s':>8} {'gaps':>5} "
+          f"{'max gap ms':>10}")
+    for name, t in r["topics"].items():
+        print(f"  {name:<28} {t['count']:>9} {t['rate_hz']:>10.1f} {t['span_s']:>8.2f} "
+              f"{t['gaps']:>5} {t['max_gap_ms']:>10.2f}")
+    print(f"  events: {r['events'] or 'none'}")
+    if r["last_status"]:
+        print(f"  last DV_STATUS: {r['last_status']}")
+    if "summary" in r:
+        seq = r["summary"].get("sequence", {})
+        lost = {k: v["lost"] for k, v in seq.items() if v.get("lost")}
+        print(f"  sequence: {sum(v['ok'] for v in seq.values())} frames in order, lost "
+              f"{lost or 0}")
+    return 0

@@ -1,0 +1,69 @@
+"""`dynval log -o FILE.mcap`: record the dynval bus to MCAP until Ctrl-C / SIGTERM (or
+--duration / --idle-timeout); the file is finalised on exit."""
+from __future__ import annotations
+
+import argparse
+import signal
+import time
+from pathlib import Path
+from typing import Any
+
+from dynval import bus
+from dynval.cli_common import read_with_options
+from dynval.mcap_log import McapLog, log_bus
+from dynval.runloop import recording_meta
+
+
+def add_parser(sub: Any) -> None:
+    p = sub.add_parser("log", help="record the CAN bus to an MCAP file")
+    p.add_argument("-o", "--output", type=Path, required=True, help="MCAP file to write")
+    p.add_argument("--bus", choices=("socketcan", "virtual"), default="socketcan",
+                   help="python-can interface (%(default)s)")
+    p.add_argument("--channel", default="vcan0", help="bus channel (%(default)s)")
+    p.add_argument("--test", type=Path, default=None,
+                   help="the recorded test being replayed: its name, channel map, rate, units "
+                   "and hash go into the metadata record")
+    p.add_argument("--fs", type=float, default=None, help="rate of a text --test")
+    p.add_argument("--channel-map", type=Path, default=None, help="channel map of --test")
+    p.add_argument("--lenient", action="store_true", help="lenient reading of --test")
+    p.add_argument("--model", type=Path, default=None, help="model file (metadata only)")
+    p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
+    p.add_argument("--idle-timeout", type=float, default=None,
+                   help="stop after S seconds without a frame")
+    p.add_argument("--chunk-kb", type=int, default=512, help="MCAP chunk size (%(default)s)")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    meta: dict[str, Any] = {}
+    names: list[str] = []
+    if args.test is not None:
+        rec = read_with_options(args.test, args)
+        meta = recording_meta(rec, bus.make_plan(rec))
+        names = [c.name for c in rec.channels]
+    if args.model is not None:
+        from dynval import model
+
+        meta["model"] = model.to_dict(model.load(args.model))
+    b = bus.open_bus(args.bus, args.channel)
+    out = McapLog(args.output, meta=meta, channel_names=names, chunk_size=args.chunk_kb * 1024)
+
+    def _term(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, _term)
+    t_end = time.monotonic() + args.duration if args.duration else None
+    n = 0
+    try:
+        n = log_bus(b, out, stop=(lambda: time.monotonic() > t_end) if t_end else None,
+                    idle_timeout_s=args.idle_timeout)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, old)
+        s = out.close()
+        b.shutdown()
+    total = sum(s["messages"].values())
+    print(f"{args.output}: {total} messages ({s['messages'].get('/can/raw', n)} frames), "
+          f"events {s['events'] or 'none'}")
+    return 0

@@ -1,0 +1,136 @@
+"""Channel maps: which file columns become which channels, with name, unit, scale (file units
+to channel units), role (input/output) and DOF (1-based, or none).
+
+File (JSON or YAML)::
+
+    {"channels": [
+      {"column": "force_N", "name": "force", "unit": "N", "scale": 1.0, "role": "input", "dof": 1},
+      {"column": "acc1", "unit": "m/s^2", "dof": 1}, ...]}
+
+``column`` is a column name of the test or a 0-based column index; only listed columns are
+kept (the others are reported). Without a map every column is kept with the reader's names,
+units and roles, and DOF i for the i-th output (the three-story layout)."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from dynval.errors import ConfigError
+from dynval.io.recording import Channel, Recording
+
+log = logging.getLogger(__name__)
+
+ROLES = ("input", "output")
+
+
+@dataclass(frozen=True)
+class ChannelSpec:
+    column: str | int
+    name: str | None = None
+    unit: str | None = None
+    scale: float = 1.0
+    role: str | None = None
+    dof: int | None = None
+
+
+@dataclass(frozen=True)
+class ChannelMap:
+    channels: tuple[ChannelSpec, ...]
+    source: str = ""
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"channels": [dataclasses.asdict(c) for c in self.channels],
+                "source": self.source}
+
+
+def load_channel_map(path: Path | str) -> ChannelMap:
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"{p}: cannot read channel map: {exc.strerror or exc}") from exc
+    try:
+        if p.suffix.lower() in (".yaml", ".yml"):
+            import importlib
+
+            d = importlib.import_module("yaml").safe_load(text)
+        else:
+            d = json.loads(text)
+    except Exception as exc:  # yaml and json raise their own classes
+        raise ConfigError(f"{p}: not a valid channel map file: {exc}") from exc
+    return channel_map_from_dict(d, str(p))
+
+
+def channel_map_from_dict(d: Any, source: str = "") -> ChannelMap:
+    where = source or "channel map"
+    if not isinstance(d, dict) or not isinstance(d.get("channels"), list) or not d["channels"]:
+        raise ConfigError(f"{where}: expected {{'channels': [ {{'column': ...}}, ... ]}}")
+    specs = []
+    for i, c in enumerate(d["channels"]):
+        w = f"{where}: channels[{i}]"
+        if not isinstance(c, dict) or "column" not in c:
+            raise ConfigError(f"{w}: needs 'column' (a name or a 0-based index)")
+        col = c["column"]
+        if not isinstance(col, (str, int)) or isinstance(col, bool):
+            raise ConfigError(f"{w}.column: a name or a 0-based index, got {col!r}")
+        scale = c.get("scale", 1.0)
+        if isinstance(scale, bool) or not isinstance(scale, (int, float)) or \
+                not math.isfinite(scale) or scale == 0:
+            raise ConfigError(f"{w}.scale: a finite non-zero number, got {scale!r}")
+        role = c.get("role")
+        if role is not None and role not in ROLES:
+            raise ConfigError(f"{w}.role: one of {', '.join(ROLES)}, got {role!r}")
+        dof = c.get("dof")
+        if dof is not None and (isinstance(dof, bool) or not isinstance(dof, int) or dof < 1):
+            raise ConfigError(f"{w}.dof: an integer >= 1, got {dof!r}")
+        unknown = set(c) - {"column", "name", "unit", "scale", "role", "dof"}
+        if unknown:
+            raise ConfigError(f"{w}: unknown key(s) {', '.join(sorted(unknown))}")
+        specs.append(ChannelSpec(col, c.get("name"), c.get("unit"), float(scale), role, dof))
+    return ChannelMap(tuple(specs), source)
+
+
+def default_dofs(rec: Recording) -> Recording:
+    """DOF i for the i-th output without one (1-based), the DOF 1 for a lone input."""
+    k = 0
+    for ch in rec.channels:
+        if ch.role == "output" and ch.dof is None:
+            k += 1
+            ch.dof = k
+    ins = [c for c in rec.channels if c.role == "input"]
+    if len(ins) == 1 and ins[0].dof is None:
+        ins[0].dof = 1
+    return rec
+
+
+def apply_channel_map(rec: Recording, cmap: ChannelMap | None) -> Recording:
+    """A recording with the map's channels (selected, renamed, scaled: data * scale)."""
+    if cmap is None:
+        return default_dofs(rec)
+    out: list[Channel] = []
+    for s in cmap.channels:
+        if isinstance(s.column, int):
+            if not 0 <= s.column < len(rec.channels):
+                raise ConfigError(f"{cmap.source}: column {s.column} out of range "
+                                  f"({len(rec.channels)} channels in {rec.name})")
+            src = rec.channels[s.column]
+        else:
+            try:
+                src = rec.channel(s.column)
+            except KeyError as exc:
+                raise ConfigError(f"{cmap.source}: {exc.args[0]}") from None
+        out.append(Channel(name=s.name or src.name, data=src.data * s.scale,
+                           unit=s.unit if s.unit is not None else src.unit,
+                           role=s.role or src.role, dof=s.dof if s.dof is not None else src.dof,
+                           scale=s.scale))
+    picked = {s.column if isinstance(s.column, str) else rec.channels[s.column].name
+              for s in cmap.channels}
+    left = [c.name for c in rec.channels if c.name not in picked]
+    if left:
+        log.info("%s: channel map leaves out %s", rec.name, ", ".join(left))
+    return default_dofs(dataclasses.replace(rec, channels=out))

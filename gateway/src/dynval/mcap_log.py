@@ -1,0 +1,295 @@
+"""MCAP logging of the dynval bus: every frame raw on /can/raw, decoded samples per channel on
+/dv/samples/<channel>, features on /dv/features, residuals on /dv/residuals, DV_STATUS on
+/dv/status, control frames on /dv/control and counted anomalies (unknown ids, bad frames,
+sequence gaps) on /dv/events; JSON messages with a JSON Schema each, so the mcap CLI and
+Foxglove read them. A "dynval" metadata record (test, channel map, rate, units, model,
+software version, source hash) is written first, a "dynval.summary" record at the end.
+
+Written incrementally: chunks of at most chunk_size bytes (or max_chunk_age_s of wall time),
+compressed (zstd, else lz4, else none), with CRCs, each flushed to the OS as it is finished,
+so a killed logger leaves a file readable up to its last complete chunk
+(dynval.io.mcapfile.iter_messages recovers it)."""
+from __future__ import annotations
+
+import json
+import logging
+import time
+from collections import Counter
+from pathlib import Path
+from typing import IO, Any
+
+from mcap.writer import CompressionType, Writer
+
+from dynval import __version__, bus
+from dynval.errors import DynvalError
+
+log = logging.getLogger(__name__)
+
+PROFILE = ""  # plain JSON messages
+T_RAW, T_FEATURES, T_RESID, T_STATUS = "/can/raw", "/dv/features", "/dv/residuals", "/dv/status"
+T_CONTROL, T_EVENTS, T_SAMPLES = "/dv/control", "/dv/events", "/dv/samples/"
+
+_INT = {"type": "integer"}
+_NUM = {"type": "number"}
+_NUMN = {"type": ["number", "null"]}
+SCHEMAS: dict[str, dict[str, Any]] = {
+    "dynval.CanFrame": {"id": _INT, "extended": {"type": "boolean"}, "dlc": _INT,
+                        "data": {"type": "string", "description": "payload, hex"}},
+    "dynval.Samples": {"channel": _INT, "seq": _INT, "index": _INT,
+                       "raw": {"type": "array", "items": _INT},
+                       "values": {"type": "array", "items": _NUMN},
+                       "verdict": {"type": "string", "enum": list(bus.SEQ_VERDICTS)}},
+    "dynval.Feature": {"channel": _INT, "name": {"type": "string"}, "feat_id": _INT,
+                       "feature": {"type": "string"}, "index": _INT, "value": _NUM,
+                       "bits": {"type": "integer", "description": "IEEE-754 binary32 bits"}},
+    "dynval.Residual": {"channel": _INT, "name": {"type": "string"}, "flags": _INT,
+                        "step": _INT, "value": _NUM, "bits": _INT},
+    "dynval.Status": {"state": _INT, "beat": _INT, "lost": _INT, "dup": _INT, "late": _INT,
+                      "bad_dlc": _INT, "unknown": _INT},
+    "dynval.Control": {"kind": {"type": "string"}, "cmd": _INT, "record_id": _INT,
+                       "channel": _INT, "flags": _INT, "fs_hz": _INT, "lsb": _NUM},
+    "dynval.Event": {"event": {"type": "string"}, "id": _INT, "channel": _INT,
+                     "count": _INT, "detail": {"type": "string"}},
+}
+TOPIC_SCHEMA = {T_RAW: "dynval.CanFrame", T_FEATURES: "dynval.Feature",
+                T_RESID: "dynval.Residual", T_STATUS: "dynval.Status",
+                T_CONTROL: "dynval.Control", T_EVENTS: "dynval.Event"}
+
+
+class LogError(DynvalError):
+    """The MCAP file cannot be written."""
+
+
+def compression() -> CompressionType:
+    """zstd if zstandard is installed, else lz4, else none."""
+    from importlib.util import find_spec
+
+    if find_spec("zstandard") is not None:
+        return CompressionType.ZSTD
+    if find_spec("lz4") is not None:
+        return CompressionType.LZ4
+    return CompressionType.NONE
+
+
+class _Flushing:
+    """A write stream that hands every write (a finished chunk, metadata) to the OS at once."""
+
+    def __init__(self, f: IO[bytes]) -> None:
+        self.f = f
+
+    def write(self, b: bytes) -> int:
+        n = self.f.write(b)
+        self.f.flush()
+        return n
+
+    def tell(self) -> int:
+        return self.f.tell()
+
+    def flush(self) -> None:
+        self.f.flush()
+
+
+def _f32_bits(v: float) -> int:
+    import struct
+
+    return int(struct.unpack("<I", struct.pack("<f", v))[0])
+
+
+def _dumps(d: dict[str, Any]) -> bytes:
+    return json.dumps(d, separators=(",", ":"), allow_nan=False).encode()
+
+
+class McapLog:
+    """Decode and log frames to one MCAP file. on_frame() per received frame; close() (or the
+    context manager) writes the summary and finishes the file."""
+
+    def __init__(self, path: Path | str, *, meta: dict[str, Any] | None = None,
+                 channel_names: list[str] | None = None, chunk_size: int = 512 * 1024,
+                 max_chunk_age_s: float = 1.0, compress: CompressionType | None = None,
+                 log_raw: bool = True) -> None:
+        self.path = Path(path)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._f = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+        except OSError as exc:
+            raise LogError(f"{self.path}: cannot write: {exc.strerror or exc}") from exc
+        stream: Any = _Flushing(self._f)
+        self._w: Any = Writer(stream, chunk_size=chunk_size,
+                         compression=compress if compress is not None else compression())
+        self._w.start(profile=PROFILE, library=f"dynval {__version__}")
+        self._schema: dict[str, int] = {}
+        self._chan: dict[str, int] = {}
+        self.names = list(channel_names or [])
+        self.lsb: dict[int, float] = {}
+        self.seq: dict[int, bus.SeqTracker] = {}
+        self._frame_no: dict[int, int] = {}
+        self.counts: Counter[str] = Counter()
+        self.events: Counter[str] = Counter()
+        self.last_status: dict[str, int] | None = None
+        self.log_raw = log_raw
+        self.max_age_ns = int(max_chunk_age_s * 1e9)
+        self._last_flush = time.monotonic_ns()
+        self._closed = False
+        self.t_first: int | None = None
+        self.t_last = 0
+        md = {k: v if isinstance(v, str) else json.dumps(v) for k, v in (meta or {}).items()}
+        md.setdefault("software", f"dynval {__version__}")
+        self._w.add_metadata("dynval", md)
+        for topic in (T_RAW, T_FEATURES, T_RESID, T_STATUS, T_CONTROL, T_EVENTS):
+            self._channel(topic, TOPIC_SCHEMA[topic])
+
+    # -- channels ----------------------------------------------------------------------------
+    def _channel(self, topic: str, schema: str) -> int:
+        cid = self._chan.get(topic)
+        if cid is not None:
+            return cid
+        sid = self._schema.get(schema)
+        if sid is None:
+            js = {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": schema,
+                  "type": "object", "properties": SCHEMAS[schema]}
+            sid = int(self._w.register_schema(schema, "jsonschema", json.dumps(js).encode()))
+            self._schema[schema] = sid
+        cid = int(self._w.register_channel(topic, "json", sid))
+        self._chan[topic] = cid
+        return cid
+
+    def channel_name(self, ch: int) -> str:
+        return self.names[ch] if ch < len(self.names) else f"ch{ch}"
+
+    def _put(self, topic: str, t_ns: int, d: dict[str, Any], schema: str | None = None,
+             seq: int = 0) -> None:
+        cid = self._chan.get(topic)
+        if cid is None:
+            cid = self._channel(topic, schema or TOPIC_SCHEMA[topic])
+        self._w.add_message(cid, log_time=t_ns, data=_dumps(d), publish_time=t_ns,
+                            sequence=seq)
+        self.counts[topic] += 1
+
+    def event(self, t_ns: int, event: str, *, can_id: int = -1, channel: int = -1,
+              count: int = 1, detail: str = "") -> None:
+        self.events[event] += count
+        log.debug("event %s id=0x%X ch=%d n=%d %s", event, can_id, channel, count, detail)
+        self._put(T_EVENTS, t_ns, {"event": event, "id": can_id, "channel": channel,
+                                   "count": count, "detail": detail})
+
+    # -- frames ------------------------------------------------------------------------------
+    def on_frame(self, t_ns: int, can_id: int, data: bytes, extended: bool = False) -> None:
+        """Log one frame received at t_ns (integer ns, epoch)."""
+        if self._closed:
+            return
+        if self.t_first is None:
+            self.t_first = t_ns
+        self.t_last = t_ns
+        if self.log_raw:
+            self._put(T_RAW, t_ns, {"id": can_id, "extended": extended, "dlc": len(data),
+                                    "data": data.hex()})
+        d = bus.decode(can_id, data, extended)
+        if isinstance(d, int):
+            ev = {-2: "bad_dlc", -6: "unknown_id", -4: "bad_value", -1: "bad_frame"}.get(
+                d, f"refused_{-d}")
+            self.event(t_ns, ev, can_id=can_id, detail=f"dlc {len(data)}")
+        elif d.kind == "samples":
+            self._samples(t_ns, d.fields)
+        elif d.kind == "feature":
+            f = d.fields
+            self._put(T_FEATURES, t_ns, {**f, "name": self.channel_name(f["channel"]),
+                                         "feature": bus.FEATURE_NAMES.get(f["feat_id"], "?"),
+                                         "bits": _f32_bits(f["value"])})
+        elif d.kind == "resid":
+            f = d.fields
+            self._put(T_RESID, t_ns, {**f, "name": self.channel_name(f["channel"]),
+                                      "bits": _f32_bits(f["value"])})
+        elif d.kind == "status":
+            self.last_status = d.fields
+            self._put(T_STATUS, t_ns, d.fields)
+        else:
+            f = d.fields
+            if d.kind == "chcfg":
+                self.lsb[f["channel"]] = f["lsb"]
+            elif f["cmd"] == bus.CTRL_START:
+                self.seq.clear()
+                self._frame_no.clear()
+            self._put(T_CONTROL, t_ns, {"kind": d.kind, **f})
+        now = time.monotonic_ns()
+        if now - self._last_flush > self.max_age_ns:
+            self._w.flush()  # finish the chunk in progress: bounds what a crash can lose
+            self._last_flush = now
+
+    def _samples(self, t_ns: int, f: dict[str, Any]) -> None:
+        ch = int(f["channel"])
+        tr = self.seq.get(ch)
+        if tr is None:
+            tr = self.seq[ch] = bus.SeqTracker()
+        before = tr.counts()
+        verdict = tr.update(f["seq"])
+        if verdict == "gap":
+            lost = tr.counts()["lost"] - before["lost"]
+            self.event(t_ns, "seq_gap", channel=ch, count=lost,
+                       detail=f"{lost} frame(s) missing before seq {f['seq']}")
+        elif verdict != "ok":
+            self.event(t_ns, f"seq_{verdict}", channel=ch, detail=f"seq {f['seq']}")
+        # unwrapped frame number since START (first frame 0)
+        prev = self._frame_no.get(ch)
+        if prev is None:
+            k = 0
+        elif verdict in ("ok", "gap"):
+            k = prev + ((f["seq"] - (prev & 0xFF)) & 0xFF)
+        else:
+            k = prev - ((prev - f["seq"]) & 0xFF)
+        if verdict in ("ok", "gap") or prev is None:
+            self._frame_no[ch] = k
+        lsb = self.lsb.get(ch, 2.0 ** -10)
+        vals = [bus.sample_value(r, lsb) for r in f["raw"]]
+        self._put(T_SAMPLES + self.channel_name(ch), t_ns,
+                  {"channel": ch, "seq": f["seq"], "index": k * bus.SAMPLES_PER_FRAME,
+                   "raw": f["raw"], "values": [None if v != v else v for v in vals],
+                   "verdict": verdict}, schema="dynval.Samples", seq=k)
+
+    # -- end ---------------------------------------------------------------------------------
+    def summary(self) -> dict[str, Any]:
+        seq = {self.channel_name(c): t.counts() for c, t in sorted(self.seq.items())}
+        return {"messages": dict(self.counts), "events": dict(self.events), "sequence": seq,
+                "last_status": self.last_status,
+                "duration_s": ((self.t_last - self.t_first) / 1e9) if self.t_first else 0.0}
+
+    def close(self, extra: dict[str, Any] | None = None) -> dict[str, Any]:
+        """Write the summary metadata and finish the file (footer, indexes). Idempotent."""
+        s = self.summary()
+        if self._closed:
+            return s
+        self._closed = True
+        md = {k: json.dumps(v) for k, v in {**s, **(extra or {})}.items()}
+        self._w.add_metadata("dynval.summary", md)
+        self._w.finish()
+        self._f.close()
+        return s
+
+    def __enter__(self) -> McapLog:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def log_bus(bus_obj: Any, out: McapLog, *, stop: Any = None, idle_timeout_s: float | None = None,
+            on_progress: Any = None) -> int:
+    """Receive frames from a python-can bus into the log until stop() is true, a
+    KeyboardInterrupt, or idle_timeout_s without a frame. Returns frames logged."""
+    n = 0
+    idle_since = time.monotonic()
+    while stop is None or not stop():
+        m = bus_obj.recv(timeout=0.05)
+        if m is None:
+            if idle_timeout_s is not None and time.monotonic() - idle_since > idle_timeout_s:
+                break
+            continue
+        idle_since = time.monotonic()
+        t_ns = int(m.timestamp * 1e9) if m.timestamp else time.time_ns()
+        if m.is_error_frame:
+            out.event(t_ns, "error_frame", can_id=m.arbitration_id)
+            continue
+        out.on_frame(t_ns, m.arbitration_id, bytes(m.data), m.is_extended_id)
+        n += 1
+        if on_progress is not None and n % 1024 == 0:
+            on_progress(1024)
+    return n

@@ -1,0 +1,459 @@
+"""`dynval run`: the firmware loop, the logger and the replay of a test, on a real vcan bus
+with the firmware_sim program, or in-process: the same loop (firmware_sim/sim_core.c, built
+into this package as libdv_simcore-f64) driven by a thread over python-can's virtual bus.
+
+Barrier: after the replay, DV_CTRL STATUS is sent; the firmware handles frames in order, so
+once its DV_STATUS answer is logged every result frame before it has been logged too (on the
+real bus, followed by a short quiet period to catch a heartbeat racing the answer)."""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import re
+import select
+import shutil
+import signal
+import socket
+import struct
+import subprocess
+import threading
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from cffi import FFI
+
+from dynval import __version__, bus
+from dynval.bus import ReplayResult
+from dynval.errors import ConfigError, CoreNotBuiltError, DynvalError
+from dynval.io.recording import Recording
+from dynval.mcap_log import McapLog, log_bus
+
+log = logging.getLogger(__name__)
+
+_LIB_DIR = Path(__file__).resolve().parent / "_lib"
+
+# holding registers of firmware_sim/sim_regmap.h (register map version 1)
+HR_N_CHAN, HR_WIN_LEN, HR_SEG_LEN, HR_N_SEG = 0, 1, 2, 3
+HR_AR_ORDER, HR_RESID_DECIM, HR_FORCE_CHAN, HR_HEARTBEAT_MS = 5, 7, 8, 9
+HR_LSB, HR_FS_CH, HR_MODEL = 40, 60, 100
+N_HOLDING, N_INPUT, N_MODEL, MAX_CHAN = 164, 500, 32, 8
+IR_COUNTERS = {"rx_frames": 10, "tx_frames": 12, "dropped": 14, "lost": 16, "dup": 18,
+               "late": 20, "stale": 22, "bad_dlc": 24, "unknown_id": 26, "nan_samples": 28,
+               "bad_chan": 30, "ignored": 32, "bad_cfg": 34, "samples": 36, "tx_errors": 38,
+               "obs_steps": 42, "obs_overrun": 44}
+MAX_OUT = 3072  # SIM_CORE_MAX_OUT
+
+_CDEF = """
+typedef struct { uint32_t id; uint8_t dlc; uint8_t data[8]; } dv_can_frame_t;
+void *sim_core_new(const void *cfg);
+void sim_core_delete(void *c);
+size_t sim_core_handle(void *c, const dv_can_frame_t *in, dv_can_frame_t *out);
+size_t sim_core_tick(void *c, uint64_t now_ns, dv_can_frame_t *out);
+void sim_core_input_regs(const void *c, uint16_t *ir);
+void sim_config_default(void *cfg);
+void sim_config_to_regs(const void *cfg, uint16_t *hr);
+void sim_config_from_regs(void *cfg, const uint16_t *hr);
+"""
+
+
+@dataclass
+class FirmwareConfig:
+    """What the firmware is told before a test (holding registers / command line)."""
+
+    n_chan: int = 5
+    fs_hz: int = 640
+    win_len: int = 256
+    seg_len: int = 64
+    n_seg: int = 64
+    ar_order: int = 0
+    resid_decim: int = 1
+    force_chan: int = 0
+    heartbeat_ms: int = 1000
+    model: list[float] = field(default_factory=list)  # SIM_MODEL_* order; [] = observer off
+
+    def args(self) -> list[str]:
+        """firmware_sim command-line options."""
+        a = ["-c", str(self.n_chan), "-f", str(self.fs_hz), "-w", str(self.win_len),
+             "-s", str(self.seg_len), "-n", str(self.n_seg), "-A", str(self.ar_order),
+             "-d", str(self.resid_decim), "-F", str(self.force_chan),
+             "-H", str(self.heartbeat_ms)]
+        if self.model:
+            a += ["-m", ",".join(repr(float(v)) for v in self.model)]
+        return a
+
+
+def model_params(model: Any, rec: Recording, q: float = 0.0, r: float = 0.0) -> list[float]:
+    """The firmware observer's 28 parameters (SIM_MODEL_*) from a dynval Model: a chain with
+    modal damping loaded at its input DOF; the firmware measures every non-force channel, in
+    order, as the acceleration of DOF 1, 2, ... — so the test's outputs must be exactly that."""
+    n = model.n_dof
+    if n > 8:
+        raise ConfigError(f"{model.source}: the firmware observer takes at most 8 DOF, not {n}")
+    if model.damping.type != "modal" or len(model.damping.zeta) != n:
+        raise ConfigError(f"{model.source}: the firmware observer needs modal damping with "
+                          f"{n} ratios")
+    if model.elements:
+        log.warning("%s: the firmware observer is linear; %d element(s) ignored",
+                    model.source, len(model.elements))
+    if model.input.kind != "force":
+        raise ConfigError(f"{model.source}: the firmware observer takes a force input")
+    outs = [c for c in rec.channels if c.role == "output"]
+    want = [c.dof for c in outs]
+    if want != list(range(1, len(outs) + 1)):
+        log.warning("%s: outputs are DOF %s; the firmware reads channel order as DOF 1..%d",
+                    rec.name, want, len(outs))
+    p = [0.0] * 28
+    p[0] = float(n)
+    for i in range(n):
+        p[1 + i] = float(model.masses_kg[i])
+        p[9 + i] = float(model.stiffness_n_per_m[i])
+        p[17 + i] = float(model.damping.zeta[i])
+    p[25], p[26], p[27] = q, r, float(model.input.dof - 1)
+    return p
+
+
+def firmware_config(rec: Recording, model: Any = None, **kw: Any) -> FirmwareConfig:
+    ins = [i for i, c in enumerate(rec.channels) if c.role == "input"]
+    q = float(kw.pop("obs_q", 0.0))
+    r = float(kw.pop("obs_r", 0.0))
+    cfg = FirmwareConfig(n_chan=len(rec.channels), fs_hz=int(round(rec.fs_hz)),
+                         force_chan=ins[0] if ins else 0, **kw)
+    if model is not None:
+        if not ins:
+            raise ConfigError(f"{rec.name}: a model needs an input (force) channel")
+        cfg.model = model_params(model, rec, q, r)
+    return cfg
+
+
+# ---- in-process firmware ---------------------------------------------------------------------
+class SimCore:
+    """firmware_sim's loop (sim_core.c) in this process, through cffi."""
+
+    def __init__(self, cfg: FirmwareConfig) -> None:
+        libs = sorted(_LIB_DIR.glob("libdv_simcore-f64*"))
+        if not libs:
+            raise CoreNotBuiltError(f"libdv_simcore-f64 is missing from {_LIB_DIR}: reinstall "
+                                    "with `pip install ./gateway`")
+        self.ffi: Any = FFI()
+        self.ffi.cdef(_CDEF)
+        self.lib: Any = self.ffi.dlopen(str(libs[0]))
+        ffi: Any = self.ffi
+        lib: Any = self.lib
+        buf = ffi.new("uint64_t[]", 1024)  # >= sizeof(struct sim_config), opaque here
+        hr = ffi.new("uint16_t[]", N_HOLDING)
+        lib.sim_config_default(buf)
+        lib.sim_config_to_regs(buf, hr)
+        for reg, v in ((HR_N_CHAN, cfg.n_chan), (HR_WIN_LEN, cfg.win_len),
+                       (HR_SEG_LEN, cfg.seg_len), (HR_N_SEG, cfg.n_seg),
+                       (HR_AR_ORDER, cfg.ar_order), (HR_RESID_DECIM, cfg.resid_decim),
+                       (HR_FORCE_CHAN, cfg.force_chan), (HR_HEARTBEAT_MS, cfg.heartbeat_ms)):
+            hr[reg] = v
+        for ch in range(MAX_CHAN):
+            hr[HR_FS_CH + ch] = cfg.fs_hz
+        params = [float(v) for v in cfg.model] + [0.0] * (N_MODEL - len(cfg.model))
+        for i, pv in enumerate(params):
+            (w,) = struct.unpack(">I", struct.pack(">f", pv))
+            hr[HR_MODEL + 2 * i], hr[HR_MODEL + 2 * i + 1] = w >> 16, w & 0xFFFF
+        lib.sim_config_from_regs(buf, hr)
+        self.core: Any = lib.sim_core_new(buf)
+        if self.core == ffi.NULL:
+            raise ConfigError(f"the firmware refused the configuration {cfg}")
+        self._in: Any = ffi.new("dv_can_frame_t *")
+        self._out: Any = ffi.new("dv_can_frame_t[]", MAX_OUT)
+        self._ir: Any = ffi.new("uint16_t[]", N_INPUT)
+
+    def handle(self, can_id: int, data: bytes) -> list[tuple[int, bytes]]:
+        self._in.id = can_id
+        self._in.dlc = min(len(data), 8)
+        self.ffi.memmove(self._in.data, data[:8], min(len(data), 8))
+        n = self.lib.sim_core_handle(self.core, self._in, self._out)
+        return [(int(self._out[i].id), bytes(self.ffi.buffer(self._out[i].data, 8)))
+                for i in range(n)]
+
+    def tick(self, now_ns: int) -> list[tuple[int, bytes]]:
+        n = self.lib.sim_core_tick(self.core, now_ns, self._out)
+        return [(int(self._out[i].id), bytes(self.ffi.buffer(self._out[i].data, 8)))
+                for i in range(n)]
+
+    def counters(self) -> dict[str, int]:
+        self.lib.sim_core_input_regs(self.core, self._ir)
+        ir = self._ir
+        return {k: (ir[a] << 16) | ir[a + 1] for k, a in IR_COUNTERS.items()}
+
+    def close(self) -> None:
+        if self.core is not None:
+            self.lib.sim_core_delete(self.core)
+            self.core = None
+
+
+class InProcessFirmware:
+    """A thread running SimCore on a python-can bus (frames in, result frames out)."""
+
+    def __init__(self, cfg: FirmwareConfig, interface: str, channel: str) -> None:
+        import can
+
+        self.core = SimCore(cfg)
+        self.bus = bus.open_bus(interface, channel)
+        self._can = can
+        self._stop = threading.Event()
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, name="dv-firmware", daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        can = self._can
+        try:
+            while not self._stop.is_set():
+                m = self.bus.recv(timeout=0.05)
+                outs = [] if m is None else self.core.handle(m.arbitration_id | (
+                    0x80000000 if m.is_extended_id else 0), bytes(m.data))
+                outs += self.core.tick(time.monotonic_ns())
+                for cid, data in outs:
+                    self.bus.send(can.Message(arbitration_id=cid, data=data,
+                                              is_extended_id=False))
+        except BaseException as exc:  # reported by stop()
+            self.error = exc
+
+    def stop(self) -> dict[str, int]:
+        self._stop.set()
+        self.thread.join(timeout=10)
+        counters = self.core.counters()
+        self.core.close()
+        self.bus.shutdown()
+        if self.error is not None:
+            raise DynvalError(f"in-process firmware failed: {self.error}") from self.error
+        return counters
+
+
+# ---- the firmware_sim program ------------------------------------------------------------------
+def find_firmware(explicit: str | None = None) -> Path | None:
+    """$DV_FIRMWARE_SIM, an explicit path, firmware_sim on PATH, or a build of the repository
+    this command runs in (build/*/firmware_sim/firmware_sim)."""
+    for c in (explicit, os.environ.get("DV_FIRMWARE_SIM"), shutil.which("firmware_sim")):
+        if c and Path(c).is_file() and os.access(c, os.X_OK):
+            return Path(c)
+    d = Path.cwd().resolve()
+    for root in (d, *d.parents):
+        if (root / "can" / "dynval.dbc").is_file():
+            cands = sorted((root / "build").glob("*/firmware_sim/firmware_sim"),
+                           key=lambda p: p.stat().st_mtime, reverse=True)
+            return cands[0] if cands else None
+    return None
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class FirmwareProcess:
+    """firmware_sim on a SocketCAN interface, as a child process (SIGTERM to stop)."""
+
+    def __init__(self, exe: Path, cfg: FirmwareConfig, iface: str, log_dir: Path) -> None:
+        self.errpath = log_dir / "firmware_sim.stderr"
+        self.errf = open(self.errpath, "w+")  # noqa: SIM115
+        cmd = [str(exe), "-i", iface, "-p", str(_free_port()), "-v", *cfg.args()]
+        log.debug("starting %s", " ".join(cmd))
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=self.errf, text=True)
+        deadline = time.monotonic() + 30
+        line = ""
+        assert self.proc.stdout is not None
+        while time.monotonic() < deadline and self.proc.poll() is None:
+            r, _, _ = select.select([self.proc.stdout], [], [], 0.2)
+            if r:
+                line = self.proc.stdout.readline()
+                if line.startswith("firmware_sim ready") or line == "":
+                    break
+        if not line.startswith("firmware_sim ready"):
+            self.proc.kill()
+            self.proc.wait()
+            raise DynvalError(f"firmware_sim did not start (exit {self.proc.returncode}): "
+                              f"{self.errpath.read_text().strip()}")
+
+    def stop(self) -> dict[str, int]:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self.errf.close()
+        if self.proc.returncode not in (0, -signal.SIGTERM):
+            log.warning("firmware_sim exit %s: %s", self.proc.returncode,
+                        self.errpath.read_text().strip())
+        return {}
+
+
+def have_vcan(iface: str = "vcan0") -> bool:
+    """socket(AF_CAN) works on this kernel and the interface exists."""
+    if not Path(f"/sys/class/net/{iface}").exists():
+        return False
+    try:
+        s = socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW)
+    except (OSError, AttributeError):
+        return False
+    s.close()
+    return True
+
+
+@dataclass
+class BusChoice:
+    interface: str  # socketcan | virtual
+    channel: str
+    firmware: str  # "firmware_sim <path>" | "in-process libdv_simcore"
+    exe: Path | None = None
+
+
+def choose_bus(mode: str, channel: str = "vcan0", firmware: str | None = None) -> BusChoice:
+    """auto: vcan + firmware_sim when the kernel has vcan and the program is found, else the
+    in-process loop over the virtual bus."""
+    if mode in ("auto", "socketcan"):
+        exe = find_firmware(firmware)
+        ok = have_vcan(channel)
+        if ok and exe is not None:
+            return BusChoice("socketcan", channel, f"firmware_sim {exe}", exe)
+        if mode == "socketcan":
+            why = (f"no {channel} (or no AF_CAN in this kernel)" if not ok
+                   else "firmware_sim not found (build it: cmake -DDV_BUILD_SIM=ON, or set "
+                   "DV_FIRMWARE_SIM)")
+            raise bus.BusError(f"--bus socketcan: {why}")
+        log.info("--bus auto: %s; using the in-process firmware loop on the virtual bus",
+                 f"no {channel}" if not ok else "firmware_sim not found")
+    elif mode != "virtual":
+        raise ConfigError(f"unknown --bus {mode!r} (auto, socketcan, virtual)")
+    return BusChoice("virtual", f"dynval-{uuid.uuid4().hex[:8]}", "in-process libdv_simcore")
+
+
+# ---- one test ------------------------------------------------------------------------------------
+@dataclass
+class RunResult:
+    test: str
+    mcap: Path
+    bus: str
+    firmware: str
+    replay: ReplayResult
+    log_summary: dict[str, Any]
+    counters: dict[str, int]
+    features: int = 0
+    residuals: int = 0
+    resid_rms: dict[str, float] = field(default_factory=dict)
+
+
+def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
+             model_meta: dict[str, Any] | None = None, speed: float = 1.0, asap: bool = False,
+             fw_kw: dict[str, Any] | None = None, record_id: int = 1,
+             on_progress: Callable[[int], None] | None = None) -> RunResult:
+    """Firmware + logger + replay of one recording; leaves out (an MCAP)."""
+    import can
+
+    cfg = firmware_config(rec, model, **(fw_kw or {}))
+    plan = bus.make_plan(rec, record_id)
+    meta = recording_meta(rec, plan)
+    meta["model"] = model_meta or {}
+    meta["firmware_config"] = json.loads(json.dumps(vars(cfg)))
+    meta["bus"] = f"{choice.interface}:{choice.channel} ({choice.firmware})"
+    names = [c.name for c in rec.channels]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fw: InProcessFirmware | FirmwareProcess
+    if choice.interface == "virtual":
+        fw = InProcessFirmware(cfg, "virtual", choice.channel)
+    else:
+        assert choice.exe is not None
+        fw = FirmwareProcess(choice.exe, cfg, choice.channel, out.parent)
+    counters: dict[str, int] = {}
+    logger = McapLog(out, meta=meta, channel_names=names)
+    try:
+        rx = bus.open_bus(choice.interface, choice.channel, receive_own_messages=False)
+        tx = bus.open_bus(choice.interface, choice.channel, receive_own_messages=False)
+        if choice.interface == "socketcan":
+            _enlarge_rcvbuf(rx)
+        stop = threading.Event()
+        state = _LoggerState()
+        t = threading.Thread(target=_logger_loop, args=(rx, logger, stop, state),
+                             name="dv-logger", daemon=True)
+        t.start()
+        try:
+            res = bus.replay(tx, plan, speed=speed, asap=asap, on_progress=on_progress)
+            state.armed = True
+            tx.send(can.Message(arbitration_id=bus.ID_CTRL,
+                                data=bus.encode_ctrl(bus.CTRL_STATUS, record_id)[1],
+                                is_extended_id=False))
+            if not state.status.wait(timeout=120.0):
+                log.warning("%s: no DV_STATUS answer within 120 s; results may be incomplete",
+                            rec.name)
+            while time.monotonic() - state.last_rx < QUIET_S:  # a heartbeat may race it
+                time.sleep(0.05)
+        finally:
+            stop.set()
+            t.join(timeout=30)
+            rx.shutdown()
+            tx.shutdown()
+    finally:
+        counters = fw.stop()
+        summary = logger.close()
+    feats = logger.counts.get("/dv/features", 0)
+    resid = logger.counts.get("/dv/residuals", 0)
+    return RunResult(rec.name, out, f"{choice.interface}:{choice.channel}", choice.firmware,
+                     res, summary, counters, feats, resid)
+
+
+QUIET_S = 0.3  # no frame for this long after the status answer: the firmware is done
+
+
+class _LoggerState:
+    def __init__(self) -> None:
+        self.armed = False
+        self.status = threading.Event()
+        self.last_rx = time.monotonic()
+
+
+def _logger_loop(rx: Any, logger: McapLog, stop: threading.Event, st: _LoggerState) -> None:
+    while not stop.is_set():
+        m = rx.recv(timeout=0.05)
+        if m is None:
+            continue
+        st.last_rx = time.monotonic()
+        t_ns = int(m.timestamp * 1e9) if m.timestamp else time.time_ns()
+        logger.on_frame(t_ns, m.arbitration_id, bytes(m.data), m.is_extended_id)
+        if st.armed and m.arbitration_id == bus.ID_STATUS and not m.is_extended_id:
+            st.status.set()
+
+
+def _enlarge_rcvbuf(b: Any) -> None:
+    try:
+        b.socket.setsockopt(socket.SOL_SOCKET, 33, 8 << 20)  # SO_RCVBUFFORCE (root)
+    except (OSError, AttributeError):
+        try:
+            b.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 8 << 20)
+        except (OSError, AttributeError):
+            pass
+
+
+def recording_meta(rec: Recording, plan: bus.Plan | None = None) -> dict[str, Any]:
+    """The 'dynval' metadata record of a test's MCAP."""
+    return {"test": rec.name, "source": str(rec.source or ""), "source_sha256": rec.sha256,
+            "fs_hz": repr(float(rec.fs_hz)), "n_samples": str(rec.n_samples),
+            "channel_map": [{"channel": i, "name": c.name, "unit": c.unit, "role": c.role,
+                             "dof": c.dof, "scale": c.scale,
+                             "lsb": plan.lsb[i] if plan else None}
+                            for i, c in enumerate(rec.channels)],
+            "units": {c.name: c.unit for c in rec.channels},
+            "roles": {c.name: c.role for c in rec.channels},
+            "reader_warnings": len(rec.warnings), "software": f"dynval {__version__}",
+            "record_id": plan.record_id if plan else 0}
+
+
+def safe_name(s: str) -> str:
+    return re.sub(r"[^0-9A-Za-z._-]+", "_", s) or "test"
+
+
+__all__ = ["BusChoice", "FirmwareConfig", "InProcessFirmware", "RunResult", "SimCore",
+           "choose_bus", "find_firmware", "firmware_config", "have_vcan", "log_bus",
+           "model_params", "run_test"]
