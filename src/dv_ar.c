@@ -316,7 +316,7 @@ dv_status_t dv_ar_autocorr(const dv_real_t *x, size_t n, size_t maxlag, dv_real_
 
 /* ---- streaming residual ------------------------------------------------------------------ */
 
-DV_STATIC_ASSERT(DV_AR_RESID_NEW == 4u, ar_resid_keeps_four_newest);
+DV_STATIC_ASSERT(DV_AR_RESID_NEW == 4u, ar_resid_keeps_four_newest); /* a power of 2 */
 
 dv_status_t dv_ar_resid_init(dv_ar_resid_t *r, const dv_ar_model_t *m, dv_real_t *buf,
                              size_t buf_len)
@@ -374,6 +374,7 @@ dv_status_t dv_ar_resid_update(dv_ar_resid_t *r, dv_real_t x, dv_real_t *e)
     }
     const uint32_t p = r->p;
     const dv_real_t y = x - r->mean;
+    const uint32_t c4 = (uint32_t)r->count;
     dv_status_t st = DV_ENOTREADY;
     if (r->count >= p) {
         /* hist[head .. head+p-1] holds the last p centred samples, oldest first. The newest
@@ -383,15 +384,14 @@ dv_status_t dv_ar_resid_update(dv_ar_resid_t *r, dv_real_t x, dv_real_t *e)
         dv_real_t acc = v > 0u ? dv_priv_ar_dot(r->c, r->hist + r->head, v, r->kern) : DV_R(0.0);
         dv_real_t acc2 = DV_R(0.0);
         for (uint32_t j = 0u; j < k; j++) {
-            acc2 += r->c[p - 1u - j] * r->nw[j];
+            acc2 += r->c[p - 1u - j] * r->nw[(c4 - 1u - j) & (DV_AR_RESID_NEW - 1u)];
         }
         *e = y - (acc + acc2);
         st = DV_OK;
     }
-    r->nw[3] = r->nw[2];
-    r->nw[2] = r->nw[1];
-    r->nw[1] = r->nw[0];
-    r->nw[0] = y;
+    /* a ring indexed by the sample count: one scalar store, no shifting (a compiler merging
+     * the shifts into wide moves would bring the store-forwarding stall back) */
+    r->nw[c4 & (DV_AR_RESID_NEW - 1u)] = y;
     r->hist[r->head] = y;
     r->hist[r->head + p] = y;
     r->head = r->head + 1u == p ? 0u : r->head + 1u;
@@ -451,8 +451,9 @@ dv_status_t dv_ar_resid_update_block(dv_ar_resid_t *r, const dv_real_t *x, size_
             r->hist[j] = y;
             r->hist[j + p] = y;
         }
+        const uint32_t c4 = (uint32_t)r->count; /* nw[(c4 - 1 - j) % 4] = x_{-j} */
         for (uint32_t j = 0u; j < DV_AR_RESID_NEW; j++) {
-            r->nw[j] = j < p ? r->hist[p - 1u - j] : DV_R(0.0);
+            r->nw[(c4 - 1u - j) & (DV_AR_RESID_NEW - 1u)] = j < p ? r->hist[p - 1u - j] : DV_R(0.0);
         }
         r->head = 0u;
     }

@@ -134,7 +134,7 @@ typedef struct {
     dv_real_t c0;                 /**< mean (1 - sum a_j): the mean folded out of the block kernel */
     dv_real_t *hist;              /**< double-length history, 2p: hist[j] == hist[j + p] */
     dv_real_t mean;               /**< subtracted from every input */
-    dv_real_t nw[DV_AR_RESID_NEW]; /**< newest centred samples, nw[0] = latest */
+    dv_real_t nw[DV_AR_RESID_NEW]; /**< newest centred samples, a ring indexed by count */
     uint32_t p;                   /**< order */
     uint32_t head;                /**< oldest history slot, 0..p-1 */
     uint32_t kern;                /**< kernel chosen at init (0 portable, 1 AVX2, 2 AVX-512) */
