@@ -413,10 +413,7 @@ dv_status_t dv_ar_resid_update_block(dv_ar_resid_t *r, const dv_real_t *x, size_
         return DV_EINVAL;
     }
     const uint32_t p = r->p;
-    bool finite = true;
-    for (size_t i = 0u; i < n; i++) {
-        finite = finite && dv_priv_finite(x[i]);
-    }
+    bool finite = dv_priv_ar_all_finite(x, n, r->kern);
     size_t out = 0u, i = 0u;
     dv_status_t st = DV_OK;
     /* The block kernel folds the mean into c0 and filters the raw samples: exact enough in

@@ -325,6 +325,26 @@ DV_TGT_AVX2 static void burg2_avx2(double *f, double *b, size_t len, double k1, 
     s[6] = s6;
 }
 
+/* NaN/Inf make x - x NaN, which poisons the sums. */
+DV_TGT_AVX2 static bool finite_avx2(const double *x, size_t n)
+{
+    __m256d a0 = _mm256_setzero_pd(), a1 = a0, a2 = a0, a3 = a0;
+    size_t i = 0u;
+    for (; i + 16u <= n; i += 16u) {
+        const __m256d v0 = _mm256_loadu_pd(x + i), v1 = _mm256_loadu_pd(x + i + 4u);
+        const __m256d v2 = _mm256_loadu_pd(x + i + 8u), v3 = _mm256_loadu_pd(x + i + 12u);
+        a0 = _mm256_add_pd(a0, _mm256_sub_pd(v0, v0));
+        a1 = _mm256_add_pd(a1, _mm256_sub_pd(v1, v1));
+        a2 = _mm256_add_pd(a2, _mm256_sub_pd(v2, v2));
+        a3 = _mm256_add_pd(a3, _mm256_sub_pd(v3, v3));
+    }
+    double s = hsum256(_mm256_add_pd(_mm256_add_pd(a0, a1), _mm256_add_pd(a2, a3)));
+    for (; i < n; i++) {
+        s += x[i] - x[i];
+    }
+    return s == 0.0;
+}
+
 /* ------------------------------------------------------------------------------------------ */
 /* x86-64, double: AVX-512F                                                                    */
 
@@ -611,4 +631,15 @@ void dv_priv_ar_burg2(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_r
 #endif
     (void)kern;
     burg2_c(f, b, len, k1, k2, s);
+}
+
+bool dv_priv_ar_all_finite(const dv_real_t *x, size_t n, uint32_t kern)
+{
+#if DV_AR_X86
+    if (kern != 0u) {
+        return finite_avx2(x, n); /* memory-bound: AVX2 is enough on AVX-512 machines too */
+    }
+#endif
+    (void)kern;
+    return dv_priv_all_finite(x, n);
 }

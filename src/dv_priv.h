@@ -131,4 +131,7 @@ static inline dv_real_t dv_priv_contact_g(int side, dv_real_t gap, dv_real_t del
 void dv_priv_ar_burg2(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_real_t k2,
                       dv_real_t s[7], uint32_t kern);
 
+/* dv_priv_all_finite with the AR kernels' vector units (block residual pre-check). */
+bool dv_priv_ar_all_finite(const dv_real_t *x, size_t n, uint32_t kern);
+
 #endif /* DV_PRIV_H */
