@@ -1,0 +1,149 @@
+"""dynval run in-process: replay -> the firmware loop (libdv_simcore through cffi) -> MCAP on
+python-can's virtual bus. The features in the MCAP equal features.channel_records on the same
+quantised samples, bit for bit in float32 as sent; faults on the bus are counted; the CLI."""
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dynval import bus, cli, features, runloop
+from dynval.io import read_test
+from dynval.io.mcapfile import iter_messages
+from dynval.io.recording import Channel, Recording
+
+pytest.importorskip("can")
+WIN, SEG, NSEG, FS = 64, 32, 16, 640
+REPO = Path(__file__).resolve().parents[2]
+DATA = REPO / "data" / "lanl4dof-sim" / "clean"
+
+
+def _f32(v: float) -> int:
+    return struct.unpack("<I", struct.pack("<f", v))[0]
+
+
+def _rec(n: int = 3 * SEG * NSEG + 7) -> Recording:
+    rng = np.random.default_rng(3)
+    t = np.arange(n) / FS
+    chans = [Channel("force", 30 * rng.standard_normal(n), "N", "input", 1)]
+    for c in range(1, 5):
+        x = 3 * np.sin(2 * np.pi * (17 + 9 * c) * t) + 0.3 * rng.standard_normal(n) + 0.05 * c
+        chans.append(Channel(f"acc{c}", x, "m/s^2", "output", c))
+    return Recording("synthetic", float(FS), chans)
+
+
+def test_round_trip_features_bit_for_bit(tmp_path):
+    rec = _rec()
+    out = tmp_path / "rt.mcap"
+    choice = runloop.choose_bus("virtual")
+    r = runloop.run_test(rec, out, choice, asap=True,
+                         fw_kw={"win_len": WIN, "seg_len": SEG, "n_seg": NSEG})
+    got: dict[tuple[int, int, int], int] = {}
+    for m in iter_messages(out, topics={"/dv/features"}):
+        d = m.data
+        assert _f32(d["value"]) == d["bits"]
+        got[(d["channel"], d["feat_id"], d["index"])] = d["bits"]
+    plan = bus.make_plan(rec)
+    want: dict[tuple[int, int, int], int] = {}
+    for c in range(5):
+        recs, nan = features.channel_records(plan.values(c), FS, WIN, SEG, NSEG)
+        assert len(recs) == 3 and nan == 0
+        for rf in recs:
+            s, tm = rf.stats, rf.temporal
+            vals = {0x10: s.mean, 0x11: s.std, 0x12: s.rms, 0x13: s.skew, 0x14: s.kurt,
+                    0x15: s.peak, 0x16: s.min, 0x17: s.max, 0x18: s.crest, 0x19: s.kfactor}
+            assert tm is not None
+            vals.update({0x20: tm.energy, 0x21: tm.central_time, 0x22: tm.rms_duration,
+                         0x23: tm.central_skew, 0x24: tm.central_kurt,
+                         0x25: tm.root_energy_amp})
+            for fid, v in vals.items():
+                want[(c, fid, rf.index)] = _f32(v)
+            for i, v in enumerate(rf.segstd):
+                want[(c, 0x01, rf.index * NSEG + i)] = _f32(float(v))
+            assert rf.window is not None
+            last = rf.index * NSEG + NSEG - 1
+            for fid, v in ((0x08, rf.window.mean), (0x09, rf.window.std),
+                           (0x0A, rf.window.rms), (0x0B, rf.window.peak)):
+                want[(c, fid, last)] = _f32(v)
+    sub = {k: got[k] for k in want if k in got}
+    assert len(want) == 5 * 3 * (16 + NSEG + 4)  # record, segment, window at record end
+    assert len(sub) == len(want) and sub == want
+    assert r.counters["lost"] == 0 and r.counters["samples"] == 5 * rec.n_samples
+    assert r.log_summary["sequence"]["acc1"]["ok"] == plan.n_frames_per_channel
+
+
+def test_faults_on_the_bus_are_counted(tmp_path):
+    """Unknown ids, a bad DLC and a sequence gap injected between the replay's frames."""
+    import can
+
+    rec = _rec(600)
+    plan = bus.make_plan(rec)
+    out = tmp_path / "faults.mcap"
+    log = runloop.McapLog(out, channel_names=rec.names)
+    tx = can.Bus(interface="virtual", channel="t-faults")
+    rx = can.Bus(interface="virtual", channel="t-faults")
+    skipped = 0
+    for _, frames in plan.batches():
+        for cid, data in frames:
+            if cid == bus.ID_SAMPLES and data[0] == 2 and data[1] in (10, 11, 12):
+                skipped += 1
+                continue  # three frames of channel 2 lost
+            tx.send(can.Message(arbitration_id=cid, data=data, is_extended_id=False))
+    tx.send(can.Message(arbitration_id=0x7F0, data=bytes(8), is_extended_id=False))
+    tx.send(can.Message(arbitration_id=0x1ABCDEF, data=bytes(8), is_extended_id=True))
+    tx.send(can.Message(arbitration_id=0x200, data=bytes(5), is_extended_id=False))
+    n = runloop.log_bus(rx, log, idle_timeout_s=0.3)
+    s = log.close()
+    tx.shutdown()
+    rx.shutdown()
+    assert n == plan.n_frames - skipped + 3
+    assert s["events"] == {"seq_gap": 3, "unknown_id": 2, "bad_dlc": 1}
+    assert s["sequence"]["acc2"]["lost"] == 3 and s["sequence"]["acc1"]["lost"] == 0
+    ev = [m.data for m in iter_messages(out, topics={"/dv/events"})]
+    assert {e["event"] for e in ev} == {"seq_gap", "unknown_id", "bad_dlc"}
+
+
+@pytest.mark.skipif(not DATA.is_dir(), reason="bundled data missing")
+def test_cli_run_and_inspect_on_bundled_data(tmp_path, capsys):
+    rc = cli.main(["-q", "run", str(DATA / "test_low_01.csv"), "--bus", "virtual", "--asap",
+                   "-o", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    assert "in-process" in out and "residual RMS" in out and "lost 0" in out
+    mc = tmp_path / "clean_test_low_01.mcap"
+    from dynval.cmd_inspect import inspect
+
+    r = inspect(mc)
+    assert r["complete"] and r["topics"]["/dv/samples/force_N"]["count"] == 2731
+    assert r["topics"]["/dv/residuals"]["count"] == 4 * 8193
+    assert r["metadata"]["test"] == "test_low_01" and len(r["metadata"]["source_sha256"]) == 64
+    assert r["summary"]["sequence"]["acc4_mps2"]["lost"] == 0
+    # the MCAP reads back as a test: the quantised samples of the CSV
+    rec = read_test(mc)
+    src = read_test(DATA / "test_low_01.csv")
+    plan = bus.make_plan(src)
+    np.testing.assert_array_equal(rec.channel("acc3_mps2").data, plan.values(3))
+    assert cli.main(["inspect", str(mc)]) == 0
+
+
+def test_sim_regmap_addresses_match_the_header():
+    hdr = REPO / "firmware_sim" / "sim_regmap.h"
+    if not hdr.is_file():
+        pytest.skip("firmware_sim sources not beside the package")
+    import re
+
+    d = {m.group(1): int(m.group(2)) for m in
+         re.finditer(r"#define (SIM_\w+) (\d+)\b", hdr.read_text())}
+    assert (d["SIM_HR_N_CHAN"], d["SIM_HR_WIN_LEN"], d["SIM_HR_SEG_LEN"], d["SIM_HR_N_SEG"],
+            d["SIM_HR_AR_ORDER"], d["SIM_HR_RESID_DECIM"], d["SIM_HR_FORCE_CHAN"],
+            d["SIM_HR_HEARTBEAT_MS"], d["SIM_HR_LSB"], d["SIM_HR_FS_CH"],
+            d["SIM_HR_MODEL"]) == (runloop.HR_N_CHAN, runloop.HR_WIN_LEN, runloop.HR_SEG_LEN,
+                                   runloop.HR_N_SEG, runloop.HR_AR_ORDER,
+                                   runloop.HR_RESID_DECIM, runloop.HR_FORCE_CHAN,
+                                   runloop.HR_HEARTBEAT_MS, runloop.HR_LSB, runloop.HR_FS_CH,
+                                   runloop.HR_MODEL)
+    assert d["SIM_MAX_CHAN"] == runloop.MAX_CHAN and d["SIM_N_MODEL"] == runloop.N_MODEL
+    for k, a in runloop.IR_COUNTERS.items():
+        assert d[f"SIM_IR_{k.upper()}"] == a
