@@ -1,0 +1,433 @@
+"""The library of physical effects `dynval discover` can add to a declared model.
+
+Each effect type is a small unit (a subclass of EffectType) that says:
+
+* where it can sit (``locations``: stories, DOFs, channels, modes) and its force law (``law``);
+* its parameters with bounds and units (``params``), fitted in scaled coordinates
+  (``to_model`` maps the fit vector onto the model);
+* how it maps onto the model (``apply``): a parameter change of the linear model, a new entry
+  of ``Model.elements``, or an output's sensor gain;
+* its evidence basis (``basis``): the shape of the missing force it would produce on every
+  DOF, given the states reconstructed from the measurements (see trace.py).
+
+Numbering follows the model (1-based): story s ties DOF s-1 to DOF s (story 1: ground to
+DOF 1); X = x_s - x_{s-1} is the story drift.
+
+Types whose force law the C model cannot represent yet (friction, cubic and v|v| story
+elements) are listed with ``available = False``: their evidence is computed and ranked, but they
+are never fitted or faked in Python; the report says so.
+"""
+from __future__ import annotations
+
+import dataclasses
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from dynval import model as mdl
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter: name, unit, bounds in model units, and whether it is fitted in log."""
+
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    log: bool = False
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """An effect type at a location, e.g. contact at story 4 on the positive side."""
+
+    type: str
+    location: dict[str, Any]
+    label: str
+    available: bool
+    note: str = ""
+    shape: dict[str, float] = field(default_factory=dict)  # set by the evidence scan
+
+
+@dataclass
+class States:
+    """Reconstructed states of the fitting tests (concatenated, n_dof x T each) and the
+    model's matrices; ``hp`` filters a (n x T or T) array like the states were filtered."""
+
+    x: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    mass: np.ndarray
+    k: np.ndarray
+    c: np.ndarray
+    modes_w: np.ndarray
+    modes_phi: np.ndarray
+    hp: Any
+    channels_dof: dict[str, int]
+
+
+def drift(st: States, story: int) -> tuple[np.ndarray, np.ndarray]:
+    """Story drift and drift velocity (X = x_s - x_{s-1})."""
+    s = story - 1
+    if s == 0:
+        return st.x[0], st.v[0]
+    return st.x[s] - st.x[s - 1], st.v[s] - st.v[s - 1]
+
+
+def _story_basis(st: States, story: int, g: np.ndarray) -> np.ndarray:
+    """Missing forces on all DOFs of a story force g (pushes DOF s by -g, DOF s-1 by +g):
+    as restoring forces, +g at DOF s and -g at DOF s-1."""
+    n = st.x.shape[0]
+    b = np.zeros((n, g.size))
+    b[story - 1] = g
+    if story >= 2:
+        b[story - 2] = -g
+    return b
+
+
+class EffectType:
+    """Base of the effect types. Subclasses set the class attributes and methods."""
+
+    type = ""
+    location_kind = ""
+    law = ""
+    available = True
+    note = ""
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        raise NotImplementedError
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"{self.type} " + " ".join(f"{k} {v}" for k, v in loc.items())
+
+    def candidates(self, m: mdl.Model) -> list[Candidate]:
+        return [Candidate(self.type, loc, self.label(loc), self.available, self.note)
+                for loc in self.locations(m)]
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        """Evidence bases: a list of (shape parameters, restoring-force field n x T) to be
+        regressed (one amplitude each) on the missing force."""
+        raise NotImplementedError
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        raise NotImplementedError
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        """A start for the fit from the evidence amplitude (regression coefficient)."""
+        raise NotImplementedError
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        raise NotImplementedError
+
+
+class NoEffect(EffectType):
+    type = "none"
+    law = "the declared model is complete: nothing significant is left in the residual"
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{}]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return "no effect"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        return []
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        return []
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        return []
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        return m
+
+
+class StiffnessChange(EffectType):
+    type = "stiffness_change"
+    location_kind = "story"
+    law = "k_s -> k_s + dk: extra story force dk X (linear)"
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        # story 1 is often a soft support (rails): a change there is still a candidate
+        return [{"story": s, "between": [s - 1, s]} for s in range(1, m.n_dof + 1)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"stiffness change, story {loc['story']} (DOF {loc['story'] - 1}-{loc['story']})"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        d, _ = drift(st, cand.location["story"])
+        return [({}, _story_basis(st, cand.location["story"], d))]
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        k = m.stiffness_n_per_m[cand.location["story"] - 1]
+        return [Param("dk_n_per_m", "N/m", -0.6 * k, 1.0 * k if k > 100 else 1e5)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        p = self.params(m, cand)[0]
+        return [float(np.clip(amp, p.lower * 0.9, p.upper * 0.9))]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        s = cand.location["story"]
+        return m.with_params({f"k{s}": m.stiffness_n_per_m[s - 1] + float(values[0])})
+
+
+class MassChange(EffectType):
+    type = "mass_change"
+    location_kind = "dof"
+    law = "m_j -> m_j + dm: extra inertia force dm a_j at DOF j"
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"dof": j} for j in range(1, m.n_dof + 1)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"mass change, DOF {loc['dof']}"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        j = cand.location["dof"] - 1
+        b = np.zeros_like(st.a)
+        b[j] = st.a[j]
+        return [({}, b)]
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        mj = m.masses_kg[cand.location["dof"] - 1]
+        return [Param("dm_kg", "kg", -0.6 * mj, 1.5 * mj)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        p = self.params(m, cand)[0]
+        return [float(np.clip(amp, p.lower * 0.9, p.upper * 0.9))]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        j = cand.location["dof"]
+        return m.with_params({f"m{j}": m.masses_kg[j - 1] + float(values[0])})
+
+
+class DampingChange(EffectType):
+    type = "damping_change"
+    location_kind = "mode"
+    law = "zeta_i -> zeta_i + dzeta: extra modal damping force 2 dzeta w_i M phi_i phi_i^T M v"
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        if m.damping.type not in ("modal",):
+            return []
+        return [{"mode": i} for i in range(1, m.n_dof + 1)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"damping change, mode {loc['mode']}"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        i = cand.location["mode"] - 1
+        w = st.modes_w[i]
+        if w < 2 * np.pi * 1.0:  # a rigid-body-like mode: its damping is not observable here
+            return []
+        mp = st.mass[:, None] * st.modes_phi[:, i:i + 1]
+        ci = 2 * w * mp @ mp.T
+        return [({}, ci @ st.v)]
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        z = m.damping.zeta[cand.location["mode"] - 1]
+        return [Param("dzeta", "1", -z, 0.2)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        p = self.params(m, cand)[0]
+        return [float(np.clip(amp, p.lower * 0.9, p.upper * 0.9))]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        i = cand.location["mode"]
+        return m.with_params({f"zeta{i}": m.damping.zeta[i - 1] + float(values[0])})
+
+
+class SensorGain(EffectType):
+    type = "sensor_gain"
+    location_kind = "channel"
+    law = "the channel reads g x the quantity (calibration error); handled on the output"
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"channel": c} for c, o in m.outputs.items() if o.kind == "acc"]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"sensor gain, channel {loc['channel']}"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        c = cand.location["channel"]
+        if c not in st.channels_dof:
+            return []
+        j = st.channels_dof[c] - 1
+        # a gain error on DOF j's sensor shows as the restoring image of that DOF's column
+        b = (np.diag(st.mass)[:, j:j + 1] * st.a[j] + st.c[:, j:j + 1] * st.v[j]
+             + st.k[:, j:j + 1] * st.x[j])
+        return [({}, b)]
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        return [Param("gain", "1", 0.5, 2.0)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        # missing force = -(1 - 1/g) b  =>  amp = -(1 - 1/g)
+        g0 = m.outputs[cand.location["channel"]].gain
+        g = g0 / (1.0 + amp) if abs(1.0 + amp) > 0.2 else g0
+        return [float(np.clip(g, 0.55, 1.9))]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        c = cand.location["channel"]
+        outs = dict(m.outputs)
+        outs[c] = dataclasses.replace(outs[c], gain=float(values[0]))
+        return dataclasses.replace(m, outputs=outs)
+
+
+_QUANTILES = (0.6, 0.75, 0.85, 0.9, 0.95, 0.98, 0.99, 0.995, 0.998)
+
+
+class Contact(EffectType):
+    type = "contact"
+    location_kind = "story"
+    law = ("gap/bumper on the story drift X (report eq. 6-7): s = X - gap (pos side) or "
+           "-X - gap (neg); force 0 for s <= 0, kB s^2/(2 delta) for s < delta, kB (s - delta/2) "
+           "beyond; a dv_model contact element")
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"story": s, "between": [s - 1, s], "side": side}
+                for s in range(1, m.n_dof + 1) for side in ("pos", "neg")]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        a = "ground" if loc["story"] == 1 else f"DOF {loc['story'] - 1}"
+        return f"contact, story {loc['story']} ({a}-DOF {loc['story']}), {loc['side']} side"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        d, _ = drift(st, cand.location["story"])
+        sgn = 1.0 if cand.location["side"] == "pos" else -1.0
+        y = sgn * d
+        out = []
+        for q in _QUANTILES:
+            gap = float(np.quantile(y, q))
+            g = st.hp(sgn * np.maximum(y - gap, 0.0))
+            out.append(({"gap_m": max(gap, 0.0), "quantile": q},
+                        _story_basis(st, cand.location["story"], g)))
+        return out
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        s = cand.location["story"]
+        k = max(m.stiffness_n_per_m[s - 1], max(m.stiffness_n_per_m))
+        dscale = float(cand.shape.get("drift_rms_m", 1e-4))
+        return [Param("gap_m", "m", 0.0, 10 * dscale),
+                Param("delta_m", "m", 1e-3 * dscale, 10 * dscale, log=True),
+                Param("kb_n_per_m", "N/m", 1e-3 * k, 20 * k, log=True)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        ps = self.params(m, cand)
+        gap = float(cand.shape.get("gap_m", 0.0))
+        dscale = float(cand.shape.get("drift_rms_m", 1e-4))
+        kb = float(np.clip(abs(amp), ps[2].lower * 2, ps[2].upper * 0.5))
+        return [float(np.clip(gap, 0.0, ps[0].upper * 0.9)), 0.3 * dscale, kb]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        s = cand.location["story"]
+        e = mdl.Contact(dof_a=s - 1, dof_b=s, gap_m=float(values[0]), delta_m=float(values[1]),
+                        kb_n_per_m=float(values[2]), side=cand.location["side"],
+                        name=f"discovered contact story {s}")
+        return dataclasses.replace(m, elements=(*m.elements, e))
+
+
+class _Unavailable(EffectType):
+    available = False
+    note = ("needs a C element type that this build's dv_model lacks; ranked on evidence only, "
+            "never fitted (it is not faked in Python)")
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        return []
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        return []
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        raise NotImplementedError(f"{self.type}: {self.note}")
+
+
+class Friction(_Unavailable):
+    type = "friction"
+    location_kind = "dof"
+    law = "Coulomb friction between DOF j and the ground: F_c sign(v_j)"
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"dof": j} for j in range(1, m.n_dof + 1)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"friction, DOF {loc['dof']} (to ground)"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        j = cand.location["dof"] - 1
+        vs = float(np.std(st.v[j])) or 1.0
+        out = []
+        for eps in (0.02, 0.1):
+            b = np.zeros_like(st.v)
+            b[j] = st.hp(np.tanh(st.v[j] / (eps * vs)))
+            out.append(({"v_eps_rel": eps}, b))
+        return out
+
+
+class CubicStiffness(_Unavailable):
+    type = "cubic_stiffness"
+    location_kind = "story"
+    law = "cubic story spring: k3 X^3"
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"story": s, "between": [s - 1, s]} for s in range(1, m.n_dof + 1)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"cubic stiffness, story {loc['story']}"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        d, _ = drift(st, cand.location["story"])
+        return [({}, _story_basis(st, cand.location["story"], st.hp(d ** 3)))]
+
+
+class VelocitySquaredDamping(_Unavailable):
+    type = "vv_damping"
+    location_kind = "story"
+    law = "quadratic story damper: c2 V |V| on the drift velocity"
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"story": s, "between": [s - 1, s]} for s in range(1, m.n_dof + 1)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"velocity-squared damping, story {loc['story']}"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        _, v = drift(st, cand.location["story"])
+        return [({}, _story_basis(st, cand.location["story"], st.hp(v * np.abs(v))))]
+
+
+LIBRARY: tuple[EffectType, ...] = (
+    Contact(), StiffnessChange(), MassChange(), DampingChange(), SensorGain(),
+    Friction(), CubicStiffness(), VelocitySquaredDamping())
+NONE = NoEffect()
+
+
+def by_type(name: str) -> EffectType:
+    for e in (*LIBRARY, NONE):
+        if e.type == name:
+            return e
+    raise KeyError(name)
+
+
+def catalogue(m: mdl.Model, quiet: bool = False) -> list[Candidate]:
+    """Every candidate (type x location) for a model; unavailable types are logged (unless
+    quiet)."""
+    out: list[Candidate] = []
+    for e in LIBRARY:
+        cs = e.candidates(m)
+        if cs and not e.available and not quiet:
+            log.info("effect type %s: %s", e.type, e.note)
+        out.extend(cs)
+    return out
+
+
+def describe() -> list[dict[str, Any]]:
+    """The library as data (for the report and docs)."""
+    return [{"type": e.type, "location": e.location_kind, "law": e.law,
+             "available": e.available, "note": e.note} for e in (*LIBRARY, NONE)]

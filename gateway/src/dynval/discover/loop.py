@@ -1,0 +1,294 @@
+"""The discover loop: residual -> significance -> trace -> fit candidates -> cross-validated
+acceptance -> repeat. Returns a DiscoverResult (report.py turns it into JSON and HTML).
+
+Decisions (all documented in gateway/docs/discover-schema.md):
+
+* split: tests sorted by input RMS are dealt alternately to the fitting and held-out sets (so
+  both hold every excitation level); with one test, it is both (and the report says so);
+* significance: the residual is significant while the pooled RMSE of some channel on the
+  fitting tests exceeds SIGNIFICANCE_RATIO x its noise floor (residual.noise_floor, or the
+  stated noise);
+* acceptance of a fitted candidate: the held-out normalised SSE drops by at least ``min_gain``
+  (default 10 %), no held-out test gets worse by more than 2 %, and the BIC over the fitting
+  tests (with the autocorrelation-corrected effective sample count) decreases;
+* among accepted candidates of a round the largest held-out gain wins; the loop repeats on
+  the updated model until nothing is significant, nothing is accepted, or ``max_effects``.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from dynval import model as mdl
+from dynval.discover import effects as fx
+from dynval.discover import fit as ft
+from dynval.discover import residual as rs
+from dynval.discover import trace as tr
+from dynval.errors import ConfigError
+from dynval.io.recording import Recording
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Options:
+    max_effects: int = 3
+    top_k: int = 4
+    min_gain: float = 0.10
+    max_worse: float = 0.02
+    significance_ratio: float = rs.SIGNIFICANCE_RATIO
+    noise: dict[str, float] | None = None  # stated noise RMS per channel
+    max_nfev: int = 40
+    evidence_cut: float = 0.2  # fit only candidates with >= this share of the top evidence
+
+
+@dataclass
+class Round:
+    index: int
+    ratio: dict[str, float]
+    traits: dict[str, Any]
+    evidence: list[tr.Evidence]
+    fits: list[dict[str, Any]]
+    accepted: dict[str, Any] | None
+    decision: str
+    view: tr.ForceView | None = None
+
+
+@dataclass
+class DiscoverResult:
+    model0: mdl.Model
+    model: mdl.Model
+    tests: list[rs.TestData]
+    fit_names: list[str]
+    held_names: list[str]
+    chans: list[str]
+    scales: dict[str, float]
+    noise: dict[str, float]
+    before: rs.ErrorTable
+    after: rs.ErrorTable
+    res_before: dict[str, dict[str, np.ndarray]]
+    res_after: dict[str, dict[str, np.ndarray]]
+    rounds: list[Round]
+    effects: list[dict[str, Any]]
+    mahalanobis: dict[str, Any]
+    band_hz: tuple[float, float]
+    modes_hz: list[float]
+    notes: list[str] = field(default_factory=list)
+    timing_s: dict[str, float] = field(default_factory=dict)
+
+
+def split(tests: Sequence[rs.TestData]) -> tuple[list[rs.TestData], list[rs.TestData]]:
+    if len(tests) == 1:
+        return [tests[0]], [tests[0]]
+    order = sorted(tests, key=lambda t: (float(np.std(t.u)), t.name))
+    return order[0::2], order[1::2]
+
+
+def _bic(nsse: float, n: float, p: int) -> float:
+    return n * math.log(max(nsse, 1e-300) / n) + p * math.log(n)
+
+
+def _ratio(et: rs.ErrorTable, names: Sequence[str], chans: Sequence[str],
+           noise: dict[str, float]) -> dict[str, float]:
+    pooled = et.pooled(names, chans)
+    return {c: pooled[c] / noise[c] if noise[c] > 0 else math.inf for c in chans}
+
+
+def _mahal(m0: mdl.Model, m1: mdl.Model, tests: Sequence[rs.TestData],
+           chans: Sequence[str], band: tuple[float, float],
+           noise: dict[str, float]) -> dict[str, Any]:
+    """Features of the measured tests against those of the simulations, with white noise at
+    the noise floor added to the simulations (a simulated measurement; fixed seed)."""
+    fs = tests[0].fs_hz
+    meas = np.array([rs.features(t.y, t.u, chans, fs, band) for t in tests])
+    out: dict[str, Any] = {"features": [f"{k}:{c}" for c in chans
+                                        for k in ("log_std_gain", "kurtosis")],
+                           "method": "mean distance of each test's simulated feature vector (noise "
+                                     "floor added) "
+                                     "from the measured vectors' distribution (covariance "
+                                     "shrunk 20 % to its diagonal); reference: the measured "
+                                     "vectors' own leave-one-out distance"}
+    for key, mm in (("before", m0), ("after", m1)):
+        sims = []
+        rng = np.random.default_rng(12345)
+        for t in tests:
+            p = rs.predict(mm, t)
+            if p is None:
+                break
+            p = {c: p[c] + (noise[c] if math.isfinite(noise[c]) else 0.0)
+                 * rng.standard_normal(p[c].size) for c in chans}
+            sims.append(rs.features(p, t.u, chans, fs, band))
+        if len(sims) != len(tests):
+            out[key] = math.nan
+            continue
+        d, ref = rs.mahalanobis(meas, np.array(sims))
+        out[key] = d
+        out["measured_reference"] = ref
+    return out
+
+
+def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = None,
+             on_progress: Callable[[str], None] | None = None) -> DiscoverResult:
+    """Run the loop on a declared model and measured tests."""
+    o = opts or Options()
+    t_start = time.perf_counter()
+    tests = rs.prepare(m, recs)
+    chans = rs.common_channels(m, tests)
+    if not chans:
+        raise ConfigError("no model output is a column of every test")
+    fs_set = {round(t.fs_hz, 6) for t in tests}
+    if len(fs_set) != 1:
+        raise ConfigError(f"the tests have different sample rates: {sorted(fs_set)}")
+    notes: list[str] = []
+    scales = rs.channel_scales(tests, chans)
+    fit_t, held_t = split(tests)
+    if len(tests) == 1:
+        notes.append("only one test: it is used for fitting and as 'held-out' — no "
+                     "cross-validation is possible, acceptance is by BIC and gain alone")
+    fit_names = [t.name for t in fit_t]
+    held_names = [t.name for t in held_t]
+    band = tr.input_band(tests)
+    modes_hz = [float(f) for f in mdl.natural_frequencies(m)]
+
+    before, res_before = rs.error_table(m, tests, chans, scales)
+    if not res_before:
+        raise ConfigError("the declared model cannot be simulated for these tests")
+    fs = tests[0].fs_hz
+    noise = dict(o.noise) if o.noise else rs.noise_floor(res_before, fs, chans)
+    cur = m
+    cur_table = before
+    rounds: list[Round] = []
+    effects: list[dict[str, Any]] = []
+    accepted_keys: set[str] = set()
+    timing: dict[str, float] = {}
+    for rnd in range(1, o.max_effects + 2):
+        t0 = time.perf_counter()
+        ratio = _ratio(cur_table, fit_names, chans, noise)
+        _, res_cur = rs.error_table(cur, fit_t, chans, scales)
+        evs = [tr.events(r[c], fs) for r in res_cur.values() for c in chans]
+        sps = [tr.spectrum(r[c], fs, modes_hz, band) for r in res_cur.values() for c in chans]
+        traits = tr.describe(evs, sps)
+        view = tr.force_view(cur, fit_t)
+        cands = fx.catalogue(cur, quiet=rnd > 1)
+        if view is not None:
+            evidence = tr.score(view, cands)
+        else:
+            notes.append("the force view needs a force input and an accelerometer on every "
+                         "DOF: candidates are ranked by a short fit each instead")
+            evidence = [tr.Evidence(c, 0.0, 0.0) for c in cands]
+        # "no effect": the share of the residual energy the noise floor explains
+        noise_share = float(np.mean([min(1.0, 1.0 / max(r, 1e-12) ** 2)
+                                     for r in ratio.values()]))
+        evidence.append(tr.Evidence(fx.NONE.candidates(cur)[0], noise_share, 0.0))
+        evidence.sort(key=lambda e: -e.r2)
+        significant = any(r > o.significance_ratio for r in ratio.values())
+        rd = Round(rnd, ratio, traits, evidence, [], None, "", view)
+        rounds.append(rd)
+        if on_progress:
+            on_progress(f"round {rnd}")
+        if not significant:
+            rd.decision = (f"residual at the noise floor (RMSE/noise <= "
+                           f"{o.significance_ratio:g} on every channel): stop")
+            break
+        if len(effects) >= o.max_effects:
+            rd.decision = f"max_effects = {o.max_effects} reached: stop"
+            break
+        pool = [e for e in evidence if e.cand.available and e.cand.type != "none"
+                and _key(e.cand) not in accepted_keys]
+        for e in evidence:
+            if not e.cand.available and e.r2 > 0.2 and e is evidence[0]:
+                msg = (f"the strongest evidence ({e.r2:.2f}) points to '{e.cand.label}', an "
+                       f"effect this build's C model cannot represent: {e.cand.note}")
+                log.warning(msg)
+                notes.append(msg)
+        if view is not None:
+            top = max((e.r2 for e in pool), default=0.0)
+            pool = _diverse([e for e in pool if e.r2 >= o.evidence_cut * top], o.top_k)
+        held_before = cur_table.total(held_names)
+        nsse_fit_before = cur_table.total(fit_names)
+        best: dict[str, Any] | None = None
+        for e in pool:
+            cand = _with_shape(e)
+            et = fx.by_type(cand.type)
+            init = et.initial(cur, cand, e.amp)
+            try:
+                res = ft.fit(cur, cand, init, fit_t, chans, scales, o.max_nfev)
+            except ConfigError as exc:
+                log.info("%s: fit failed: %s", cand.label, exc)
+                continue
+            tab, _ = rs.error_table(res.model, held_t, chans, scales)
+            held_after = tab.total(held_names)
+            gain = 1.0 - held_after / held_before if held_before > 0 else 0.0
+            worst = max((tab.nsse[h] / cur_table.nsse[h] - 1.0 for h in held_names
+                         if cur_table.nsse[h] > 0), default=0.0)
+            n_eff = sum(t.y[c].size for t in fit_t for c in chans) / res.n_eff_factor
+            dbic = (_bic(res.nsse_fit, n_eff, len(res.values))
+                    - _bic(nsse_fit_before, n_eff, 0))
+            ok = gain >= o.min_gain and worst <= o.max_worse and dbic < 0
+            info = {"candidate": cand, "evidence": e.r2, "fit": res, "held_gain": gain,
+                    "held_worst_test_change": worst, "delta_bic": dbic, "accepted": ok,
+                    "nsse_fit_before": nsse_fit_before, "nsse_fit_after": res.nsse_fit,
+                    "nsse_held_before": held_before, "nsse_held_after": held_after}
+            rd.fits.append(info)
+            log.info("round %d: %s: held-out gain %.3f, worst test %+.3f, dBIC %.1f -> %s",
+                     rnd, cand.label, gain, worst, dbic, "accept" if ok else "reject")
+            if ok and (best is None or gain > best["held_gain"]):
+                best = info
+        timing[f"round_{rnd}"] = time.perf_counter() - t0
+        if best is None:
+            rd.decision = ("no candidate improved the held-out tests significantly: stop"
+                           if pool else "no available candidate: stop")
+            break
+        rd.accepted = best
+        res_b: ft.FitResult = best["fit"]
+        cur = res_b.model
+        cur_table, _ = rs.error_table(cur, tests, chans, scales)
+        accepted_keys.add(_key(res_b.cand))
+        effects.append(_effect_entry(res_b, best))
+        rd.decision = f"accepted {res_b.cand.label}"
+    after, res_after = rs.error_table(cur, tests, chans, scales)
+    mah = _mahal(m, cur, tests, chans, band, noise)
+    timing["total"] = time.perf_counter() - t_start
+    return DiscoverResult(m, cur, tests, fit_names, held_names, chans, scales, noise, before,
+                          after, res_before, res_after, rounds, effects, mah, band, modes_hz,
+                          notes, timing)
+
+
+def _key(c: fx.Candidate) -> str:
+    return c.type + ":" + ",".join(f"{k}={v}" for k, v in sorted(c.location.items()))
+
+
+def _with_shape(e: tr.Evidence) -> fx.Candidate:
+    c = e.cand
+    return fx.Candidate(c.type, dict(c.location), c.label, c.available, c.note, dict(e.shape))
+
+
+def _diverse(pool: list[tr.Evidence], k: int) -> list[tr.Evidence]:
+    """The top k by evidence, at most two per effect type (so one strong type cannot crowd
+    the others out), always including the best of each type within the top 2k."""
+    out: list[tr.Evidence] = []
+    per: dict[str, int] = {}
+    for e in pool:
+        if len(out) >= k:
+            break
+        if per.get(e.cand.type, 0) >= 2:
+            continue
+        per[e.cand.type] = per.get(e.cand.type, 0) + 1
+        out.append(e)
+    return [e for e in out if e.r2 > 0.0] or out[:1]
+
+
+def _effect_entry(res: ft.FitResult, info: dict[str, Any]) -> dict[str, Any]:
+    et = fx.by_type(res.cand.type)
+    params = {n: {"value": v, "uncertainty": s, "unit": u}
+              for n, v, s, u in zip(res.names, res.values, res.sigma, res.units, strict=True)}
+    return {"type": res.cand.type, "location": dict(res.cand.location),
+            "label": res.cand.label, "law": et.law, "parameters": params,
+            "evidence": info["evidence"], "held_out_gain": info["held_gain"],
+            "delta_bic": info["delta_bic"]}

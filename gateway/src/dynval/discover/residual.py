@@ -1,0 +1,173 @@
+"""Residuals of a model against measured tests, the noise floor, significance and the
+Mahalanobis distance of simulated feature vectors from the measured ones.
+
+Errors are compared per channel; sums of squares across channels are normalised by each
+channel's measured RMS (over all tests), so every channel weighs the same.
+"""
+from __future__ import annotations
+
+import importlib
+import logging
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from dynval import model as mdl
+from dynval.errors import ConfigError
+from dynval.io.recording import Recording
+
+log = logging.getLogger(__name__)
+signal: Any = importlib.import_module("scipy.signal")
+
+# the residual counts as "at the noise floor" while its RMS is below this multiple of the floor
+SIGNIFICANCE_RATIO = 1.5
+
+
+@dataclass
+class TestData:
+    """One test prepared for repeated simulation: its input and measured channels."""
+
+    name: str
+    fs_hz: float
+    u: np.ndarray
+    y: dict[str, np.ndarray]
+
+
+def prepare(m: mdl.Model, recs: Sequence[Recording]) -> list[TestData]:
+    out = []
+    chans = [c for c in m.outputs]
+    for r in recs:
+        have = [c for c in chans if c in r.names]
+        if not have:
+            raise ConfigError(f"{r.name}: none of the model's outputs ({', '.join(chans)}) is "
+                              "a column of the test")
+        u = r.channel(mdl.input_channel(m, r)).data
+        out.append(TestData(r.name, r.fs_hz, np.ascontiguousarray(u, dtype=float),
+                            {c: r.channel(c).data for c in have}))
+    return out
+
+
+def common_channels(m: mdl.Model, tests: Sequence[TestData]) -> list[str]:
+    return [c for c in m.outputs if all(c in t.y for t in tests)]
+
+
+def channel_scales(tests: Sequence[TestData], chans: Sequence[str]) -> dict[str, float]:
+    """Measured RMS of each channel over all tests (normalises sums of squares)."""
+    out = {}
+    for c in chans:
+        v = np.concatenate([t.y[c] for t in tests])
+        s = float(np.sqrt(np.mean(v ** 2)))
+        out[c] = s if s > 0 else 1.0
+    return out
+
+
+def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
+    """The model's open-loop prediction, or None when the core refuses the model."""
+    try:
+        return mdl.simulate(m, t.u, t.fs_hz)
+    except ConfigError as exc:
+        log.debug("%s: simulation refused: %s", t.name, exc)
+        return None
+
+
+def residuals(m: mdl.Model, t: TestData, chans: Sequence[str]) -> dict[str, np.ndarray] | None:
+    p = predict(m, t)
+    if p is None:
+        return None
+    return {c: t.y[c] - p[c] for c in chans}
+
+
+@dataclass
+class ErrorTable:
+    """RMSE per test and channel (and the normalised SSE used for decisions)."""
+
+    rmse: dict[str, dict[str, float]]
+    nsse: dict[str, float]  # per test: sum over channels of SSE / scale^2 / n_samples
+
+    def pooled(self, tests: Sequence[str], chans: Sequence[str]) -> dict[str, float]:
+        """RMSE per channel pooled over the given tests."""
+        out = {}
+        for c in chans:
+            v = [self.rmse[t][c] ** 2 for t in tests if t in self.rmse]
+            out[c] = float(math.sqrt(sum(v) / len(v))) if v else math.nan
+        return out
+
+    def total(self, tests: Sequence[str]) -> float:
+        return float(sum(self.nsse[t] for t in tests))
+
+
+def error_table(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
+                scales: dict[str, float]) -> tuple[ErrorTable, dict[str, dict[str, np.ndarray]]]:
+    rmse: dict[str, dict[str, float]] = {}
+    nsse: dict[str, float] = {}
+    res_all: dict[str, dict[str, np.ndarray]] = {}
+    for t in tests:
+        r = residuals(m, t, chans)
+        if r is None:
+            rmse[t.name] = {c: math.inf for c in chans}
+            nsse[t.name] = math.inf
+            continue
+        res_all[t.name] = r
+        rmse[t.name] = {c: float(np.sqrt(np.mean(r[c] ** 2))) for c in chans}
+        nsse[t.name] = float(sum(np.mean(r[c] ** 2) / scales[c] ** 2 for c in chans))
+    return ErrorTable(rmse, nsse), res_all
+
+
+def noise_floor(res: dict[str, dict[str, np.ndarray]], fs_hz: float, chans: Sequence[str],
+                band: tuple[float, float] = (0.45, 0.5)) -> dict[str, float]:
+    """White-equivalent RMS of each channel's residual from its PSD in the top band (as a
+    fraction of fs): above the anti-alias corner the structure's response is attenuated and
+    what is left is sensor noise (plus the response to the input's noise)."""
+    out = {}
+    for c in chans:
+        levels = []
+        for r in res.values():
+            f, p = signal.welch(r[c], fs=fs_hz, nperseg=min(1024, r[c].size))
+            sel = (f >= band[0] * fs_hz) & (f <= band[1] * fs_hz)
+            if sel.any():
+                levels.append(float(np.median(p[sel])))
+        out[c] = float(math.sqrt(np.median(levels) * fs_hz / 2)) if levels else math.nan
+    return out
+
+
+def mahalanobis(meas: np.ndarray, sim: np.ndarray, shrink: float = 0.2) -> tuple[float, float]:
+    """Mean Mahalanobis distance of simulated feature vectors (rows) from the distribution of
+    the measured ones (mean, covariance shrunk towards its diagonal by ``shrink``), and the
+    mean leave-one-out distance of the measured vectors themselves (the reference a valid
+    model should land near)."""
+    def dist(base: np.ndarray, x: np.ndarray) -> np.ndarray:
+        mu = base.mean(axis=0)
+        cov = np.cov(base, rowvar=False) if base.shape[0] > 1 else np.eye(base.shape[1])
+        cov = np.atleast_2d(cov)
+        cov = (1 - shrink) * cov + shrink * np.diag(np.diag(cov))
+        cov += 1e-12 * np.trace(cov) * np.eye(cov.shape[0]) + 1e-300
+        inv = np.linalg.pinv(cov)
+        d = x - mu
+        return np.asarray(np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", d, inv, d), 0.0)))
+
+    d_sim = float(np.mean(dist(meas, sim)))
+    n = meas.shape[0]
+    if n > 2:
+        loo = [float(dist(np.delete(meas, i, axis=0), meas[i:i + 1])[0]) for i in range(n)]
+        d_ref = float(np.mean(loo))
+    else:
+        d_ref = math.nan
+    return d_sim, d_ref
+
+
+def features(y: dict[str, np.ndarray], u: np.ndarray, chans: Sequence[str], fs_hz: float,
+             band_hz: tuple[float, float]) -> np.ndarray:
+    """Per channel: log(STD / input STD) (a level-free gain, sensitive to linear changes) and
+    the kurtosis (impacts and stick-slip raise it; report Table 15)."""
+    su = float(np.std(u)) or 1.0
+    out = []
+    for c in chans:
+        x = y[c]
+        s = float(np.std(x)) or 1e-300
+        out.append(math.log(s / su))
+        xc = x - x.mean()
+        out.append(float(np.mean(xc ** 4)) / (float(np.mean(xc ** 2)) ** 2 or 1e-300))
+    return np.array(out)

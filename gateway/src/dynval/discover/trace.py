@@ -1,0 +1,279 @@
+"""Trace a residual to the effect the model lacks.
+
+* Time: events (windows whose residual RMS stands out), intermittency (share of the residual
+  energy in the top 10 % of windows), kurtosis.
+* Frequency: where the residual's energy sits: near the model's modes (a resonance shift or a
+  damping error), elsewhere inside the input band, or above it (harmonics / impact bursts).
+* States (restoring-force surface): when every DOF has an accelerometer, the states are
+  reconstructed from the measured accelerations (integrated in the frequency domain above a
+  high-pass corner) and the model is inverted: the missing restoring force at each DOF is
+  f = F - M a - C v - K x - (forces of the model's elements). Every candidate of the effects
+  library offers the shape of the force it would add; its evidence is the share of the missing
+  force's energy its best amplitude explains (R^2, with the shape scanned where it has one).
+"""
+from __future__ import annotations
+
+import importlib
+import logging
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from dynval import model as mdl
+from dynval.discover import effects as fx
+from dynval.discover.residual import TestData
+
+log = logging.getLogger(__name__)
+signal: Any = importlib.import_module("scipy.signal")
+stats: Any = importlib.import_module("scipy.stats")
+next_fast_len: Any = importlib.import_module("scipy.fft").next_fast_len
+
+
+@dataclass
+class Events:
+    """Residual events of one channel in one test: start times (s) of outstanding windows."""
+
+    times_s: list[float]
+    intermittency: float
+    kurtosis: float
+
+
+@dataclass
+class Spectrum:
+    """Fractions of residual energy near the modes, elsewhere in the input band, above it."""
+
+    near_modes: float
+    in_band: float
+    above_band: float
+
+
+@dataclass
+class Evidence:
+    cand: fx.Candidate
+    r2: float
+    amp: float
+    shape: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class ForceView:
+    """The restoring-force surface data of the fitting tests (concatenated)."""
+
+    states: fx.States
+    f_miss: np.ndarray  # n x T
+    trim: slice
+
+
+def events(r: np.ndarray, fs_hz: float, win: int = 32, k: float = 5.0) -> Events:
+    n = r.size // win
+    if n < 4:
+        return Events([], 0.0, 0.0)
+    w = np.sqrt(np.mean(r[: n * win].reshape(n, win) ** 2, axis=1))
+    med = float(np.median(w))
+    mad = float(np.median(np.abs(w - med))) * 1.4826 or 1e-300
+    idx = np.flatnonzero(w > med + k * mad)
+    e = w ** 2
+    top = np.sort(e)[::-1][: max(1, n // 10)]
+    return Events([float(i * win / fs_hz) for i in idx], float(top.sum() / (e.sum() or 1e-300)),
+                  float(stats.kurtosis(r, fisher=False)))
+
+
+def spectrum(r: np.ndarray, fs_hz: float, modes_hz: Sequence[float],
+             band_hz: tuple[float, float]) -> Spectrum:
+    f, p = signal.welch(r, fs=fs_hz, nperseg=min(512, r.size))
+    tot = float(p.sum()) or 1e-300
+    near = np.zeros(f.size, dtype=bool)
+    for fm in modes_hz:
+        if fm > 1.0:
+            near |= np.abs(f - fm) <= max(0.06 * fm, 2 * fs_hz / 512)
+    inb = (f >= band_hz[0]) & (f <= band_hz[1]) & ~near
+    above = f > band_hz[1]
+    return Spectrum(float(p[near].sum() / tot), float(p[inb].sum() / tot),
+                    float(p[above].sum() / tot))
+
+
+def input_band(tests: Sequence[TestData]) -> tuple[float, float]:
+    """The band holding 98 % of the input's power (1 %-99 % of its cumulative PSD)."""
+    f, p = signal.welch(np.concatenate([t.u for t in tests]), fs=tests[0].fs_hz,
+                        nperseg=min(1024, tests[0].u.size))
+    c = np.cumsum(p) / (p.sum() or 1e-300)
+    return float(f[np.searchsorted(c, 0.01)]), float(f[min(np.searchsorted(c, 0.99), f.size - 1)])
+
+
+def _hp_response(n: int, fs: float, f_hp: float) -> tuple[np.ndarray, np.ndarray]:
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    with np.errstate(divide="ignore"):
+        h = 1.0 / (1.0 + (f_hp / np.maximum(f, 1e-12)) ** 8)  # |4th-order Butterworth|^2
+    h[0] = 0.0
+    return f, h
+
+
+def _integrate(a: np.ndarray, fs: float, f_hp: float) -> tuple[np.ndarray, np.ndarray,
+                                                                 np.ndarray]:
+    """High-passed acceleration, velocity and displacement (zero phase, frequency domain,
+    zero-padded to twice the length)."""
+    n = a.shape[-1]
+    nf = next_fast_len(2 * n, real=True)
+    f, h = _hp_response(nf, fs, f_hp)
+    w = 2 * np.pi * f
+    w[0] = 1.0
+    spec = np.fft.rfft(a, nf, axis=-1) * h
+    ah = np.fft.irfft(spec, nf, axis=-1)[..., :n]
+    vh = np.fft.irfft(spec / (1j * w), nf, axis=-1)[..., :n]
+    xh = np.fft.irfft(-spec / (w ** 2), nf, axis=-1)[..., :n]
+    return ah, vh, xh
+
+
+def _hp(x: np.ndarray, fs: float, f_hp: float) -> np.ndarray:
+    n = x.shape[-1]
+    nf = next_fast_len(n + n // 4, real=True)
+    _, h = _hp_response(nf, fs, f_hp)
+    return np.asarray(np.fft.irfft(np.fft.rfft(x, nf, axis=-1) * h, nf, axis=-1)[..., :n])
+
+
+def matrices(m: mdl.Model) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Masses, K, C (modal damping rebuilt from the C core's modes) and the modes (rad/s,
+    mass-normalised shapes)."""
+    mass = np.array(m.masses_kg)
+    k = mdl.stiffness_matrix(m)
+    f_hz, phi = mdl.modes(m)
+    w = 2 * np.pi * f_hz
+    d = m.damping
+    if d.type == "modal":
+        mp = mass[:, None] * phi
+        c = mp @ np.diag(2 * np.array(d.zeta) * w) @ mp.T
+    elif d.type == "rayleigh" and d.modes:
+        r, s = d.modes[0] - 1, d.modes[1] - 1
+        a_mat = np.array([[1 / (2 * w[r]), w[r] / 2], [1 / (2 * w[s]), w[s] / 2]])
+        ab = np.linalg.solve(a_mat, np.array(d.zeta))
+        c = ab[0] * np.diag(mass) + ab[1] * k
+    else:
+        c = mdl.damping_matrix_explicit(m)
+    return mass, k, c, w, phi
+
+
+def _element_force(m: mdl.Model, x: np.ndarray) -> np.ndarray:
+    """Restoring forces of the model's contact elements on reconstructed displacements."""
+    f = np.zeros_like(x)
+    for e in m.contacts:
+        xa = x[e.dof_a - 1] if e.dof_a > 0 else 0.0
+        xx = x[e.dof_b - 1] - xa
+
+        def law(s: np.ndarray, e: mdl.Contact = e) -> np.ndarray:
+            d = max(e.delta_m, 1e-30)
+            return np.where(s <= 0, 0.0, np.where(s < d, e.kb_n_per_m * s * s / (2 * d),
+                                                  e.kb_n_per_m * (s - d / 2)))
+        g = np.zeros_like(xx)
+        if e.side in ("pos", "both"):
+            g += law(xx - e.gap_m)
+        if e.side in ("neg", "both"):
+            g -= law(-xx - e.gap_m)
+        f[e.dof_b - 1] += g
+        if e.dof_a > 0:
+            f[e.dof_a - 1] -= g
+    return f
+
+
+def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
+    """Reconstruct states and the missing force, or None when the model's input is not a
+    force or not every DOF carries an accelerometer."""
+    if m.input.kind != "force":
+        return None
+    chan_dof: dict[str, int] = {}
+    for name, o in m.outputs.items():
+        if o.kind == "acc" and all(name in t.y for t in tests):
+            chan_dof.setdefault(name, o.index)
+    dofs = {d: name for name, d in chan_dof.items()}
+    n = m.n_dof
+    if sorted(dofs) != list(range(1, n + 1)):
+        return None
+    mass, k, c, w, phi = matrices(m)
+    flex = w[w > 2 * np.pi * 1.0]
+    fs = tests[0].fs_hz
+    f_hp = 0.4 * float(flex.min()) / (2 * np.pi) if flex.size else 5.0
+    xs: list[np.ndarray] = []
+    vs: list[np.ndarray] = []
+    as_: list[np.ndarray] = []
+    fs_list: list[np.ndarray] = []
+    trim_frac = 0.04
+    for t in tests:
+        a = np.vstack([t.y[dofs[j]] / m.outputs[dofs[j]].gain for j in range(1, n + 1)])
+        ah, vh, xh = _integrate(a, fs, f_hp)
+        u = _hp(t.u, fs, f_hp)
+        fext = np.zeros_like(ah)
+        fext[m.input.dof - 1] = u
+        fm = fext - mass[:, None] * ah - c @ vh - k @ xh - _element_force(m, xh)
+        cut = int(trim_frac * t.u.size)
+        sl = slice(cut, t.u.size - cut)
+        xs.append(xh[:, sl])
+        vs.append(vh[:, sl])
+        as_.append(ah[:, sl])
+        fs_list.append(fm[:, sl])
+
+    def hp(z: np.ndarray) -> np.ndarray:
+        # bases built from nonlinear functions of the states get the same high-pass
+        return _hp(z, fs, f_hp)
+
+    st = fx.States(np.hstack(xs), np.hstack(vs), np.hstack(as_), mass, k, c, w, phi, hp,
+                   chan_dof)
+    return ForceView(st, np.hstack(fs_list), slice(None))
+
+
+def score(view: ForceView, cands: Sequence[fx.Candidate]) -> list[Evidence]:
+    """Evidence of each candidate: R^2 of its best-shaped basis on the missing force."""
+    f = view.f_miss
+    ff = float(np.sum(f * f)) or 1e-300
+    out = []
+    for cand in cands:
+        et = fx.by_type(cand.type)
+        best = Evidence(cand, 0.0, 0.0)
+        for shape, b in et.basis(view.states, cand):
+            bb = float(np.sum(b * b))
+            if bb <= 0:
+                continue
+            amp = float(np.sum(b * f)) / bb
+            r2 = amp * amp * bb / ff
+            if r2 > best.r2:
+                best = Evidence(cand, r2, amp, dict(shape))
+        if cand.type == "contact":
+            d, _ = fx.drift(view.states, cand.location["story"])
+            best.shape["drift_rms_m"] = float(np.std(d))
+        out.append(best)
+    out.sort(key=lambda e: -e.r2)
+    return out
+
+
+def surface(view: ForceView, story: int) -> tuple[np.ndarray, np.ndarray]:
+    """Story drift and the missing story force (from the top: g_n = f_n, g_s = f_s + g_{s+1}
+    as restoring forces) for the restoring-force-surface plot."""
+    f = view.f_miss
+    n = f.shape[0]
+    g = np.zeros(f.shape[1])
+    for j in range(n, story - 1, -1):
+        g = g + f[j - 1]
+    d, _ = fx.drift(view.states, story)
+    return d, g
+
+
+def describe(evs: Sequence[Events], sp: Sequence[Spectrum]) -> dict[str, Any]:
+    """A short summary of the time and frequency traits."""
+    inter = float(np.mean([e.intermittency for e in evs])) if evs else math.nan
+    kurt = float(np.mean([e.kurtosis for e in evs])) if evs else math.nan
+    nm = float(np.mean([s.near_modes for s in sp])) if sp else math.nan
+    ab = float(np.mean([s.above_band for s in sp])) if sp else math.nan
+    ib = float(np.mean([s.in_band for s in sp])) if sp else math.nan
+    if inter > 0.3 or kurt > 5:
+        t_kind = "intermittent (bursts: impacts, stick-slip)"
+    else:
+        t_kind = "steady"
+    if ab > 0.25:
+        f_kind = "broadband / harmonics above the input band"
+    elif nm > 0.6:
+        f_kind = "concentrated at the resonances (frequency shift or damping)"
+    else:
+        f_kind = "spread over the input band"
+    return {"time": t_kind, "frequency": f_kind, "intermittency": inter, "kurtosis": kurt,
+            "energy_near_modes": nm, "energy_in_band": ib, "energy_above_band": ab}
