@@ -1,0 +1,203 @@
+"""Feature vectors by name, computed by the C core (report Section 5 features, Section 6 use).
+
+Grammar (whitespace ignored)::
+
+    SPEC  := TERM (('+' | ';') TERM)*
+    TERM  := NAMES '@' CHANS
+    NAMES := NAME (',' NAME)*
+    CHANS := CHAN (',' CHAN)*
+
+``CHAN`` is a channel name as in the test file (``acc3_mps2``) or its stem before the unit
+suffix (``acc3``). ``NAME`` is one of:
+
+* basic statistics of the whole record (dv_moments, population moments, Table 15):
+  ``peak mean rms std var skew kurt min max crest kfactor``;
+* temporal moments (dv_temporal, eq. 14-16, Table 16): ``tm_E`` energy, ``tm_T`` central time,
+  ``tm_D`` RMS duration, ``tm_S`` central skewness, ``tm_K`` central kurtosis, ``tm_A`` root
+  energy amplitude;
+* ``segstd<N>``: the population STD of each of N equal consecutive segments (N values; the
+  report's 64 segments, Fig. 86), by dv_moments on each segment (equal to dv_segstd);
+* ``ar_rms`` / ``ar_rms<p>``: RMS of the one-step AR(p) residual (eq. 31, default p = 30,
+  Burg) under a reference AR model fitted by the C core to the first baseline test of that
+  channel (FeatureSet.fit_reference); without a reference, to the record itself.
+
+Examples: ``peak,std@acc3,acc4``; ``segstd64@acc4``; ``tm_E,tm_T@acc2 + ar_rms@acc4``.
+The vector is ordered term by term, then feature by feature, then channel by channel; labels
+read ``std@acc3_mps2`` or ``segstd64[5]@acc4_mps2``.
+"""
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from dynval import ar as _ar
+from dynval import features as _feat
+from dynval.errors import ConfigError
+
+BASIC = ("peak", "mean", "rms", "std", "var", "skew", "kurt", "min", "max", "crest", "kfactor")
+TEMPORAL = {"tm_E": "energy", "tm_T": "central_time", "tm_D": "rms_duration",
+            "tm_S": "central_skew", "tm_K": "central_kurt", "tm_A": "root_energy_amp"}
+AR_DEFAULT_ORDER = 30
+_SEG = re.compile(r"^segstd(\d+)$")
+_AR = re.compile(r"^ar_rms(\d*)$")
+
+
+def valid_names() -> list[str]:
+    """Every feature name the grammar accepts (patterns with <N>/<p>)."""
+    return [*BASIC, *TEMPORAL, "segstd<N>", "ar_rms", "ar_rms<p>"]
+
+
+def _check_name(name: str) -> None:
+    if name in BASIC or name in TEMPORAL:
+        return
+    g = _SEG.match(name)
+    if g is not None:
+        if int(g.group(1)) < 1:
+            raise ConfigError(f"feature '{name}': segstd needs N >= 1 segments")
+        return
+    g = _AR.match(name)
+    if g is not None:
+        p = int(g.group(1) or AR_DEFAULT_ORDER)
+        if not 1 <= p <= _ar.MAX_ORDER:
+            raise ConfigError(f"feature '{name}': AR order must be 1..{_ar.MAX_ORDER}")
+        return
+    raise ConfigError(f"unknown feature '{name}' (valid: {', '.join(valid_names())})")
+
+
+@dataclass(frozen=True)
+class Term:
+    names: tuple[str, ...]
+    channels: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class FeatureSet:
+    """A parsed feature spec. resolve() binds channel stems to a recording's column names."""
+
+    spec: str
+    terms: tuple[Term, ...]
+    resolved: bool = False
+    ar_ref: Mapping[tuple[str, int], _ar.ARModel] = field(default_factory=dict, compare=False)
+
+    @property
+    def channels(self) -> list[str]:
+        """The channels the vector reads, in first-use order."""
+        out: list[str] = []
+        for t in self.terms:
+            for c in t.channels:
+                if c not in out:
+                    out.append(c)
+        return out
+
+    def resolve(self, available: Sequence[str]) -> FeatureSet:
+        """Bind each CHAN to one of the available names (exact, or the stem before '_')."""
+        terms = []
+        for t in self.terms:
+            chans = []
+            for c in t.channels:
+                if c in available:
+                    chans.append(c)
+                    continue
+                hits = [a for a in available if a.split("_")[0] == c]
+                if len(hits) != 1:
+                    raise ConfigError(f"feature spec '{self.spec}': channel '{c}' "
+                                      f"{'is ambiguous' if hits else 'not found'} (available: "
+                                      f"{', '.join(available)})")
+                chans.append(hits[0])
+            terms.append(Term(t.names, tuple(chans)))
+        return replace(self, terms=tuple(terms), resolved=True)
+
+    def labels(self) -> list[str]:
+        out: list[str] = []
+        for t in self.terms:
+            for name in t.names:
+                for c in t.channels:
+                    g = _SEG.match(name)
+                    if g is not None:
+                        out += [f"{name}[{i}]@{c}" for i in range(int(g.group(1)))]
+                    else:
+                        out.append(f"{name}@{c}")
+        return out
+
+    def needs_ar(self) -> list[tuple[str, int]]:
+        out: list[tuple[str, int]] = []
+        for t in self.terms:
+            for name in t.names:
+                g = _AR.match(name)
+                if g is not None:
+                    p = int(g.group(1) or AR_DEFAULT_ORDER)
+                    out += [(c, p) for c in t.channels if (c, p) not in out]
+        return out
+
+    def fit_reference(self, data: Mapping[str, np.ndarray]) -> FeatureSet:
+        """Fit the AR reference models (ar_rms) to one baseline record (channel -> samples)."""
+        ref = {(c, p): _ar.burg(data[c], p) for c, p in self.needs_ar()}
+        return replace(self, ar_ref=ref)
+
+    def extract(self, data: Mapping[str, np.ndarray], fs_hz: float) -> np.ndarray:
+        """The feature vector of one record (channel -> samples), through the C core."""
+        if not self.resolved:
+            raise ConfigError("FeatureSet.extract before resolve()")
+        out: list[float] = []
+        cache: dict[str, tuple[_feat.Stats, _feat.Temporal | None]] = {}
+        for t in self.terms:
+            for name in t.names:
+                for c in t.channels:
+                    x = data[c]
+                    if name in BASIC or name in TEMPORAL:
+                        if c not in cache:
+                            cache[c] = (_feat.moments(x), None)
+                        st, tm = cache[c]
+                        if name in BASIC:
+                            out.append(float(getattr(st, name)))
+                            continue
+                        if tm is None:
+                            tm = _feat.temporal(x, 1.0 / fs_hz)
+                            cache[c] = (st, tm)
+                        out.append(float(getattr(tm, TEMPORAL[name])))
+                        continue
+                    g = _SEG.match(name)
+                    if g is not None:
+                        out.extend(segment_std(x, int(g.group(1))).tolist())
+                        continue
+                    g = _AR.match(name)
+                    if g is not None:
+                        p = int(g.group(1) or AR_DEFAULT_ORDER)
+                        mdl = self.ar_ref.get((c, p)) or _ar.burg(x, p)
+                        e = _ar.ar_residual(mdl, x)
+                        out.append(float(np.sqrt(np.mean(e * e))) if e.size else float("nan"))
+        return np.asarray(out, dtype=np.float64)
+
+
+def segment_std(x: np.ndarray, n_seg: int) -> np.ndarray:
+    """Population STD of n_seg equal consecutive segments (trailing samples dropped), by the
+    C core's dv_moments block update on each segment (the numbers of dv_segstd)."""
+    seg = x.size // n_seg
+    if seg < 1:
+        raise ConfigError(f"segstd{n_seg} needs at least {n_seg} samples, got {x.size}")
+    return np.array([_feat.moments(x[i * seg:(i + 1) * seg]).std for i in range(n_seg)])
+
+
+def parse(spec: str) -> FeatureSet:
+    """Parse a feature spec (see the module doc). Unknown names raise ConfigError listing the
+    valid ones."""
+    s = re.sub(r"\s+", "", spec)
+    if not s:
+        raise ConfigError("empty feature spec (e.g. 'peak,std@acc3,acc4')")
+    terms = []
+    for part in re.split(r"[+;]", s):
+        if part.count("@") != 1:
+            raise ConfigError(f"feature spec term '{part}': expected NAMES@CHANNELS, e.g. "
+                              "'peak,std@acc3,acc4'")
+        names_s, chans_s = part.split("@")
+        names = tuple(n for n in names_s.split(",") if n)
+        chans = tuple(c for c in chans_s.split(",") if c)
+        if not names or not chans:
+            raise ConfigError(f"feature spec term '{part}': needs names and channels")
+        for n in names:
+            _check_name(n)
+        terms.append(Term(names, chans))
+    return FeatureSet(spec, tuple(terms))
