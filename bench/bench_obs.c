@@ -14,6 +14,8 @@ enum { NREC = 8192, NBUF = 40000 };
 static dv_real_t mbuf[NBUF], mbuf2[NBUF], obuf[NBUF], obuf2[NBUF];
 static dv_real_t force[NREC], ymeas[NREC * 4], yout[NREC * 4];
 
+static dv_input_hold_t g_hold = DV_HOLD_FOH;
+
 static void lanl(dv_model_desc_t *d, int contact, uint16_t nsub, double kscale)
 {
     static const double m[4] = {6.54, 6.66, 6.86, 6.80};
@@ -25,6 +27,7 @@ static void lanl(dv_model_desc_t *d, int contact, uint16_t nsub, double kscale)
         d->k_n_per_m[i] = (dv_real_t)(i == 0 ? 10.0 : 399790.0 * kscale);
         d->zeta[i] = (dv_real_t)z[i];
     }
+    d->input_hold = g_hold;
     d->n_out = 4;
     for (int i = 0; i < 4; i++) {
         d->out[i].kind = DV_OUT_ACC;
@@ -84,7 +87,8 @@ int main(int argc, char **argv)
 {
     static const char *cases[] = {"obs_step_4dof", "obs_step_4dof_contact",
                                   "obs_step_4dof_contact16", "sim_record_8192",
-                                  "sim_record_8192_contact"};
+                                  "sim_record_8192_contact", "obs_step_4dof_cubic",
+                                  "obs_step_4dof_contact_cubic", "sim_record_8192_cubic"};
     const int ncase = (int)(sizeof cases / sizeof cases[0]);
     if (argc == 2 && strcmp(argv[1], "--list") == 0) {
         for (int i = 0; i < ncase; i++) printf("%s\n", cases[i]);
@@ -127,9 +131,10 @@ int main(int argc, char **argv)
         fprintf(stderr, "unknown case %s\n", cs);
         return 2;
     }
-    const int contact = which == 1 || which == 2 || which == 4;
+    const int contact = which == 1 || which == 2 || which == 4 || which == 6;
     const uint16_t nsub = which == 2 ? 16 : 8;
-    const int is_step = which <= 2;
+    const int is_step = which <= 2 || which == 5 || which == 6;
+    if (which >= 5) g_hold = DV_HOLD_CUBIC;
     dv_model_t m;
     dv_obs_t o;
     if (setup(&m, &o, contact, nsub, is_step) != 0) {

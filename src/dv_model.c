@@ -23,6 +23,7 @@ dv_status_t dv_model_desc_default(dv_model_desc_t *d)
     d->damp_kind = DV_DAMP_MODAL;
     d->input_kind = DV_INPUT_FORCE;
     d->n_sub = 8u;
+    d->input_hold = DV_HOLD_FOH;
     for (size_t c = 0; c < DV_MAX_CONTACT; c++) {
         d->contact[c].side = DV_CONTACT_POS;
     }
@@ -33,8 +34,17 @@ static bool desc_sizes_ok(const dv_model_desc_t *d)
 {
     return d != NULL && d->n_dof >= 1u && d->n_dof <= DV_MAX_DOF && d->n_out >= 1u &&
            d->n_out <= DV_MAX_OUT && d->n_contact <= DV_MAX_CONTACT &&
-           (d->n_contact == 0u || (d->n_sub >= 1u && d->n_sub <= DV_MAX_SUB));
+           (d->n_contact == 0u || (d->n_sub >= 1u && d->n_sub <= DV_MAX_SUB)) &&
+           (d->input_hold == DV_HOLD_FOH || d->input_hold == DV_HOLD_CUBIC);
 }
+
+/* Lagrange cubic through u[k-1], u[k], u[k+1], u[k+2] (nodes s = -1, 0, 1, 2): coefficient of
+ * s^p (row p) of sample u[k-1+j] (column j) over s in [0, 1]. */
+static const dv_real_t LAG3[4][4] = {
+    {DV_R(0.0), DV_R(1.0), DV_R(0.0), DV_R(0.0)},
+    {DV_R(-1.0) / DV_R(3.0), DV_R(-0.5), DV_R(1.0), DV_R(-1.0) / DV_R(6.0)},
+    {DV_R(0.5), DV_R(-1.0), DV_R(0.5), DV_R(0.0)},
+    {DV_R(-1.0) / DV_R(6.0), DV_R(0.5), DV_R(-0.5), DV_R(1.0) / DV_R(6.0)}};
 
 size_t dv_model_buf_len(const dv_model_desc_t *d)
 {
@@ -44,7 +54,8 @@ size_t dv_model_buf_len(const dv_model_desc_t *d)
     const size_t n = d->n_dof;
     const size_t nc = d->n_contact;
     const size_t nsub = nc > 0u ? d->n_sub : 1u;
-    return DV_MODEL_BUF_LEN(n, nc, nsub, (size_t)d->n_out);
+    return DV_MODEL_BUF_LEN_HOLD(n, nc, nsub, (size_t)d->n_out,
+                                 DV_MODEL_HOLD_NIN((int)d->input_hold));
 }
 
 dv_status_t dv_model_rayleigh(dv_real_t w_r, dv_real_t zeta_r, dv_real_t w_s, dv_real_t zeta_s,
@@ -182,13 +193,15 @@ static dv_status_t eig_mass_scaled(size_t n, const dv_real_t *mass, const dv_rea
     return dv_mat_eig_sym(&sm, w, &vm, work, n * n);
 }
 
-/* exp of [[A h, B h, 0], [0, 0, I], [0, 0, 0]] (B: ns x nb, row-major with stride nb).
- * Writes Ad (ns x ns), G0 and G1 (ns x nb, stride nb). */
-static dv_status_t foh_expm(size_t ns, size_t nb, const dv_real_t *a, const dv_real_t *b,
-                            dv_real_t h, dv_real_t *ad, dv_real_t *g0, dv_real_t *g1,
-                            dv_real_t *scratch)
+/* exp of [[A h, B h, 0, ..], [0, 0, I, ..], .., [0, .., 0]] with q >= 2 input blocks (B: ns x
+ * nb, row-major with stride nb): a chain of integrators whose block p is s^p / p! for unit
+ * initial value. Writes Ad (ns x ns) and gp[p] = p! G_p = int_0^1 e^{A h (1 - s)} B h s^p ds
+ * for p < q (each ns x nb, stride nb; gp[0], gp[1] may be G0, G1 of the first-order hold). */
+static dv_status_t poly_expm(size_t ns, size_t nb, size_t q, const dv_real_t *a,
+                             const dv_real_t *b, dv_real_t h, dv_real_t *ad,
+                             dv_real_t *const *gp, dv_real_t *scratch)
 {
-    const size_t na = ns + 2u * nb;
+    const size_t na = ns + q * nb;
     dv_real_t *e = scratch;
     dv_real_t *r = e + na * na;
     dv_real_t *work = r + na * na;
@@ -203,8 +216,10 @@ static dv_status_t foh_expm(size_t ns, size_t nb, const dv_real_t *a, const dv_r
             e[i * na + ns + j] = b[i * nb + j] * h;
         }
     }
-    for (size_t j = 0; j < nb; j++) {
-        e[(ns + j) * na + ns + nb + j] = DV_R(1.0);
+    for (size_t p = 0; p + 1u < q; p++) {
+        for (size_t j = 0; j < nb; j++) {
+            e[(ns + p * nb + j) * na + ns + (p + 1u) * nb + j] = DV_R(1.0);
+        }
     }
     dv_mat_t em = {(uint16_t)na, (uint16_t)na, e};
     dv_mat_t rm = {(uint16_t)na, (uint16_t)na, r};
@@ -216,12 +231,54 @@ static dv_status_t foh_expm(size_t ns, size_t nb, const dv_real_t *a, const dv_r
         for (size_t j = 0; j < ns; j++) {
             ad[i * ns + j] = r[i * na + j];
         }
-        for (size_t j = 0; j < nb; j++) {
-            g0[i * nb + j] = r[i * na + ns + j];
-            g1[i * nb + j] = r[i * na + ns + nb + j];
+    }
+    dv_real_t fact = DV_R(1.0);
+    for (size_t p = 0; p < q; p++) {
+        if (p > 1u) {
+            fact *= (dv_real_t)p;
+        }
+        for (size_t i = 0; i < ns; i++) {
+            for (size_t j = 0; j < nb; j++) {
+                gp[p][i * nb + j] = p > 1u ? r[i * na + ns + p * nb + j] * fact
+                                           : r[i * na + ns + p * nb + j];
+            }
         }
     }
     return DV_OK;
+}
+
+static dv_status_t foh_expm(size_t ns, size_t nb, const dv_real_t *a, const dv_real_t *b,
+                            dv_real_t h, dv_real_t *ad, dv_real_t *g0, dv_real_t *g1,
+                            dv_real_t *scratch)
+{
+    dv_real_t *const gp[2] = {g0, g1};
+    return poly_expm(ns, nb, 2u, a, b, h, ad, gp, scratch);
+}
+
+/* Coefficients (in t, over sub-interval i of nsub: s = (i + t) / nsub) of the full-step
+ * polynomial sum_p c[p] s^p, p < 4. */
+static void poly_sub(const dv_real_t *c, size_t i, size_t nsub, dv_real_t *out)
+{
+    static const dv_real_t binom[4][4] = {{DV_R(1.0), DV_R(0.0), DV_R(0.0), DV_R(0.0)},
+                                          {DV_R(1.0), DV_R(1.0), DV_R(0.0), DV_R(0.0)},
+                                          {DV_R(1.0), DV_R(2.0), DV_R(1.0), DV_R(0.0)},
+                                          {DV_R(1.0), DV_R(3.0), DV_R(3.0), DV_R(1.0)}};
+    const dv_real_t fi = (dv_real_t)i;
+    const dv_real_t inv = DV_R(1.0) / (dv_real_t)nsub;
+    for (size_t q = 0; q < 4u; q++) {
+        dv_real_t s = DV_R(0.0);
+        for (size_t p = q; p < 4u; p++) {
+            dv_real_t t = c[p] * binom[p][q];
+            for (size_t r = 0; r < p - q; r++) {
+                t *= fi;
+            }
+            for (size_t r = 0; r < p; r++) {
+                t *= inv;
+            }
+            s += t;
+        }
+        out[q] = s;
+    }
 }
 
 /* X of contact c for a state-sized vector z: z[b] - z[a]. */
@@ -261,6 +318,8 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
     m->n_sub = (uint16_t)nsub;
     m->n_f = (uint16_t)nf;
     m->input_kind = d->input_kind;
+    m->input_hold = d->input_hold;
+    m->n_in = (uint16_t)DV_MODEL_HOLD_NIN((int)d->input_hold);
     m->dt_s = dt_s;
 
     dv_real_t *p = buf;
@@ -281,6 +340,12 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
     m->rxb = take(&p, nf);
     m->smat = take(&p, nf * nf);
     m->vmat = take(&p, ns * nf);
+    const bool cubic = d->input_hold == DV_HOLD_CUBIC;
+    if (cubic) {
+        m->pu = take(&p, ns * 4u);
+        m->du = take(&p, no * 4u);
+        m->rxu = take(&p, nf * 4u);
+    }
     dv_real_t *scr = p; /* init-only scratch from here on */
 
     for (size_t i = 0; i < n; i++) {
@@ -523,6 +588,48 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
         }
     }
 
+    if (cubic) {
+        /* full-step cubic hold: x[k+1] = Ad x[k] + sum_j Pu_j u[k-1+j], with u' = du/dt */
+        dv_real_t bb[2u * DV_MAX_DOF * 2u];
+        dv_real_t gq[4][2u * DV_MAX_DOF * 2u];
+        dv_real_t *const gp[4] = {gq[0], gq[1], gq[2], gq[3]};
+        dv_real_t *adc = scr;
+        for (size_t i = 0; i < ns; i++) {
+            bb[i * 2u] = b[i * nb];
+            bb[i * 2u + 1u] = b[i * nb + 1u];
+        }
+        st = poly_expm(ns, 2u, 4u, a, bb, dt_s, adc, gp, scr + ns * ns);
+        if (st != DV_OK) {
+            return st;
+        }
+        for (size_t i = 0; i < ns; i++) {
+            for (size_t j = 0; j < 4u; j++) {
+                dv_real_t s = DV_R(0.0);
+                for (size_t q = 0; q < 4u; q++) {
+                    s += gq[q][i * 2u] * LAG3[q][j];
+                    if (q < 3u) {
+                        s += gq[q][i * 2u + 1u] * (dv_real_t)(q + 1u) * LAG3[q + 1u][j] / dt_s;
+                    }
+                }
+                if (!fin(s)) {
+                    return DV_EUNSTABLE;
+                }
+                m->pu[i * 4u + j] = s;
+            }
+        }
+        /* y[k]: coefficient of u (d0 + d1) and of u' (-d1 dt), u' at the end of [t_k-1, t_k]
+         * whose samples are u[k-2..k+1] */
+        for (size_t o = 0; o < no; o++) {
+            for (size_t j = 0; j < 4u; j++) {
+                dv_real_t slope = DV_R(0.0);
+                for (size_t q = 1; q < 4u; q++) {
+                    slope += (dv_real_t)q * LAG3[q][j];
+                }
+                m->du[o * 4u + j] = (j == 2u ? m->d0[o] + m->d1[o] : DV_R(0.0)) - m->d1[o] * slope;
+            }
+        }
+    }
+
     if (nc == 0u) {
         return DV_OK;
     }
@@ -636,6 +743,66 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
             zb[r] = rown[r];
         }
     }
+    if (cubic) {
+        /* X at the sub-nodes from each sample of the cubic, through the exact sub-step
+         * response to the cubic's pieces (u and u' columns only) */
+        dv_real_t bb[2u * DV_MAX_DOF * 2u];
+        dv_real_t gq[4][2u * DV_MAX_DOF * 2u];
+        dv_real_t *const gp[4] = {gq[0], gq[1], gq[2], gq[3]};
+        dv_real_t *phic = scr2;
+        for (size_t i = 0; i < ns; i++) {
+            bb[i * 2u] = b[i * nb];
+            bb[i * 2u + 1u] = b[i * nb + 1u];
+        }
+        st = poly_expm(ns, 2u, 4u, a, bb, h, phic, gp, scr2 + ns * ns);
+        if (st != DV_OK) {
+            return st;
+        }
+        for (size_t j = 0; j < 4u; j++) {
+            dv_real_t cu[4];
+            dv_real_t cd[4];
+            for (size_t q = 0; q < 4u; q++) {
+                cu[q] = LAG3[q][j];
+                cd[q] = q < 3u ? (dv_real_t)(q + 1u) * LAG3[q + 1u][j] / dt_s : DV_R(0.0);
+            }
+            for (size_t r = 0; r < ns; r++) {
+                za[r] = DV_R(0.0);
+            }
+            for (size_t i = 0; i <= nsub; i++) {
+                const dv_real_t si = (dv_real_t)i / (dv_real_t)nsub;
+                const dv_real_t ui = cu[0] + si * (cu[1] + si * (cu[2] + si * cu[3]));
+                for (size_t e = 0; e < nc; e++) {
+                    const size_t f = i * nc + e;
+                    m->rxu[f * 4u + j] = cx_dot(&m->contact[e], za) + m->contact_dx[e] * ui;
+                }
+                if (i == nsub) {
+                    break;
+                }
+                dv_real_t lu[4];
+                dv_real_t ld[4];
+                poly_sub(cu, i, nsub, lu);
+                poly_sub(cd, i, nsub, ld);
+                for (size_t r = 0; r < ns; r++) {
+                    dv_real_t s = DV_R(0.0);
+                    for (size_t q = 0; q < ns; q++) {
+                        s += phih[r * ns + q] * za[q];
+                    }
+                    for (size_t q = 0; q < 4u; q++) {
+                        s += gq[q][r * 2u] * lu[q] + gq[q][r * 2u + 1u] * ld[q];
+                    }
+                    zn[r] = s;
+                }
+                for (size_t r = 0; r < ns; r++) {
+                    za[r] = zn[r];
+                }
+            }
+        }
+        for (size_t i = 0; i < nf * 4u; i++) {
+            if (!fin(m->rxu[i])) {
+                return DV_EUNSTABLE;
+            }
+        }
+    }
     /* response to each sub-node force: X at later nodes (smat) and the end state (vmat) */
     for (size_t i = 0; i < nf * nf; i++) {
         m->smat[i] = DV_R(0.0);
@@ -723,6 +890,18 @@ dv_status_t dv_model_get_mat(const dv_model_t *m, dv_model_mat_id_t which, dv_ma
     case DV_MODEL_MAT_CY: *view = (dv_mat_t){no, ns, m->cy}; break;
     case DV_MODEL_MAT_D0: *view = (dv_mat_t){no, 1u, m->d0}; break;
     case DV_MODEL_MAT_D1: *view = (dv_mat_t){no, 1u, m->d1}; break;
+    case DV_MODEL_MAT_PU:
+        if (m->pu == NULL) {
+            return DV_EINVAL;
+        }
+        *view = (dv_mat_t){ns, 4u, m->pu};
+        break;
+    case DV_MODEL_MAT_DU:
+        if (m->du == NULL) {
+            return DV_EINVAL;
+        }
+        *view = (dv_mat_t){no, 4u, m->du};
+        break;
     default: return DV_EINVAL;
     }
     return DV_OK;

@@ -3,9 +3,9 @@
 #include "dynval/dv_obs.h"
 #include "dv_priv.h"
 
-static size_t obs_len(size_t n, size_t nc, size_t nsub, size_t no)
+static size_t obs_len(size_t n, size_t nc, size_t nsub, size_t no, size_t nin)
 {
-    return DV_OBS_BUF_LEN(n, nc, nsub, no);
+    return DV_OBS_BUF_LEN_HOLD(n, nc, nsub, no, nin);
 }
 
 size_t dv_obs_buf_len(const dv_model_t *m)
@@ -13,13 +13,14 @@ size_t dv_obs_buf_len(const dv_model_t *m)
     if (m == NULL || m->kmat == NULL) {
         return 0u;
     }
-    return obs_len(m->n_dof, m->n_contact, m->n_sub, m->n_out);
+    return obs_len(m->n_dof, m->n_contact, m->n_sub, m->n_out, m->n_in == 4u ? 4u : 2u);
 }
 
 /* Fill the folded matrices from the model and the gain (o->gain, used when has_gain).
  * Layout of each: the state rows first, column-major (ns rows, one column per entry of sv:
- * [x, u[k-1], u[k], g, y]), then the output rows, column-major (no rows, columns
- * [x, u[k-1], u[k], g] only: the prediction never depends on y). Keeping the two row sets
+ * [x, u window, g, y]), then the output rows, column-major (no rows, columns
+ * [x, u window, g] only: the prediction never depends on y). The u window is [u[k-1], u[k]]
+ * (first-order hold) or [u[k-2], u[k-1], u[k], u[k+1]] (cubic) for the step to t_k. Keeping the two row sets
  * apart lets the step skip the zero y columns of the output rows and gives short columns
  * that fit vector registers. */
 static void fold(dv_obs_t *o)
@@ -30,6 +31,8 @@ static void fold(dv_obs_t *o)
     const size_t nf = o->nf;
     const size_t nc = m->n_contact;
     const size_t nco = o->ncol_open;
+    const size_t nin = o->nin;
+    const bool cubic = nin == 4u;
     dv_real_t col[2u * DV_MAX_DOF + DV_MAX_OUT];
     dv_real_t *fyo = o->f_open + ns * nco;
     dv_real_t *fxg = o->f_gain;
@@ -40,12 +43,14 @@ static void fold(dv_obs_t *o)
             dv_real_t v;
             if (j < ns) {
                 v = m->ad[r * ns + j];
+            } else if (cubic && j < ns + nin) {
+                v = m->pu[r * 4u + (j - ns)];
             } else if (j == ns) {
                 v = m->pa[r];
             } else if (j == ns + 1u) {
                 v = m->pb[r];
             } else {
-                v = m->vmat[r * nf + (j - ns - 2u)];
+                v = m->vmat[r * nf + (j - ns - nin)];
             }
             col[r] = v;
         }
@@ -54,12 +59,14 @@ static void fold(dv_obs_t *o)
             for (size_t r = 0; r < ns; r++) {
                 s += m->cy[q * ns + r] * col[r];
             }
-            if (j == ns) {
+            if (cubic && j >= ns && j < ns + nin) {
+                s += m->du[q * 4u + (j - ns)];
+            } else if (j == ns) {
                 s += m->d1[q];
             } else if (j == ns + 1u) {
                 s += m->d0[q];
-            } else if (j >= ns + 2u) {
-                const size_t f = j - ns - 2u;
+            } else if (j >= ns + nin) {
+                const size_t f = j - ns - nin;
                 if (f >= nf - nc) { /* forces at the end node act on the output directly */
                     s += m->ey[q * nc + (f - (nf - nc))];
                 }
@@ -311,9 +318,11 @@ dv_status_t dv_obs_init(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_t *
     o->ns = (uint16_t)ns;
     o->no = (uint16_t)no;
     o->nf = (uint16_t)nf;
+    const size_t nin = m->n_in == 4u ? 4u : 2u;
     o->nrows = (uint16_t)(ns + no);
-    o->ncol_open = (uint16_t)(ns + 2u + nf);
-    o->ncol_gain = (uint16_t)(ns + 2u + nf + no);
+    o->nin = (uint16_t)nin;
+    o->ncol_open = (uint16_t)(ns + nin + nf);
+    o->ncol_gain = (uint16_t)(ns + nin + nf + no);
     dv_real_t *p = buf;
     o->sv = p;
     p += o->ncol_gain;
@@ -327,6 +336,10 @@ dv_status_t dv_obs_init(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_t *
     p += (size_t)o->nrows * o->ncol_gain;
     o->gain = p;
     p += ns * no;
+    if (nin == 4u) {
+        o->ypend = p;
+        p += no;
+    }
     o->scratch = p;
     o->scratch_len = len - (size_t)(p - buf);
     for (size_t i = 0; i < ns * no; i++) {
@@ -399,7 +412,12 @@ void dv_obs_reset(dv_obs_t *o)
     }
     for (size_t i = 0; i < o->no; i++) {
         o->resid[i] = DV_R(0.0);
+        if (o->ypend != NULL) {
+            o->ypend[i] = DV_R(0.0);
+        }
     }
+    o->n_pred = 0u;
+    o->pend_flags = DV_OBS_FLAG_NO_MEAS;
     o->started = false;
     o->flags = 0u;
     o->n_steps = 0u;
@@ -407,14 +425,16 @@ void dv_obs_reset(dv_obs_t *o)
     o->n_bad_meas = 0u;
 }
 
-/* Sub-node contact forces g into sv[ns + 2 ..], from x = sv[0..ns), u[k-1], u[k]. */
-static void contact_forces(const dv_model_t *m, dv_real_t *sv, size_t ns, dv_real_t up,
-                           dv_real_t u)
+/* Sub-node contact forces g into sv[ns + nin ..], from x = sv[0..ns) and the input window
+ * sv[ns .. ns + nin). */
+static void contact_forces(const dv_model_t *m, dv_real_t *sv, size_t ns)
 {
     const size_t nc = m->n_contact;
     const size_t nf = m->n_f;
     const size_t nsub = m->n_sub;
-    dv_real_t *g = sv + ns + 2u;
+    const bool cubic = m->n_in == 4u;
+    const dv_real_t *win = sv + ns;
+    dv_real_t *g = sv + ns + (cubic ? 4u : 2u);
     dv_real_t lin[DV_MAX_CONTACT];
     dv_real_t cur[DV_MAX_CONTACT];
     for (size_t i = 0; i <= nsub; i++) {
@@ -423,7 +443,13 @@ static void contact_forces(const dv_model_t *m, dv_real_t *sv, size_t ns, dv_rea
             const size_t f = f0 + e;
             const dv_real_t *rx = m->rx + f * ns;
             const dv_real_t *srow = m->smat + f * nf;
-            dv_real_t s = m->rxa[f] * up + m->rxb[f] * u;
+            dv_real_t s;
+            if (cubic) {
+                const dv_real_t *ru = m->rxu + f * 4u;
+                s = ru[0] * win[0] + ru[1] * win[1] + ru[2] * win[2] + ru[3] * win[3];
+            } else {
+                s = m->rxa[f] * win[0] + m->rxb[f] * win[1];
+            }
             for (size_t j = 0; j < ns; j++) {
                 s += rx[j] * sv[j];
             }
@@ -619,7 +645,7 @@ static void kernel_8x4(size_t nin, size_t ny, const dv_real_t *restrict fx,
     }
 }
 
-/* First sample: the state is at t0 already; output only, then correct. */
+/* First sample (first-order hold): the state is at t0 already; output only, then correct. */
 static void step_first(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool correct)
 {
     const dv_model_t *m = o->m;
@@ -630,7 +656,7 @@ static void step_first(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool correc
     dv_real_t *yhat = o->z + ns;
     sv[ns] = u;
     if (o->nf > 0u) {
-        contact_forces(m, sv, ns, u, u); /* every node sees the same state: use node 0 */
+        contact_forces(m, sv, ns); /* every node sees the same state: use node 0 */
     }
     for (size_t q = 0; q < no; q++) {
         dv_real_t s = (m->d0[q] + m->d1[q]) * u;
@@ -661,61 +687,103 @@ static void step_first(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool correc
     o->started = true;
 }
 
-static dv_status_t step(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool use_gain)
+/* First sample (cubic hold): the state is at t0 (at rest); the window is [0, 0, u[0], u[1]].
+ * Output only (contact forces from the state at t0 directly), then correct. */
+static void step_first_cubic(dv_obs_t *o, const dv_real_t *y, bool correct)
+{
+    const dv_model_t *m = o->m;
+    const size_t ns = o->ns;
+    const size_t no = o->no;
+    const size_t nc = m->n_contact;
+    dv_real_t *sv = o->sv;
+    const dv_real_t *win = sv + ns;
+    dv_real_t *yhat = o->z + ns;
+    dv_real_t g[DV_MAX_CONTACT];
+    for (size_t e = 0; e < nc; e++) {
+        const dv_contact_desc_t *c = &m->contact[e];
+        const dv_real_t xa = c->dof_a == (uint16_t)DV_GROUND ? DV_R(0.0) : sv[c->dof_a];
+        const dv_real_t x = sv[c->dof_b] - xa + m->contact_dx[e] * win[2];
+        g[e] = dv_priv_contact_g((int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, x);
+    }
+    for (size_t q = 0; q < no; q++) {
+        dv_real_t s = DV_R(0.0);
+        for (size_t i = 0; i < 4u; i++) {
+            s += m->du[q * 4u + i] * win[i];
+        }
+        for (size_t j = 0; j < ns; j++) {
+            s += m->cy[q * ns + j] * sv[j];
+        }
+        for (size_t e = 0; e < nc; e++) {
+            s += m->ey[q * nc + e] * g[e];
+        }
+        yhat[q] = s;
+    }
+    for (size_t q = 0; q < no; q++) {
+        const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
+        o->resid[q] = yq - yhat[q];
+    }
+    if (correct) {
+        for (size_t j = 0; j < ns; j++) {
+            dv_real_t s = DV_R(0.0);
+            for (size_t q = 0; q < no; q++) {
+                s += o->gain[j * no + q] * o->resid[q];
+            }
+            sv[j] += s;
+        }
+    }
+    for (size_t j = 0; j < ns; j++) {
+        o->z[j] = sv[j];
+    }
+    o->started = true;
+}
+
+/* Complete one sample from the state and input window in sv: predict, residual against y
+ * (NULL: none; flags: its DV_OBS_FLAG_*), correct. first: the first sample of a record. */
+static void produce(dv_obs_t *o, const dv_real_t *y, uint32_t flags, bool use_gain, bool first)
 {
     const size_t ns = o->ns;
     const size_t no = o->no;
     const size_t nf = o->nf;
+    const size_t nin = o->nin;
     dv_real_t *sv = o->sv;
-    if (!dv_priv_finite(u)) {
-        o->flags = DV_OBS_FLAG_BAD_INPUT;
-        o->n_bad_input++;
-        return DV_ENUMERIC;
-    }
-    uint32_t flags = 0u;
-    bool correct = use_gain && o->has_gain;
-    if (y == NULL) {
-        flags = DV_OBS_FLAG_NO_MEAS;
-        correct = false;
-    } else if (no == 4u ? !dv_priv_all_finite(y, 4u) : !dv_priv_all_finite(y, no)) {
-        flags = DV_OBS_FLAG_BAD_MEAS;
-        correct = false;
-    }
+    const bool correct = use_gain && o->has_gain && flags == 0u;
     dv_real_t *yhat = o->z + ns;
-    if (ns == 8u && no == 4u && o->started) {
+    if (ns == 8u && no == 4u && !first) {
         /* the 4-DOF, 4-channel case: constant sizes, one call */
-        sv[9] = u;
         if (nf > 0u) {
-            contact_forces(o->m, sv, 8u, sv[8], u);
+            contact_forces(o->m, sv, 8u);
         }
         if (flags == 0u) {
             if (correct) {
-                kernel_8x4(2u + nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
+                kernel_8x4(nin + nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
                            yhat, o->resid);
             } else {
-                kernel_8x4(2u + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, y,
+                kernel_8x4(nin + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, y,
                            yhat, o->resid);
             }
         } else {
-            kernel_8x4(2u + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, NULL,
+            kernel_8x4(nin + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, NULL,
                        yhat, o->resid);
             for (size_t q = 0; q < 4u; q++) {
                 const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
                 o->resid[q] = yq - yhat[q];
             }
         }
-    } else if (!o->started) {
-        step_first(o, u, y, correct);
+    } else if (first) {
+        if (nin == 4u) {
+            step_first_cubic(o, y, correct);
+        } else {
+            step_first(o, sv[ns + 1u], y, correct);
+        }
     } else {
-        sv[ns + 1u] = u;
         if (nf > 0u) {
-            contact_forces(o->m, sv, ns, sv[ns], u);
+            contact_forces(o->m, sv, ns);
         }
         const dv_real_t *fx = o->f_open;
         const dv_real_t *fy = o->f_open + ns * (size_t)o->ncol_open;
         size_t ny = 0u;
         if (correct) {
-            dv_real_t *ys = sv + ns + 2u + nf;
+            dv_real_t *ys = sv + ns + nin + nf;
             for (size_t q = 0; q < no; q++) {
                 ys[q] = y[q];
             }
@@ -724,7 +792,7 @@ static dv_status_t step(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool use_g
             ny = no;
         }
         dv_real_t xn[2u * DV_MAX_DOF];
-        kernel(ns, no, 2u + nf, ny, fx, fy, sv, xn, yhat);
+        kernel(ns, no, nin + nf, ny, fx, fy, sv, xn, yhat);
         for (size_t j = 0; j < ns; j++) {
             sv[j] = xn[j];
         }
@@ -739,8 +807,78 @@ static dv_status_t step(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool use_g
             }
         }
     }
-    sv[ns] = u;
-    o->flags = flags;
+    o->n_pred++;
+}
+
+static dv_status_t step(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool use_gain)
+{
+    const size_t ns = o->ns;
+    const size_t no = o->no;
+    dv_real_t *sv = o->sv;
+    if (!dv_priv_finite(u)) {
+        o->flags = DV_OBS_FLAG_BAD_INPUT;
+        o->n_bad_input++;
+        return DV_ENUMERIC;
+    }
+    uint32_t flags = 0u;
+    if (y == NULL) {
+        flags = DV_OBS_FLAG_NO_MEAS;
+    } else if (no == 4u ? !dv_priv_all_finite(y, 4u) : !dv_priv_all_finite(y, no)) {
+        flags = DV_OBS_FLAG_BAD_MEAS;
+    }
+    if (o->nin == 2u) {
+        /* first-order hold: produce() written out for the 8 x 4 case (fewer instructions
+         * than the call) */
+        sv[ns + 1u] = u;
+        if (ns == 8u && no == 4u && o->started) {
+            const size_t nf = o->nf;
+            const bool correct = use_gain && o->has_gain && flags == 0u;
+            dv_real_t *yhat = o->z + 8u;
+            if (nf > 0u) {
+                contact_forces(o->m, sv, 8u);
+            }
+            if (correct) {
+                kernel_8x4(2u + nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
+                           yhat, o->resid);
+            } else if (flags == 0u) {
+                kernel_8x4(2u + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, y,
+                           yhat, o->resid);
+            } else {
+                kernel_8x4(2u + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv,
+                           NULL, yhat, o->resid);
+                for (size_t q = 0; q < 4u; q++) {
+                    const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
+                    o->resid[q] = yq - yhat[q];
+                }
+            }
+            o->n_pred++;
+        } else {
+            produce(o, y, flags, use_gain, !o->started);
+        }
+        sv[ns] = u;
+        o->flags = flags;
+    } else {
+        /* cubic: the window moves to [u[j-3], u[j-2], u[j-1], u[j]]; sample j - 1 completes
+         * against the measurement kept from the previous call */
+        sv[ns] = sv[ns + 1u];
+        sv[ns + 1u] = sv[ns + 2u];
+        sv[ns + 2u] = sv[ns + 3u];
+        sv[ns + 3u] = u;
+        if (o->n_steps > 0u) {
+            const uint32_t pf = o->pend_flags;
+            produce(o, (pf & DV_OBS_FLAG_NO_MEAS) != 0u ? NULL : o->ypend, pf, use_gain,
+                    o->n_steps == 1u);
+            o->flags = pf;
+        } else {
+            o->flags = flags;
+        }
+        if (y != NULL) {
+            for (size_t q = 0; q < no; q++) {
+                o->ypend[q] = y[q];
+            }
+        }
+        o->pend_flags = flags;
+    }
     o->n_steps++;
     if ((flags & DV_OBS_FLAG_BAD_MEAS) != 0u) {
         o->n_bad_meas++;
@@ -755,12 +893,56 @@ dv_status_t dv_obs_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas)
     return step(o, u, y_meas, true);
 }
 
+uint32_t dv_obs_latency(const dv_obs_t *o)
+{
+    return (o != NULL && o->nin == 4u) ? 1u : 0u;
+}
+
+/* Complete the pending sample (cubic) with an extrapolated next input; the state, window and
+ * contact slots are restored afterwards. */
+static dv_status_t flush(dv_obs_t *o, bool use_gain)
+{
+    if (o->nin != 4u || o->n_steps == 0u) {
+        return DV_ENOTREADY;
+    }
+    const size_t ns = o->ns;
+    const size_t keep = ns + 4u;
+    dv_real_t save[2u * DV_MAX_DOF + 4u];
+    dv_real_t *sv = o->sv;
+    for (size_t i = 0; i < keep; i++) {
+        save[i] = sv[i];
+    }
+    const dv_real_t ux = DV_R(3.0) * sv[ns + 3u] - DV_R(3.0) * sv[ns + 2u] + sv[ns + 1u];
+    sv[ns] = sv[ns + 1u];
+    sv[ns + 1u] = sv[ns + 2u];
+    sv[ns + 2u] = sv[ns + 3u];
+    sv[ns + 3u] = ux;
+    const uint32_t pf = o->pend_flags;
+    const bool started = o->started;
+    produce(o, (pf & DV_OBS_FLAG_NO_MEAS) != 0u ? NULL : o->ypend, pf, use_gain,
+            o->n_steps == 1u);
+    o->flags = pf;
+    o->started = started;
+    for (size_t i = 0; i < keep; i++) {
+        sv[i] = save[i];
+    }
+    return DV_OK;
+}
+
+dv_status_t dv_obs_flush(dv_obs_t *o)
+{
+    if (o == NULL || o->m == NULL) {
+        return DV_EINVAL;
+    }
+    return flush(o, true);
+}
+
 dv_status_t dv_obs_get(const dv_obs_t *o, dv_real_t *y_pred, dv_real_t *resid, size_t len)
 {
     if (o == NULL || o->m == NULL) {
         return DV_EINVAL;
     }
-    if (o->n_steps == 0u) {
+    if (o->n_pred == 0u) {
         return DV_ENOTREADY;
     }
     if (len < o->no) {
@@ -802,15 +984,14 @@ static dv_status_t run_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y
         if (st != DV_OK) {
             worst = st;
         }
+        const bool have = (o->flags & DV_OBS_FLAG_BAD_INPUT) == 0u && o->n_pred > 0u;
         const dv_real_t *yh = o->z + o->ns;
         for (size_t q = 0; q < no; q++) {
             if (y_pred != NULL) {
                 y_pred[k * no + q] = yh[q];
             }
             if (resid != NULL) {
-                resid[k * no + q] = st == DV_OK || (o->flags & DV_OBS_FLAG_BAD_MEAS) != 0u
-                                        ? o->resid[q]
-                                        : DV_R(0.0);
+                resid[k * no + q] = have ? o->resid[q] : DV_R(0.0);
             }
         }
     }
@@ -826,11 +1007,51 @@ dv_status_t dv_obs_update_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t
     return run_block(o, u, y_meas, n, y_pred, resid, true);
 }
 
+/* dv_obs_simulate() with the cubic hold: the call with u[k] completes the last accepted sample
+ * before it; its row gets the prediction. Refused samples repeat the row before them. */
+static dv_status_t simulate_cubic(dv_obs_t *o, const dv_real_t *u, size_t n, dv_real_t *y)
+{
+    const size_t no = o->no;
+    const dv_real_t *yh = o->z + o->ns;
+    dv_status_t worst = DV_OK;
+    size_t last = n; /* row of the pending sample; n: none */
+    for (size_t k = 0; k < n; k++) {
+        const uint64_t before = o->n_pred;
+        const dv_status_t st = step(o, u[k], NULL, false);
+        if (st != DV_OK) {
+            worst = st;
+            continue;
+        }
+        if (o->n_pred != before && last < n) {
+            for (size_t q = 0; q < no; q++) {
+                y[last * no + q] = yh[q];
+            }
+        }
+        last = k;
+    }
+    if (last < n && flush(o, false) == DV_OK) {
+        for (size_t q = 0; q < no; q++) {
+            y[last * no + q] = yh[q];
+        }
+    }
+    for (size_t k = 0; k < n; k++) {
+        if (!dv_priv_finite(u[k])) {
+            for (size_t q = 0; q < no; q++) {
+                y[k * no + q] = k > 0u ? y[(k - 1u) * no + q] : DV_R(0.0);
+            }
+        }
+    }
+    return worst;
+}
+
 dv_status_t dv_obs_simulate(dv_obs_t *o, const dv_real_t *u, size_t n, dv_real_t *y)
 {
     if (o == NULL || o->m == NULL || y == NULL || (u == NULL && n > 0u)) {
         return DV_EINVAL;
     }
     dv_obs_reset(o);
+    if (o->nin == 4u) {
+        return simulate_cubic(o, u, n, y);
+    }
     return run_block(o, u, NULL, n, y, NULL, false);
 }

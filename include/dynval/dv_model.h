@@ -43,6 +43,22 @@
  * iterations, so a step always costs the same. The end state adds all sub-node forces through
  * precomputed columns. Error: O((w_c h)^2) in the contact force's effect, w_c the contact
  * stiffened frequency; init refuses w_max h > DV_MODEL_CONTACT_MAX_WH.
+ *
+ * Input hold (desc.input_hold). DV_HOLD_FOH (default): u linear between samples, as above.
+ * DV_HOLD_CUBIC: over the interval [t_k, t_k+1] u is the cubic (Lagrange) interpolant through
+ * u[k-1], u[k], u[k+1], u[k+2]; with s = (t - t_k) / T,
+ *     u(s) = u[k] + s (-u[k-1]/3 - u[k]/2 + u[k+1] - u[k+2]/6)
+ *                 + s^2 (u[k-1]/2 - u[k] + u[k+1]/2) + s^3 (-u[k-1] + 3 u[k] - 3 u[k+1] + u[k+2])/6,
+ * exact for an input that is a cubic polynomial, and for a band-limited (sampled) force far
+ * closer to the continuous signal than the linear interpolant (which attenuates a component at
+ * frequency f by about sinc^2(f T)). It is discretised exactly, from the exponential of
+ * [[A T, B T, 0, 0, 0], [0, 0, I, 0, 0], [0, 0, 0, I, 0], [0, 0, 0, 0, I], [0, 0, 0, 0, 0]]
+ * (top row: Ad and G_p = int_0^1 e^{A T (1 - s)} B T s^p / p! ds, p = 0..3), giving
+ * x[k+1] = Ad x[k] + sum_{j=0..3} Pu_j u[k-1+j]. u' (ground displacement) is the derivative
+ * of the cubic; outputs that need u' at t_k use the interval that ends at t_k. The sub-step
+ * contact scheme sees the same cubic input. The input is 0 before the first sample (the
+ * structure at rest). The price is one sample of latency in the observer (dv_obs.h): the
+ * state at t_k and the prediction of y[k] need u[k+1].
  */
 #ifndef DV_MODEL_H
 #define DV_MODEL_H
@@ -77,6 +93,12 @@ typedef enum {
     DV_INPUT_GROUND_ACC = 1, /**< ground acceleration, m/s^2 */
     DV_INPUT_GROUND_DISP = 2 /**< ground displacement, m */
 } dv_input_kind_t;
+
+/** How the input is interpolated between samples (see the file comment). */
+typedef enum {
+    DV_HOLD_FOH = 0,  /**< linear between samples (first-order hold); no latency */
+    DV_HOLD_CUBIC = 1 /**< cubic through 4 samples (Lagrange); one sample of latency */
+} dv_input_hold_t;
 
 /** Which side(s) of a contact engage. */
 typedef enum {
@@ -128,25 +150,35 @@ typedef struct {
     uint16_t n_sub;                          /**< contact sub-steps per sample, 1..DV_MAX_SUB */
     uint16_t n_out;                          /**< 1..DV_MAX_OUT */
     dv_out_desc_t out[DV_MAX_OUT];           /**< output channels, in order */
+    dv_input_hold_t input_hold;              /**< DV_HOLD_FOH (default) or DV_HOLD_CUBIC */
 } dv_model_desc_t;
 
 /** State size (2 n: displacements then velocities). */
 #define DV_MODEL_NS(n) (2u * (n))
 /** Sub-node contact forces per step. */
 #define DV_MODEL_NF(nc, nsub) (((nsub) + 1u) * (nc))
-/** Size of the augmented matrix exponentiated at init. */
+/** Size of the augmented matrix exponentiated at init (first-order hold). */
 #define DV_MODEL_NAUG(n, nc) (2u * (n) + 4u + 2u * (nc))
+/** Input samples per step of a hold: 2 (DV_HOLD_FOH) or 4 (DV_HOLD_CUBIC). */
+#define DV_MODEL_HOLD_NIN(hold) ((hold) == 1 ? 4u : 2u)
+/** Size of the augmented matrix exponentiated at init, for @p nin input samples per step. */
+#define DV_MODEL_NAUG_HOLD(n, nc, nin) (2u * (n) + (nin) * (2u + (nc)))
 
 /**
- * Storage for dv_model_init(), in elements: the model's matrices (kept for the model's
- * lifetime) and the init-time scratch, for @p n DOF, @p nc contacts, @p nsub sub-steps and
- * @p nout outputs (nc = 0 needs no sub-step storage).
+ * Storage for dv_model_init() with @p nin input samples per step (DV_MODEL_HOLD_NIN()), in
+ * elements: the model's matrices (kept for the model's lifetime) and the init-time scratch,
+ * for @p n DOF, @p nc contacts, @p nsub sub-steps and @p nout outputs (nc = 0 needs no
+ * sub-step storage).
  */
-#define DV_MODEL_BUF_LEN(n, nc, nsub, nout)                                                     \
+#define DV_MODEL_BUF_LEN_HOLD(n, nc, nsub, nout, nin)                                           \
     (3u * (n) * (n) + 3u * DV_MODEL_NS(n) * DV_MODEL_NS(n) +                                  \
      DV_MODEL_NS(n) * (4u + 2u * (nc)) + (nout) * (DV_MODEL_NS(n) + 2u + (nc)) +              \
      DV_MODEL_NF(nc, nsub) * (2u * DV_MODEL_NS(n) + 2u + DV_MODEL_NF(nc, nsub)) +             \
-     8u * DV_MODEL_NAUG(n, nc) * DV_MODEL_NAUG(n, nc) + 64u)
+     ((nin) - 2u) * (DV_MODEL_NS(n) + (nout) + DV_MODEL_NF(nc, nsub)) * 2u +                 \
+     8u * DV_MODEL_NAUG_HOLD(n, nc, nin) * DV_MODEL_NAUG_HOLD(n, nc, nin) + 64u)
+
+/** Storage for dv_model_init() with the default first-order hold, in elements. */
+#define DV_MODEL_BUF_LEN(n, nc, nsub, nout) DV_MODEL_BUF_LEN_HOLD(n, nc, nsub, nout, 2u)
 
 /** @brief A built model. Fields are private; the arrays point into the caller's buffer. */
 typedef struct {
@@ -157,6 +189,8 @@ typedef struct {
     uint16_t n_sub;       /**< sub-steps (1 without contacts) */
     uint16_t n_f;         /**< sub-node contact forces per step, (n_sub + 1) n_contact */
     dv_input_kind_t input_kind; /**< input */
+    dv_input_hold_t input_hold; /**< input hold */
+    uint16_t n_in;        /**< input samples per step: 2 (FOH) or 4 (cubic) */
     dv_real_t dt_s;       /**< sample period, s */
     dv_real_t mass_kg[DV_MAX_DOF];  /**< masses */
     dv_real_t freq_hz[DV_MAX_DOF];  /**< undamped natural frequencies, ascending, Hz */
@@ -183,6 +217,9 @@ typedef struct {
     dv_real_t *rxb;   /**< nf: sub-node X from u[k+1] */
     dv_real_t *smat;  /**< nf x nf: sub-node X from sub-node forces (block lower triangular) */
     dv_real_t *vmat;  /**< 2n x nf: x[k+1] from sub-node forces */
+    dv_real_t *pu;    /**< cubic: 2n x 4, coefficient of u[k-1+j] in x[k+1] (else NULL) */
+    dv_real_t *du;    /**< cubic: nout x 4, coefficient of u[k-2+j] in y[k] (else NULL) */
+    dv_real_t *rxu;   /**< cubic: nf x 4, sub-node X of step k from u[k-1+j] (else NULL) */
 } dv_model_t;
 
 /** @brief Read-only views of a model's matrices (for checks and bindings). */
@@ -197,12 +234,15 @@ typedef enum {
     DV_MODEL_MAT_PB = 7, /**< 2n x 1 */
     DV_MODEL_MAT_CY = 8, /**< nout x 2n */
     DV_MODEL_MAT_D0 = 9, /**< nout x 1 */
-    DV_MODEL_MAT_D1 = 10 /**< nout x 1 */
+    DV_MODEL_MAT_D1 = 10, /**< nout x 1 */
+    DV_MODEL_MAT_PU = 11, /**< 2n x 4 (DV_HOLD_CUBIC only) */
+    DV_MODEL_MAT_DU = 12  /**< nout x 4 (DV_HOLD_CUBIC only) */
 } dv_model_mat_id_t;
 
 /**
  * @brief Fill @p d with a neutral description: zeros, n_sub = 8, DV_CONTACT_POS sides,
- *        DV_DAMP_MODAL, DV_INPUT_FORCE at DOF 0. The caller then sets n_dof, masses, ...
+ *        DV_DAMP_MODAL, DV_INPUT_FORCE at DOF 0, DV_HOLD_FOH. The caller then sets n_dof,
+ *        masses, ...
  * @retval DV_OK     done
  * @retval DV_EINVAL @p d is NULL
  */
@@ -222,7 +262,8 @@ size_t dv_model_buf_len(const dv_model_desc_t *d);
  * @param[in]  buf   storage of dv_model_buf_len(d) elements; must outlive @p m
  * @param[in]  len   elements in @p buf
  * @retval DV_OK        built
- * @retval DV_EINVAL    NULL pointer; n_dof, n_out, n_contact or n_sub out of range; a mass
+ * @retval DV_EINVAL    NULL pointer; n_dof, n_out, n_contact or n_sub out of range; an
+ *                      unknown input_hold; a mass
  *                      <= 0; a negative stiffness, gap, delta or kB; a negative modal ratio;
  *                      a non-finite number; a bad DOF/story/contact index; Rayleigh modes
  *                      equal or with zero frequency; an asymmetric damping matrix; dt_s <= 0
@@ -251,7 +292,8 @@ dv_status_t dv_model_get_modes(const dv_model_t *m, dv_real_t *freq_hz, dv_real_
 /**
  * @brief A read-only view of one of the model's matrices.
  * @retval DV_OK     @p view set (data points into the model's storage; do not write)
- * @retval DV_EINVAL NULL argument, model not built, or unknown @p which
+ * @retval DV_EINVAL NULL argument, model not built, or unknown @p which (DV_MODEL_MAT_PU and
+ *                   DV_MODEL_MAT_DU exist with DV_HOLD_CUBIC only)
  */
 dv_status_t dv_model_get_mat(const dv_model_t *m, dv_model_mat_id_t which, dv_mat_t *view);
 

@@ -15,6 +15,16 @@
  * part for a white force of variance q at each DOF (held over a sample) and white measurement
  * noise of variance r per channel, from the filter DARE solved by the structure-preserving
  * doubling algorithm at init, or set by the caller.
+ *
+ * Cubic input hold (model built with DV_HOLD_CUBIC, dv_model.h): the step from t_k-1 to t_k
+ * needs u[k-2..k+1], so the observer runs ONE SAMPLE LATE (dv_obs_latency() = 1). The call
+ * with u[j], y[j] keeps y[j] and completes sample k = j - 1: x-[k], yhat[k], the residual
+ * r[k] = y[k] - yhat[k] against the measurement y[k] of the PREVIOUS call, and the correction.
+ * dv_obs_get() after that call therefore returns sample j - 1 (DV_ENOTREADY after the first
+ * call). The residual stays paired with the measured sample it belongs to; only its delivery is
+ * one call late. dv_obs_update_block() writes, per call, what dv_obs_get() returns after it
+ * (row j holds sample j - 1); dv_obs_simulate() realigns (row k holds sample k) and completes
+ * the last sample with dv_obs_flush(). The input is 0 before the first sample.
  */
 #ifndef DV_OBS_H
 #define DV_OBS_H
@@ -41,12 +51,17 @@ typedef struct {
     dv_real_t r_meas[DV_MAX_OUT];     /**< measurement noise variance per output, > 0 */
 } dv_obs_noise_t;
 
-/** Storage for dv_obs_init(), in elements (state, folded matrices, gain, DARE scratch). */
-#define DV_OBS_BUF_LEN(n, nc, nsub, nout)                                                       \
+/** Storage for dv_obs_init() with @p nin input samples per step (DV_MODEL_HOLD_NIN()), in
+ *  elements (state, folded matrices, gain, pending measurement, DARE scratch). */
+#define DV_OBS_BUF_LEN_HOLD(n, nc, nsub, nout, nin)                                             \
     (2u * (DV_MODEL_NS(n) + (nout)) * (DV_MODEL_NS(n) + 2u + DV_MODEL_NF(nc, nsub) + (nout)) + \
      DV_MODEL_NS(n) * (nout) + 3u * (DV_MODEL_NS(n) + (nout) + DV_MODEL_NF(nc, nsub)) +        \
      10u * DV_MODEL_NS(n) * DV_MODEL_NS(n) + 3u * (nout) * DV_MODEL_NS(n) + (nout) * (nout) +  \
-     7u * (DV_MODEL_NS(n) + (n)) * (DV_MODEL_NS(n) + (n)) + 64u)
+     7u * (DV_MODEL_NS(n) + (n)) * (DV_MODEL_NS(n) + (n)) +                                    \
+     ((nin) - 2u) * (2u * (DV_MODEL_NS(n) + (nout)) + (nout) + 1u) + 64u)
+
+/** Storage for dv_obs_init() with the default first-order hold, in elements. */
+#define DV_OBS_BUF_LEN(n, nc, nsub, nout) DV_OBS_BUF_LEN_HOLD(n, nc, nsub, nout, 2u)
 
 /** @brief Observer instance. Fields are private; arrays point into the caller's buffer. */
 typedef struct {
@@ -55,15 +70,19 @@ typedef struct {
     uint16_t no;         /**< outputs */
     uint16_t nf;         /**< sub-node contact forces */
     uint16_t nrows;      /**< ns + no: rows of the folded matrices */
-    uint16_t ncol_open;  /**< ns + 2 + nf */
-    uint16_t ncol_gain;  /**< ns + 2 + nf + no */
+    uint16_t nin;        /**< input samples in the state vector: 2 (FOH) or 4 (cubic) */
+    uint16_t ncol_open;  /**< ns + nin + nf */
+    uint16_t ncol_gain;  /**< ns + nin + nf + no */
     bool has_gain;       /**< L != 0 */
     bool started;        /**< the first sample has been seen */
     uint32_t flags;      /**< DV_OBS_FLAG_* of the last step */
     uint64_t n_steps;    /**< accepted steps */
     uint64_t n_bad_input; /**< steps refused for a NaN/Inf input */
     uint64_t n_bad_meas;  /**< steps with a NaN/Inf measured channel */
-    dv_real_t *sv;       /**< [x (ns), u[k-1], u[k], g (nf), y (no)] */
+    uint64_t n_pred;      /**< predictions produced (n_steps, or n_steps - 1 with latency) */
+    uint32_t pend_flags;  /**< cubic: DV_OBS_FLAG_* of the kept measurement */
+    dv_real_t *sv;       /**< [x (ns), u window (nin), g (nf), y (no)] */
+    dv_real_t *ypend;    /**< cubic: the kept measurement (no), else NULL */
     dv_real_t *z;        /**< [x (ns), yhat (no)] product */
     dv_real_t *resid;    /**< no residuals of the last step */
     dv_real_t *f_open;   /**< L = 0: ns x ncol_open state rows, then no x ncol_open output rows, each column-major */
@@ -132,6 +151,25 @@ void dv_obs_reset(dv_obs_t *o);
 dv_status_t dv_obs_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas);
 
 /**
+ * @brief Samples of delay between an input and its prediction: 0 (first-order hold) or 1
+ *        (cubic hold: the call with u[j] completes sample j - 1).
+ * @return the latency; 0 when @p o is NULL
+ */
+uint32_t dv_obs_latency(const dv_obs_t *o);
+
+/**
+ * @brief Cubic hold: complete the pending sample (the last one given to dv_obs_step()) now,
+ *        with the next input extrapolated (u[j+1] = 3 u[j] - 3 u[j-1] + u[j-2], the quadratic
+ *        through the last three samples) and its kept measurement. Only the prediction and the
+ *        residual change (dv_obs_get()); the state is not advanced, so steps may continue and
+ *        the sample is predicted again, exactly, when its real next input arrives.
+ * @retval DV_OK        done
+ * @retval DV_ENOTREADY no sample pending (first-order hold, or no step since the reset)
+ * @retval DV_EINVAL    @p o NULL
+ */
+dv_status_t dv_obs_flush(dv_obs_t *o);
+
+/**
  * @brief Prediction and residual of the last step.
  * @param[out] y_pred  no predicted outputs, or NULL
  * @param[out] resid   no residuals (0 where no finite measurement), or NULL
@@ -156,7 +194,9 @@ dv_status_t dv_obs_get_state(const dv_obs_t *o, dv_real_t *x, size_t len);
  * @param[in]     y_meas  n x no measured outputs, row-major, or NULL (prediction only)
  * @param[in]     n       samples
  * @param[out]    y_pred  n x no predictions, row-major, or NULL; a refused sample (NaN
- *                        input) repeats the previous row (0 before the first)
+ *                        input) repeats the previous row (0 before the first). With the
+ *                        cubic hold row j is what dv_obs_get() gives after the call with
+ *                        u[j]: the prediction of sample j - 1 (see the file comment)
  * @param[out]    resid   n x no residuals, row-major, or NULL
  * @retval DV_OK       all samples accepted
  * @retval DV_ENUMERIC at least one sample had a NaN/Inf input or measurement (see
@@ -168,7 +208,9 @@ dv_status_t dv_obs_update_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t
 
 /**
  * @brief Simulate a record from rest, open loop (the gain is ignored): reset, then the
- *        same step code as dv_obs_step() for each sample.
+ *        same step code as dv_obs_step() for each sample. Row k is sample k for either hold
+ *        (cubic: the outputs are realigned and the last sample is completed as
+ *        dv_obs_flush() does).
  * @param[in,out] o       observer (its state is left at the end of the record)
  * @param[in]     u       n inputs
  * @param[in]     n       samples

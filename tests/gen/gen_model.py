@@ -14,6 +14,16 @@ Writes tests/data/model_*.csv (comma-separated rows, no header, %.17g):
   model_bump01_acc.csv     N x 4 accelerations + contact force, bumper delta 0.1 mm (N2)
   model_kalman_gain.csv    8 x 4 steady-state Kalman gain (filtered form) with k1 = KALMAN_K1
   model_freq.csv           4 natural frequencies, Hz
+Cubic input hold (dv_model DV_HOLD_CUBIC): the same integrator with the force between samples
+given by the Lagrange cubic through f[k-1..k+2] (f[-1] = 0, f[N] = 3 f[N-1] - 3 f[N-2] + f[N-3]),
+or by an exact continuous function:
+  model_cubic_lin_acc.csv  N x 4, linear model, model_force.csv with the cubic interpolant
+  model_cubic_bump05_acc.csv N x 4 + contact force, bumper delta 0.5 mm, cubic interpolant
+  model_poly_force.csv     NP force samples of the cubic polynomial POLY (N)
+  model_poly_acc.csv       NP x 4 accelerations for the continuous polynomial force
+  model_bl_force.csv       N samples of a continuous band-limited force (sum of sinusoids in
+                           20-200 Hz, raised-cosine onset over BL_RAMP s)
+  model_bl_acc.csv         N x 4 accelerations for the continuous band-limited force
 Run: python3 tests/gen/gen_model.py
 """
 from __future__ import annotations
@@ -40,6 +50,9 @@ KALMAN_K1 = 2.0e4  # N/m: stiffer rails for the gain check; with k1 = 10 the 0.1
 # is nearly undetectable from accelerations and scipy's QZ-based DARE reports ill-conditioning
 RTOL = 1e-10
 ATOL = 1e-16
+NP = 256
+BL_RAMP = 0.1  # s
+BL_COMPONENTS = 400
 
 
 def stiffness(k: np.ndarray) -> np.ndarray:
@@ -77,8 +90,20 @@ def contact_g(x: float, delta: float) -> float:
     return KB * (s - 0.5 * delta)
 
 
-def simulate(f: np.ndarray, c: np.ndarray, kk: np.ndarray, delta: float | None):
-    """Accelerations (and contact force) at the samples; force linear between samples."""
+def lagrange_coeffs(f: np.ndarray, k: int) -> np.ndarray:
+    """Coefficients of s^0..s^3 (s = (t - t_k) / T) of the cubic through f[k-1..k+2]."""
+    nf = f.size
+    ext = 3.0 * f[-1] - 3.0 * f[-2] + f[-3]
+    w = np.array([f[j] if 0 <= j < nf else (0.0 if j < 0 else ext) for j in range(k - 1, k + 3)])
+    lag = np.array([[0, 1, 0, 0], [-1 / 3, -1 / 2, 1, -1 / 6], [1 / 2, -1, 1 / 2, 0],
+                    [-1 / 6, 1 / 2, -1 / 2, 1 / 6]])
+    return lag @ w
+
+
+def simulate(f: np.ndarray, c: np.ndarray, kk: np.ndarray, delta: float | None,
+             cubic: bool = False):
+    """Accelerations (and contact force) at the samples; force linear between samples (cubic:
+    the Lagrange cubic through the four nearest samples)."""
     n = MASS.size
     minv = 1.0 / MASS
     dt = 1.0 / FS
@@ -104,9 +129,14 @@ def simulate(f: np.ndarray, c: np.ndarray, kk: np.ndarray, delta: float | None):
     for k in range(N - 1):
         t0, t1 = k * dt, (k + 1) * dt
         f0, f1 = f[k], f[k + 1]
+        cc = lagrange_coeffs(f, k) if cubic else None
 
         def rhs(t, s):
-            fk = f0 + (f1 - f0) * (t - t0) / dt
+            if cc is not None:
+                sl = (t - t0) / dt
+                fk = cc[0] + sl * (cc[1] + sl * (cc[2] + sl * cc[3]))
+            else:
+                fk = f0 + (f1 - f0) * (t - t0) / dt
             a, _ = accel(s[:n], s[n:], fk)
             return np.concatenate([s[n:], a])
 
@@ -139,6 +169,49 @@ def simulate(f: np.ndarray, c: np.ndarray, kk: np.ndarray, delta: float | None):
             break
         acc[k + 1], gout[k + 1] = accel(y[:n], y[n:], f1)
     return acc, gout, n_events
+
+
+def simulate_fn(fn, n_samples: int, c: np.ndarray, kk: np.ndarray) -> np.ndarray:
+    """Accelerations at the samples of the linear model for a continuous force fn(t)."""
+    n = MASS.size
+    minv = 1.0 / MASS
+    t = np.arange(n_samples) / FS
+
+    def rhs(tt, s):
+        fv = -kk @ s[:n] - c @ s[n:]
+        fv[0] += fn(tt)
+        return np.concatenate([s[n:], fv * minv])
+
+    sol = solve_ivp(rhs, (0.0, t[-1]), np.zeros(2 * n), method="DOP853", rtol=RTOL,
+                    atol=ATOL, t_eval=t, max_step=0.25 / FS)
+    acc = np.zeros((n_samples, n))
+    for k in range(n_samples):
+        fv = -kk @ sol.y[:n, k] - c @ sol.y[n:, k]
+        fv[0] += fn(t[k])
+        acc[k] = fv * minv
+    return acc
+
+
+def poly_force(t):
+    """A cubic polynomial with a root at t = -T (so the hold's zero before t = 0 fits it)."""
+    tn = t / (NP / FS)
+    return 10.0 * (t * FS + 1.0) / NP * 4.0 * (1.0 - 3.0 * tn + 2.0 * tn * tn)
+
+
+def bl_force(rng: np.random.Generator):
+    """A continuous band-limited force: sinusoids 20-200 Hz, raised-cosine onset."""
+    fr = rng.uniform(20.0, 200.0, BL_COMPONENTS)
+    ph = rng.uniform(0.0, 2.0 * np.pi, BL_COMPONENTS)
+    amp = FORCE_RMS * np.sqrt(2.0 / BL_COMPONENTS)
+    w = 2.0 * np.pi * fr
+
+    def fn(t):
+        tt = np.asarray(t, dtype=float)
+        ramp = np.where(tt < BL_RAMP, 0.5 - 0.5 * np.cos(np.pi * np.clip(tt, 0, None) / BL_RAMP),
+                        1.0)
+        v = amp * np.sin(np.multiply.outer(tt, w) + ph).sum(axis=-1)
+        return ramp * v
+    return fn
 
 
 def kalman_gain(c: np.ndarray, kk: np.ndarray) -> np.ndarray:
@@ -185,6 +258,20 @@ def main() -> None:
         closes = int(np.sum(np.diff((g > 0).astype(int)) == 1))
         print(f"{name}: {time.time() - t:.1f} s, {nev} events, {closes} closures, "
               f"peak contact force {g.max():.1f} N")
+    t = time.time()
+    acc, _, _ = simulate(f, c, kk, None, cubic=True)
+    save("model_cubic_lin_acc.csv", acc)
+    acc, g, nev = simulate(f, c, kk, 5e-4, cubic=True)
+    save("model_cubic_bump05_acc.csv", np.column_stack([acc, g]))
+    print(f"cubic: {time.time() - t:.1f} s, {nev} events")
+    tp = np.arange(NP) / FS
+    save("model_poly_force.csv", poly_force(tp))
+    save("model_poly_acc.csv", simulate_fn(poly_force, NP, c, kk))
+    fn = bl_force(np.random.default_rng(20261205))
+    t = time.time()
+    save("model_bl_force.csv", fn(np.arange(N) / FS))
+    save("model_bl_acc.csv", simulate_fn(lambda tt: float(fn(tt)), N, c, kk))
+    print(f"band-limited: {time.time() - t:.1f} s")
     kk1 = stiffness(np.concatenate([[KALMAN_K1], K_STORY[1:]]))
     c1, _ = modal_damping(MASS, kk1, ZETA_L2)
     save("model_kalman_gain.csv", kalman_gain(c1, kk1))

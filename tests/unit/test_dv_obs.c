@@ -222,6 +222,115 @@ static void test_obs_set_gain_roundtrip_and_open_loop(void **state)
     assert_false(o.has_gain);
 }
 
+// Cubic hold: one sample of latency. The call with u[j] completes sample j - 1: its prediction
+// equals simulate's row j - 1 and its residual is paired with the measurement y[j - 1] given in
+// the previous call. dv_obs_flush completes the last sample as simulate does, and the state is
+// not advanced by it. With contacts, in the 8 x 4 and the generic (5-output) paths.
+static void cubic_alignment_case(int contact, uint16_t nout)
+{
+    load_force();
+    dv_model_desc_t d;
+    dv_model_t m;
+    dv_obs_t o;
+    mt_lanl_desc(&d);
+    d.input_hold = DV_HOLD_CUBIC;
+    if (contact) mt_add_bumper(&d, 5e-4, 4);
+    d.n_out = nout;
+    if (nout == 5) {
+        d.out[4].kind = DV_OUT_VEL;
+        d.out[4].index = 3;
+    }
+    const size_t no = nout;
+    enum { NK = 400 };
+    assert_true(dv_model_buf_len(&d) <= NBUF);
+    assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
+    assert_true(dv_obs_buf_len(&m) <= NBUF);
+    assert_int_equal(dv_obs_init(&o, &m, NULL, obuf, NBUF), DV_OK);
+    assert_int_equal(dv_obs_latency(&o), 1u);
+    assert_int_equal(dv_obs_simulate(&o, force_r, NK, ytrue), DV_OK);
+    dv_obs_reset(&o);
+    dv_real_t ym[5], yp[5], r[5], x0[8], x1[8];
+    for (int k = 0; k < NK; k++) {
+        for (size_t q = 0; q < no; q++) ym[q] = ytrue[k * no + q] + (dv_real_t)(0.001 * k + q);
+        assert_int_equal(dv_obs_step(&o, force_r[k], ym), DV_OK);
+        if (k == 0) {
+            assert_int_equal(dv_obs_get(&o, yp, r, 5), DV_ENOTREADY);
+            assert_int_equal(dv_obs_flush(&o), DV_OK); // sample 0 with u[1] extrapolated
+            continue;
+        }
+        assert_int_equal(dv_obs_get(&o, yp, r, 5), DV_OK);
+        for (size_t q = 0; q < no; q++) {
+            assert_true(dv_test_close(yp[q], ytrue[(k - 1) * no + q], 1e-12, 1e-9));
+            // the residual of sample k - 1 against its own measurement (open loop)
+            double want = 0.001 * (k - 1) + q;
+            assert_true(dv_test_close(r[q], want, 1e-4, 1e-6));
+        }
+    }
+    dv_obs_get_state(&o, x0, 8);
+    assert_int_equal(dv_obs_flush(&o), DV_OK);
+    dv_obs_get_state(&o, x1, 8);
+    assert_memory_equal(x0, x1, sizeof x0);
+    assert_int_equal(dv_obs_get(&o, yp, r, 5), DV_OK);
+    for (size_t q = 0; q < no; q++) {
+        assert_true(dv_test_close(yp[q], ytrue[(NK - 1) * no + q], 1e-12, 1e-9));
+    }
+}
+
+static void test_obs_cubic_latency_and_alignment(void **state)
+{
+    (void)state;
+    cubic_alignment_case(0, 4);
+    cubic_alignment_case(1, 4);
+    cubic_alignment_case(0, 5);
+    cubic_alignment_case(1, 5);
+}
+
+// Cubic hold with the Kalman gain on a perfect model: residuals at rounding level; a NaN input
+// is refused with the state held, and simulate repeats the row before it.
+static void test_obs_cubic_gain_and_nan(void **state)
+{
+    (void)state;
+    load_force();
+    dv_model_desc_t d;
+    dv_model_t m;
+    dv_obs_t o;
+    dv_obs_noise_t nz;
+    mt_lanl_desc(&d);
+    d.k_n_per_m[0] = (dv_real_t)2.0e4;
+    d.input_hold = DV_HOLD_CUBIC;
+    assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
+    noise_model(&nz);
+    assert_int_equal(dv_obs_init(&o, &m, &nz, obuf, NBUF), DV_OK);
+    assert_int_equal(dv_obs_simulate(&o, force_r, NS, ytrue), DV_OK);
+    dv_obs_reset(&o);
+    assert_int_equal(dv_obs_update_block(&o, force_r, ytrue, NS, ypred, res), DV_OK);
+    double ry = rms(ytrue, NS * 4), rr = rms(res + 4, (NS - 1) * 4);
+    fprintf(stderr, "cubic, perfect model with gain: residual RMS / signal RMS %.3g\n", rr / ry);
+#ifdef DV_REAL_DOUBLE
+    assert_true(rr < 1e-10 * ry);
+#else
+    assert_true(rr < 1e-4 * ry);
+#endif
+    for (int k = 1; k < NS; k++) { // row k of the block holds sample k - 1
+        for (int q = 0; q < 4; q++) {
+            assert_true(dv_test_close(ypred[4 * k + q], ytrue[4 * (k - 1) + q], DV_TEST_RTOL,
+                                      ry));
+        }
+    }
+    dv_real_t x0[8], x1[8];
+    dv_obs_get_state(&o, x0, 8);
+    assert_int_equal(dv_obs_step(&o, (dv_real_t)NAN, NULL), DV_ENUMERIC);
+    dv_obs_get_state(&o, x1, 8);
+    assert_memory_equal(x0, x1, sizeof x0);
+    // simulate with one NaN input: the row repeats the previous one, others stay finite
+    static dv_real_t u2[256];
+    for (int k = 0; k < 256; k++) u2[k] = force_r[k];
+    u2[100] = (dv_real_t)NAN;
+    assert_int_equal(dv_obs_simulate(&o, u2, 256, ypred), DV_ENUMERIC);
+    for (int q = 0; q < 4; q++) assert_true(ypred[4 * 100 + q] == ypred[4 * 99 + q]);
+    for (int i = 0; i < 256 * 4; i++) assert_true(isfinite(ypred[i]));
+}
+
 static void test_obs_bad_init(void **state)
 {
     (void)state;
@@ -269,6 +378,8 @@ int main(void)
         cmocka_unit_test(test_obs_simulate_equals_steps),
         cmocka_unit_test(test_obs_set_gain_roundtrip_and_open_loop),
         cmocka_unit_test(test_obs_bad_init),
+        cmocka_unit_test(test_obs_cubic_latency_and_alignment),
+        cmocka_unit_test(test_obs_cubic_gain_and_nan),
     };
     return cmocka_run_group_tests_name("dv_obs", tests, NULL, NULL);
 }

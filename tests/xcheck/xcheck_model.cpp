@@ -124,6 +124,62 @@ static void check_model(const char *name, dv_model_desc_t &d, double dt, double 
         check("FOH Pb vs a 4096-step quadrature of a ramp", rel(view(m, DV_MODEL_MAT_PB), x),
               1e-6);
     }
+    // cubic hold (DV_HOLD_CUBIC): Pu column j is the response at T to the Lagrange basis
+    // polynomial l_j(s) through s = -1, 0, 1, 2 (l_j(j - 1) = 1), u' = l_j'(s) / T.
+    {
+        dv_model_desc_t dc = d;
+        dc.input_hold = DV_HOLD_CUBIC;
+        std::vector<dv_real_t> bufc(dv_model_buf_len(&dc));
+        dv_model_t mc;
+        if (dv_model_init(&mc, &dc, (dv_real_t)dt, bufc.data(), bufc.size()) != DV_OK) {
+            std::printf("FAIL init (cubic)\n");
+            failures++;
+            return;
+        }
+        Mat pu = view(mc, DV_MODEL_MAT_PU);
+        // independent basis from the nodes, by Lagrange's formula
+        auto lag = [](int j, double s) {
+            double v = 1.0;
+            for (int i = 0; i < 4; i++)
+                if (i != j) v *= (s - (i - 1)) / double(j - i);
+            return v;
+        };
+        auto dlag = [&](int j, double s) { // central difference of the cubic: exact to 1e-10
+            const double e = 1e-4;
+            return (lag(j, s + e) - lag(j, s - e)) / (2 * e);
+        };
+        const int steps = 4096;
+        const double h = dt / steps;
+        Mat eh = (a * h).exp(), em = (a * (0.5 * h)).exp();
+        Mat pq = Mat::Zero(ns, 4);
+        for (int j = 0; j < 4; j++) {
+            Eigen::VectorXd x = Eigen::VectorXd::Zero(ns);
+            for (int s = 0; s < steps; s++) {
+                const double sm = (s + 0.5) / steps;
+                x = eh * x + em * (b.col(0) * lag(j, sm) + b.col(1) * dlag(j, sm) / dt) * h;
+            }
+            pq.col(j) = x;
+        }
+        check("cubic Pu vs a 4096-step quadrature of the Lagrange basis", rel(pu, pq), 1e-6);
+        // and the same from Eigen's exponential of the 4-block nilpotent augmentation
+        Mat big4 = Mat::Zero(ns + 8, ns + 8);
+        big4.topLeftCorner(ns, ns) = a * dt;
+        big4.block(0, ns, ns, 2) = b.leftCols(2) * dt;
+        for (int p = 0; p < 3; p++) big4.block(ns + 2 * p, ns + 2 * (p + 1), 2, 2) = Mat::Identity(2, 2);
+        Mat e4 = big4.exp();
+        const double c[4][4] = {{0, 1, 0, 0}, {-1.0 / 3, -0.5, 1, -1.0 / 6}, {0.5, -1, 0.5, 0},
+                                {-1.0 / 6, 0.5, -0.5, 1.0 / 6}};
+        const double fact[4] = {1, 1, 2, 6};
+        Mat pe = Mat::Zero(ns, 4);
+        for (int j = 0; j < 4; j++)
+            for (int p = 0; p < 4; p++) {
+                pe.col(j) += e4.block(0, ns + 2 * p, ns, 1) * fact[p] * c[p][j];
+                if (p < 3) pe.col(j) += e4.block(0, ns + 2 * p + 1, ns, 1) * fact[p] * (p + 1) * c[p + 1][j] / dt;
+            }
+        check("cubic Pu vs Eigen exp of the 4-block augmentation", rel(pu, pe), 10 * tol);
+        // Ad of the cubic model is the same matrix
+        check("cubic model Ad", rel(view(mc, DV_MODEL_MAT_AD), ad_e), tol);
+    }
 }
 
 int main()

@@ -17,7 +17,9 @@ and linear interpolation of it attenuates the response near a mode by sinc^2(f/f
 71.6 Hz sampled at 640 Hz). With ``oversample`` R > 1 the input is first interpolated
 band-limited by R (scipy.signal.resample_poly, zeros before t = 0 as the structure starts at
 rest), the C code runs at R fs, and every R-th output is kept. R = 1 is the C code on the
-samples as they are (bit-identical to dv_obs_simulate).
+samples as they are (bit-identical to dv_obs_simulate). ``cubic`` runs the core on the samples
+with its cubic input hold (dv_model DV_HOLD_CUBIC: the Lagrange cubic through four samples,
+discretised exactly), the hold the firmware can run too (one sample of latency there).
 """
 from __future__ import annotations
 
@@ -47,7 +49,7 @@ INPUT_KINDS = ("force", "ground_acc", "ground_disp")
 OUTPUT_KINDS = ("acc", "vel", "disp", "story_force", "contact_force", "reaction")
 SIDES = ("pos", "neg", "both")
 ELEMENT_TYPES = ("contact",)
-INTERPOLATIONS = ("bandlimited", "foh")
+INTERPOLATIONS = ("bandlimited", "foh", "cubic")
 
 # Limits of the compiled core (dv_config.h); the struct arrays tell their sizes.
 _PROBE = ffi.new("dv_model_desc_t *")
@@ -108,7 +110,7 @@ class Output:
 
     kind: str
     index: int = 0
-    gain: float = 1.0  # sensor gain: the channel reads gain x the model's quantity
+    gain: float = 1.0  # sensor gain: the channel reads gain x the model's quantity (< 0: reversed)
 
 
 @dataclass(frozen=True)
@@ -552,8 +554,9 @@ def validate(m: Model, ctx: _Ctx | None = None) -> None:
         if o.kind == "contact_force" and not (
                 1 <= o.index <= len(m.elements) and isinstance(m.elements[o.index - 1], Contact)):
             raise c.err(f"{w}.element", f"element {o.index} is not a contact element")
-        if not (math.isfinite(o.gain) and o.gain > 0):
-            raise c.err(f"{w}.gain", f"sensor gain must be > 0, got {o.gain!r}")
+        if not (math.isfinite(o.gain) and o.gain != 0):
+            raise c.err(f"{w}.gain", f"sensor gain must be finite and non-zero (negative: "
+                        f"the sensor's sign convention is reversed), got {o.gain!r}")
     if len(m.contacts) > MAX_CONTACT:
         raise c.err("elements", f"{len(m.contacts)} contacts; this core supports {MAX_CONTACT}")
     for i, e in enumerate(m.elements):
@@ -677,6 +680,7 @@ def _fill_desc(desc: Any, m: Model) -> None:
         c.delta_m = e.delta_m
         c.kb_n_per_m = e.kb_n_per_m
     desc.n_sub = m.substeps if cs else 1
+    desc.input_hold = lib.DV_HOLD_CUBIC if m.interpolation == "cubic" else lib.DV_HOLD_FOH
     cidx = {id(e): i for i, e in enumerate(cs)}
     desc.n_out = len(m.outputs)
     for j, o in enumerate(m.outputs.values()):
@@ -781,7 +785,7 @@ def natural_frequencies(m: Model) -> np.ndarray:
 
 def _resolve_oversample(m: Model, oversample: int | None) -> int:
     r = m.oversample if oversample is None else int(oversample)
-    if m.interpolation == "foh" and oversample is None:
+    if m.interpolation in ("foh", "cubic") and oversample is None:
         r = 1
     if not 1 <= r <= 64:
         raise ConfigError(f"oversample must be 1..64, got {r}")
