@@ -13,7 +13,8 @@ from dynval.errors import DynvalError
 log = logging.getLogger("dynval")
 
 # Each name maps to dynval.cmd_<name>, which defines add_parser(sub) and run(args) -> int.
-COMMANDS = ("features", "simulate", "residual", "replay", "log", "run", "inspect", "discover")
+COMMANDS = ("features", "simulate", "residual", "replay", "log", "run", "inspect", "discover",
+            "validate", "calibrate")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -95,7 +95,7 @@ def plot_mahalanobis(a: Artifacts) -> Any:
     ax.set_xlabel("experiment / run number")
     ax.set_ylabel("Mahalanobis distance D (eq. 39)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left", ncol=2)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=4)
     return fig
 
 
@@ -171,7 +171,7 @@ def plot_posterior(a: Artifacts) -> Any:
     return fig
 
 
-def plot_overlay(a: Artifacts, seconds: float = 1.5) -> Any:
+def plot_overlay(a: Artifacts, seconds: float = 0.6) -> Any:
     """Measured vs simulated time histories (Fig. 73, 85), a window from the middle."""
     plt = _plt()
     ch = a.overlay_channel
