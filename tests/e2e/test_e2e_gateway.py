@@ -36,7 +36,7 @@ def test_dynval_run_socketcan_against_firmware_sim(tmp_path):
 
     out = Path(os.environ.get("VCAN_OUT", tmp_path)) / "gateway_run"
     cmd = [sys.executable, "-m", "dynval", "-q", "run", str(TEST), "--bus", "socketcan",
-           "--channel", "vcan0", "--firmware", str(E.SIM_BIN), "--speed", "2",
+           "--channel", "vcan0", "--firmware", str(E.SIM_BIN), "--speed", "0.5",
            "--win", str(WIN), "--seg", str(SEG), "--nseg", str(NSEG), "-o", str(out)]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=600,
                        env={**os.environ, "TMPDIR": os.environ.get("TMPDIR", "/tmp")})

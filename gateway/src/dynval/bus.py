@@ -347,8 +347,8 @@ def wait_until(deadline_ns: int) -> None:
         rem = deadline_ns - time.perf_counter_ns()
         if rem <= 0:
             return
-        if rem > SPIN_NS:
-            time.sleep((rem - SPIN_NS) / 1e9)
+        # sleep(0) while polling releases the GIL: the logger thread of `dynval run` runs
+        time.sleep((rem - SPIN_NS) / 1e9 if rem > SPIN_NS else 0)
 
 
 def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
