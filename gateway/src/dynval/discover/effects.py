@@ -70,14 +70,38 @@ class States:
     modes_phi: np.ndarray
     hp: Any
     channels_dof: dict[str, int]
+    xg: np.ndarray | None = None  # ground displacement / velocity (ground_disp input)
+    vg: np.ndarray | None = None
+    predicted: dict[str, np.ndarray] = field(default_factory=dict)  # model outputs (fitting)
+    reaction_only: bool = False  # the missing force is seen only through the reaction
 
 
 def drift(st: States, story: int) -> tuple[np.ndarray, np.ndarray]:
     """Story drift and drift velocity (X = x_s - x_{s-1})."""
     s = story - 1
     if s == 0:
+        if st.xg is not None and st.vg is not None:
+            return st.x[0] - st.xg, st.v[0] - st.vg
         return st.x[0], st.v[0]
     return st.x[s] - st.x[s - 1], st.v[s] - st.v[s - 1]
+
+
+def jenkins(x: np.ndarray, zs: Sequence[float]) -> np.ndarray:
+    """Unit elasto-plastic (Jenkins: stick spring in series with a slider) force of each slip
+    displacement zs over the displacement history x: y' = x'/zs while |y| < 1, else held at
+    +-1 until the motion reverses. Returns (len(zs), len(x)), |y| <= 1."""
+    dx = np.diff(x, prepend=x[:1]).tolist()
+    y = np.zeros((len(zs), x.size))
+    for k, z in enumerate(zs):
+        inv = 1.0 / float(z)
+        cur = 0.0
+        row = [0.0] * x.size
+        for i, d in enumerate(dx):  # plain floats: ~10x faster than numpy per sample
+            cur += d * inv
+            cur = 1.0 if cur > 1.0 else (-1.0 if cur < -1.0 else cur)
+            row[i] = cur
+        y[k] = row
+    return y
 
 
 def _story_basis(st: States, story: int, g: np.ndarray) -> np.ndarray:
@@ -214,14 +238,29 @@ class DampingChange(EffectType):
     law = "zeta_i -> zeta_i + dzeta: extra modal damping force 2 dzeta w_i M phi_i phi_i^T M v"
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
-        if m.damping.type not in ("modal",):
+        d = m.damping
+        if d.type == "rayleigh" and not d.modes:
+            return [{"coefficient": "alpha"}, {"coefficient": "beta"}]
+        if d.type != "modal":
             return []
         return [{"mode": i} for i in range(1, m.n_dof + 1)]
 
     def label(self, loc: dict[str, Any]) -> str:
+        if "coefficient" in loc:
+            return f"damping change, Rayleigh {loc['coefficient']}"
         return f"damping change, mode {loc['mode']}"
 
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        if "coefficient" in cand.location:
+            v = st.v.copy()
+            vg = st.vg if st.vg is not None else 0.0
+            if cand.location["coefficient"] == "alpha":
+                return [({}, st.mass[:, None] * (v - vg))]
+            b = st.k @ v
+            # only the ground spring k1 sees the ground motion: K v - k1 v_g e1
+            k1 = st.k[0, 0] + (st.k[0, 1] if st.k.shape[0] > 1 else 0.0)
+            b[0] -= k1 * vg
+            return [({}, b)]
         i = cand.location["mode"] - 1
         w = st.modes_w[i]
         if w < 2 * np.pi * 1.0:  # a rigid-body-like mode: its damping is not observable here
@@ -231,6 +270,12 @@ class DampingChange(EffectType):
         return [({}, ci @ st.v)]
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        if "coefficient" in cand.location:
+            if cand.location["coefficient"] == "alpha":
+                a = float(m.damping.alpha_per_s or 0.0)
+                return [Param("dalpha_per_s", "1/s", -a, 10 * abs(a) + 1.0)]
+            b = float(m.damping.beta_s or 0.0)
+            return [Param("dbeta_s", "s", -b, 10 * abs(b) + 1e-3)]
         z = m.damping.zeta[cand.location["mode"] - 1]
         return [Param("dzeta", "1", -z, 0.2)]
 
@@ -239,6 +284,10 @@ class DampingChange(EffectType):
         return [float(np.clip(amp, p.lower * 0.9, p.upper * 0.9))]
 
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        if "coefficient" in cand.location:
+            c = cand.location["coefficient"]
+            base = float((m.damping.alpha_per_s if c == "alpha" else m.damping.beta_s) or 0.0)
+            return m.with_params({c: base + float(values[0])})
         i = cand.location["mode"]
         return m.with_params({f"zeta{i}": m.damping.zeta[i - 1] + float(values[0])})
 
@@ -249,13 +298,19 @@ class SensorGain(EffectType):
     law = "the channel reads g x the quantity (calibration error); handled on the output"
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
-        return [{"channel": c} for c, o in m.outputs.items() if o.kind == "acc"]
+        return [{"channel": c} for c in m.outputs]
 
     def label(self, loc: dict[str, Any]) -> str:
         return f"sensor gain, channel {loc['channel']}"
 
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
         c = cand.location["channel"]
+        if st.reaction_only:
+            if c not in st.predicted:
+                return []
+            b = np.zeros_like(st.x)
+            b[0] = -st.predicted[c]  # the model quantity (gain divided out)
+            return [({"reaction": 1.0}, b)]
         if c not in st.channels_dof:
             return []
         j = st.channels_dof[c] - 1
@@ -265,13 +320,18 @@ class SensorGain(EffectType):
         return [({}, b)]
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
-        return [Param("gain", "1", 0.5, 2.0)]
+        g0 = m.outputs[cand.location["channel"]].gain
+        lo, hi = sorted((0.5 * g0, 2.0 * g0))
+        return [Param("gain", "1", lo, hi)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
-        # missing force = -(1 - 1/g) b  =>  amp = -(1 - 1/g)
+        # missing force = -(1 - 1/g) b  =>  amp = -(1 - 1/g); reaction view: amp = 1 - g
         g0 = m.outputs[cand.location["channel"]].gain
+        lo, hi = sorted((0.55 * g0, 1.9 * g0))
+        if cand.shape.get("reaction"):
+            return [float(np.clip(g0 * (1.0 - amp), lo, hi))]
         g = g0 / (1.0 + amp) if abs(1.0 + amp) > 0.2 else g0
-        return [float(np.clip(g, 0.55, 1.9))]
+        return [float(np.clip(g, lo, hi))]
 
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
         c = cand.location["channel"]
@@ -361,12 +421,22 @@ class Friction(_Unavailable):
 
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
         j = cand.location["dof"] - 1
-        vs = float(np.std(st.v[j])) or 1.0
+        v = st.v[j] - (st.vg if st.vg is not None and j == 0 else 0.0)
+        x = st.x[j] - (st.xg if st.xg is not None and j == 0 else 0.0)
+        vs = float(np.std(v)) or 1.0
+        xs = float(np.std(x)) or 1.0
         out = []
         for eps in (0.02, 0.1):
             b = np.zeros_like(st.v)
-            b[j] = st.hp(np.tanh(st.v[j] / (eps * vs)))
+            b[j] = st.hp(np.tanh(v / (eps * vs)))
             out.append(({"v_eps_rel": eps}, b))
+        # stick-slip (Jenkins) shapes: a stick spring in series with the slider
+        fr = (0.01, 0.05, 0.15, 0.4, 0.8)
+        ys = jenkins(x, [f * xs for f in fr])
+        for f, y in zip(fr, ys, strict=True):
+            b = np.zeros_like(st.v)
+            b[j] = st.hp(y)
+            out.append(({"slip_disp_rel": f}, b))
         return out
 
 

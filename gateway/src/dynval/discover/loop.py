@@ -174,7 +174,7 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
         evs = [tr.events(r[c], fs) for r in res_cur.values() for c in chans]
         sps = [tr.spectrum(r[c], fs, modes_hz, band) for r in res_cur.values() for c in chans]
         traits = tr.describe(evs, sps)
-        view = tr.force_view(cur, fit_t)
+        view = tr.force_view(cur, fit_t) or tr.reaction_view(cur, fit_t)
         cands = fx.catalogue(cur, quiet=rnd > 1)
         if view is not None:
             evidence = tr.score(view, cands)

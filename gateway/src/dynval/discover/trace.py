@@ -13,6 +13,7 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import logging
 import math
@@ -25,6 +26,7 @@ import numpy as np
 from dynval import model as mdl
 from dynval.discover import effects as fx
 from dynval.discover.residual import TestData
+from dynval.errors import DynvalError
 
 log = logging.getLogger(__name__)
 signal: Any = importlib.import_module("scipy.signal")
@@ -222,20 +224,101 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
     return ForceView(st, np.hstack(fs_list), slice(None))
 
 
+def reaction_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
+    """For a model whose measured output is the reaction (force on the ground), e.g. an
+    element driven by a prescribed stroke (ground_disp input): the states come from the
+    model's own open-loop simulation (the observer's estimate), the ground motion from the
+    input, and the missing force is the reaction residual, seen at DOF 1 (a missing story-1
+    or DOF-1-to-ground force g changes the reaction by g). Other effects act on the reaction
+    only through the dynamics: their bases are judged on their DOF-1 row."""
+    rc = [c for c, o in m.outputs.items() if o.kind == "reaction" and all(c in t.y for t in tests)]
+    if not rc or m.input.kind == "ground_acc":
+        return None
+    c0 = rc[0]
+    n = m.n_dof
+    outs = dict(m.outputs)
+    for j in range(1, n + 1):
+        outs[f"__x{j}"] = mdl.Output("disp", j)
+        outs[f"__v{j}"] = mdl.Output("vel", j)
+        outs[f"__a{j}"] = mdl.Output("acc", j)
+    probe = dataclasses.replace(m, outputs=outs)
+    mass, k, c, w, phi = matrices(m)
+    xs, vs, as_, fl, xg, vg = [], [], [], [], [], []
+    pred: dict[str, list[np.ndarray]] = {ch: [] for ch in m.outputs}
+    for t in tests:
+        try:
+            p = mdl.simulate(probe, t.u, t.fs_hz)
+        except DynvalError:
+            return None
+        xs.append(np.vstack([p[f"__x{j}"] for j in range(1, n + 1)]))
+        vs.append(np.vstack([p[f"__v{j}"] for j in range(1, n + 1)]))
+        as_.append(np.vstack([p[f"__a{j}"] for j in range(1, n + 1)]))
+        f = np.zeros((n, t.u.size))
+        f[0] = (t.y[c0] - p[c0]) / m.outputs[c0].gain
+        fl.append(f)
+        for ch, o in m.outputs.items():
+            pred[ch].append(p[ch] / o.gain)
+        if m.input.kind == "ground_disp":
+            xg.append(t.u)
+            vg.append(np.gradient(t.u) * t.fs_hz)
+        else:
+            xg.append(np.zeros(t.u.size))
+            vg.append(np.zeros(t.u.size))
+
+    def ident(z: np.ndarray) -> np.ndarray:
+        return z
+
+    st = fx.States(np.hstack(xs), np.hstack(vs), np.hstack(as_), mass, k, c, w, phi, ident,
+                   {}, np.concatenate(xg), np.concatenate(vg),
+                   {ch: np.concatenate(v) for ch, v in pred.items()}, True)
+    return ForceView(st, np.hstack(fl), slice(None))
+
+
+_NUISANCE = ("stiffness_change", "damping_change")
+
+
 def score(view: ForceView, cands: Sequence[fx.Candidate]) -> list[Evidence]:
-    """Evidence of each candidate: R^2 of its best-shaped basis on the missing force."""
-    f = view.f_miss
-    ff = float(np.sum(f * f)) or 1e-300
+    """Evidence of each candidate: the partial R^2 of its best-shaped basis on the missing
+    force once the linear model's own parameters (story stiffnesses, damping) may re-adjust:
+    (R^2(nuisance + candidate) - R^2(nuisance)) / (1 - R^2(nuisance)). A declared model that
+    was calibrated on the data has absorbed what a stiffness or damping change can of the
+    effect; the partial R^2 looks at what is left. Candidates that are themselves stiffness or
+    damping changes get their plain R^2."""
+    ro = view.states.reaction_only
+    f = (view.f_miss[:1] if ro else view.f_miss).ravel()
+    ff = float(f @ f) or 1e-300
+    nuis = []
+    for cand in cands:
+        if cand.type in _NUISANCE:
+            for _, b in fx.by_type(cand.type).basis(view.states, cand):
+                nuis.append((b[:1] if ro else b).ravel())
+    q = np.zeros((f.size, 0))
+    if nuis:
+        a = np.column_stack(nuis)
+        u, sv, _ = np.linalg.svd(a, full_matrices=False)
+        q = u[:, sv > 1e-9 * (sv[0] if sv.size else 1.0)]
+    f_res = f - q @ (q.T @ f)
+    r2_n = 1.0 - float(f_res @ f_res) / ff
+    fr = float(f_res @ f_res) or 1e-300
     out = []
     for cand in cands:
         et = fx.by_type(cand.type)
+        plain = cand.type in _NUISANCE
         best = Evidence(cand, 0.0, 0.0)
         for shape, b in et.basis(view.states, cand):
-            bb = float(np.sum(b * b))
+            bv = (b[:1] if ro else b).ravel()
+            bb = float(bv @ bv)
             if bb <= 0:
                 continue
-            amp = float(np.sum(b * f)) / bb
-            r2 = amp * amp * bb / ff
+            amp = float(bv @ f) / bb
+            if plain:
+                r2 = amp * amp * bb / ff
+            else:
+                br = bv - q @ (q.T @ bv)
+                brr = float(br @ br)
+                if brr <= 1e-12 * bb:
+                    continue
+                r2 = float(br @ f_res) ** 2 / brr / fr
             if r2 > best.r2:
                 best = Evidence(cand, r2, amp, dict(shape))
         if cand.type == "contact":
@@ -243,6 +326,7 @@ def score(view: ForceView, cands: Sequence[fx.Candidate]) -> list[Evidence]:
             best.shape["drift_rms_m"] = float(np.std(d))
         out.append(best)
     out.sort(key=lambda e: -e.r2)
+    log.debug("evidence: the linear nuisance bases explain %.3f of the missing force", r2_n)
     return out
 
 
