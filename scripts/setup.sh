@@ -26,5 +26,5 @@ PY=${PYTHON:-python3}
 echo "setup: python packages"
 $PY -m pip install -q --disable-pip-version-check -r requirements-dev.txt
 # the package itself: its build step (scikit-build-core + CMake) compiles the C core
-$PY -m pip install -q --disable-pip-version-check ./gateway
+$PY -m pip install -q --disable-pip-version-check "./gateway[validate]"
 echo "setup: done"

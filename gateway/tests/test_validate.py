@@ -23,6 +23,9 @@ from dynval.validate import doe, featvec, study, synth
 from dynval.validate import mahalanobis as mh
 from dynval.validate.sensitivity import anova_r2, pca
 
+for _mod in ("sklearn", "emcee", "matplotlib"):  # the [validate] extra (scripts/setup.sh)
+    pytest.importorskip(_mod)
+
 TRUTH_Z2, TRUTH_Z4 = 0.0458, 0.0071  # the report's Table 21 posterior means
 LIN_RANGES = [doe.ParamRange("zeta2", 0.010, 0.080), doe.ParamRange("zeta4", 0.001, 0.020)]
 NL_RANGES = [doe.ParamRange("e1.gap_m", 0.05e-3, 0.15e-3),

@@ -279,8 +279,8 @@ def _summary_html(res: dict[str, Any]) -> str:
             "method", "parameter", "mean", "std", "2.5 %", "97.5 %", "acceptance",
             "model runs", "s"]))
         for meth, post in res["posterior"].items():
-            parts.append(f"<p>{meth}: correlation matrix "
-                         f"{html.escape(json.dumps([[round(c, 3) for c in r] for r in post['correlation']]))}</p>")
+            cm = [[round(c, 3) for c in r] for r in post["correlation"]]
+            parts.append(f"<p>{meth}: correlation matrix {html.escape(json.dumps(cm))}</p>")
     if "consistency" in res:
         c = res["consistency"]
         for k in ("calibrated", "nominal"):
