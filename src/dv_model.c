@@ -10,7 +10,7 @@ dv_real_t dv_contact_force(const dv_contact_desc_t *c, dv_real_t x_m)
     if (c == NULL) {
         return DV_R(0.0);
     }
-    return dv_priv_contact_g((int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, x_m);
+    return dv_priv_elem_g((int)c->law, (int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, x_m);
 }
 
 dv_status_t dv_model_desc_default(dv_model_desc_t *d)
@@ -149,7 +149,10 @@ static dv_status_t validate(const dv_model_desc_t *d, dv_real_t dt_s)
             !fin(e->kb_n_per_m) || e->gap_m < DV_R(0.0) || e->delta_m < DV_R(0.0) ||
             e->kb_n_per_m < DV_R(0.0) ||
             (e->side != DV_CONTACT_POS && e->side != DV_CONTACT_NEG &&
-             e->side != DV_CONTACT_BOTH)) {
+             e->side != DV_CONTACT_BOTH) ||
+            (e->law != DV_ELEM_CONTACT && e->law != DV_ELEM_FRICTION &&
+             e->law != DV_ELEM_CUBIC && e->law != DV_ELEM_VV) ||
+            (e->law == DV_ELEM_FRICTION && !(e->delta_m > DV_R(0.0)))) {
             return DV_EINVAL;
         }
     }
@@ -282,10 +285,18 @@ static void poly_sub(const dv_real_t *c, size_t i, size_t nsub, dv_real_t *out)
 }
 
 /* X of contact c for a state-sized vector z: z[b] - z[a]. */
-static dv_real_t cx_dot(const dv_contact_desc_t *e, const dv_real_t *z)
+/* The element's argument from a state-like vector z (2n): X = x_b - x_a, or V = v_b - v_a
+ * for the velocity laws (rows n..2n). */
+static size_t cx_off(const dv_contact_desc_t *e, size_t n)
 {
-    const dv_real_t za = e->dof_a == (uint16_t)DV_GROUND ? DV_R(0.0) : z[e->dof_a];
-    return z[e->dof_b] - za;
+    return dv_priv_elem_on_velocity((int)e->law) ? n : 0u;
+}
+
+static dv_real_t cx_dot(const dv_contact_desc_t *e, const dv_real_t *z, size_t n)
+{
+    const size_t o = cx_off(e, n);
+    const dv_real_t za = e->dof_a == (uint16_t)DV_GROUND ? DV_R(0.0) : z[o + e->dof_a];
+    return z[o + e->dof_b] - za;
 }
 
 dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_s,
@@ -644,6 +655,9 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
         }
         for (size_t e = 0; e < nc; e++) {
             const dv_contact_desc_t *ce = &d->contact[e];
+            if (ce->law != DV_ELEM_CONTACT) {
+                continue; /* only the contact law adds a bounded stiffness */
+            }
             const dv_real_t kb = ce->kb_n_per_m;
             ke[ce->dof_b * n + ce->dof_b] += kb;
             if (ce->dof_a != (uint16_t)DV_GROUND) {
@@ -661,6 +675,20 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
         const dv_real_t h = dt_s / (dv_real_t)nsub;
         if (m->w_contact_max * h > (dv_real_t)DV_MODEL_CONTACT_MAX_WH) {
             return DV_EUNSTABLE;
+        }
+        for (size_t e = 0; e < nc; e++) {
+            const dv_contact_desc_t *ce = &d->contact[e];
+            if (ce->law == DV_ELEM_FRICTION) {
+                /* the regularised law's largest slope F / eps acts like a damper */
+                dv_real_t inv_m = DV_R(1.0) / m->mass_kg[ce->dof_b];
+                if (ce->dof_a != (uint16_t)DV_GROUND) {
+                    inv_m += DV_R(1.0) / m->mass_kg[ce->dof_a];
+                }
+                if (ce->kb_n_per_m / ce->delta_m * h * inv_m >
+                    (dv_real_t)DV_MODEL_CONTACT_MAX_WH) {
+                    return DV_EUNSTABLE;
+                }
+            }
         }
     }
 
@@ -691,10 +719,11 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
         for (size_t j = 0; j < ns; j++) {
             row[j] = DV_R(0.0);
         }
+        const size_t off = cx_off(&m->contact[e], n);
         if (m->contact[e].dof_a != (uint16_t)DV_GROUND) {
-            row[m->contact[e].dof_a] = DV_R(-1.0);
+            row[off + m->contact[e].dof_a] = DV_R(-1.0);
         }
-        row[m->contact[e].dof_b] = DV_R(1.0);
+        row[off + m->contact[e].dof_b] = DV_R(1.0);
         for (size_t i = 0; i <= nsub; i++) {
             const size_t f = i * nc + e;
             for (size_t j = 0; j < ns; j++) {
@@ -720,8 +749,14 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
         const dv_real_t fi = (dv_real_t)i / (dv_real_t)nsub;
         for (size_t e = 0; e < nc; e++) {
             const size_t f = i * nc + e;
-            m->rxa[f] = cx_dot(&m->contact[e], za) + m->contact_dx[e] * (DV_R(1.0) - fi);
-            m->rxb[f] = cx_dot(&m->contact[e], zb) + m->contact_dx[e] * fi;
+            if (dv_priv_elem_on_velocity((int)m->contact[e].law)) {
+                /* V sees the ground velocity u' = (u[k+1] - u[k]) / T of the linear hold */
+                m->rxa[f] = cx_dot(&m->contact[e], za, n) - m->contact_dx[e] / dt_s;
+                m->rxb[f] = cx_dot(&m->contact[e], zb, n) + m->contact_dx[e] / dt_s;
+            } else {
+                m->rxa[f] = cx_dot(&m->contact[e], za, n) + m->contact_dx[e] * (DV_R(1.0) - fi);
+                m->rxb[f] = cx_dot(&m->contact[e], zb, n) + m->contact_dx[e] * fi;
+            }
         }
         if (i == nsub) {
             break;
@@ -773,7 +808,12 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
                 const dv_real_t ui = cu[0] + si * (cu[1] + si * (cu[2] + si * cu[3]));
                 for (size_t e = 0; e < nc; e++) {
                     const size_t f = i * nc + e;
-                    m->rxu[f * 4u + j] = cx_dot(&m->contact[e], za) + m->contact_dx[e] * ui;
+                    const dv_real_t ud = (cu[1] + si * (DV_R(2.0) * cu[2] +
+                                                        DV_R(3.0) * si * cu[3])) / dt_s;
+                    m->rxu[f * 4u + j] =
+                        cx_dot(&m->contact[e], za, n) +
+                        m->contact_dx[e] *
+                            (dv_priv_elem_on_velocity((int)m->contact[e].law) ? ud : ui);
                 }
                 if (i == nsub) {
                     break;
@@ -831,7 +871,7 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
                     z[r] = zn[r];
                 }
                 for (size_t e = 0; e < nc; e++) {
-                    m->smat[(i * nc + e) * nf + col] = cx_dot(&m->contact[e], z);
+                    m->smat[(i * nc + e) * nf + col] = cx_dot(&m->contact[e], z, n);
                 }
             }
             for (size_t r = 0; r < ns; r++) {

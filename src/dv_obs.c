@@ -469,8 +469,8 @@ static void contact_forces(const dv_model_t *m, dv_real_t *sv, size_t ns)
                     xr += srow[e2] * cur[e2];
                 }
                 const dv_contact_desc_t *c = &m->contact[e];
-                g[f0 + e] = dv_priv_contact_g((int)c->side, c->gap_m, c->delta_m,
-                                              c->kb_n_per_m, xr);
+                g[f0 + e] = dv_priv_elem_g((int)c->law, (int)c->side, c->gap_m, c->delta_m,
+                                           c->kb_n_per_m, xr);
             }
             for (size_t e = 0; e < nc; e++) {
                 cur[e] = g[f0 + e];
@@ -701,9 +701,12 @@ static void step_first_cubic(dv_obs_t *o, const dv_real_t *y, bool correct)
     dv_real_t g[DV_MAX_CONTACT];
     for (size_t e = 0; e < nc; e++) {
         const dv_contact_desc_t *c = &m->contact[e];
-        const dv_real_t xa = c->dof_a == (uint16_t)DV_GROUND ? DV_R(0.0) : sv[c->dof_a];
-        const dv_real_t x = sv[c->dof_b] - xa + m->contact_dx[e] * win[2];
-        g[e] = dv_priv_contact_g((int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, x);
+        /* velocity laws: at rest, the ground's velocity at t0 is left out (first sample) */
+        const bool vel = dv_priv_elem_on_velocity((int)c->law);
+        const size_t off = vel ? (size_t)m->n_dof : 0u;
+        const dv_real_t xa = c->dof_a == (uint16_t)DV_GROUND ? DV_R(0.0) : sv[off + c->dof_a];
+        const dv_real_t x = sv[off + c->dof_b] - xa + (vel ? DV_R(0.0) : m->contact_dx[e] * win[2]);
+        g[e] = dv_priv_elem_g((int)c->law, (int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, x);
     }
     for (size_t q = 0; q < no; q++) {
         dv_real_t s = DV_R(0.0);

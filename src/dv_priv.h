@@ -134,4 +134,27 @@ void dv_priv_ar_burg2(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_r
 /* dv_priv_all_finite with the AR kernels' vector units (block residual pre-check). */
 bool dv_priv_ar_all_finite(const dv_real_t *x, size_t n, uint32_t kern);
 
+
+/* Element laws of dv_model.h (dv_elem_law_t values): 1 friction and 3 v|v| act on the
+ * relative velocity, 0 contact and 2 cubic on the relative displacement. */
+static inline bool dv_priv_elem_on_velocity(int law)
+{
+    return law == 1 || law == 3;
+}
+
+static inline dv_real_t dv_priv_elem_g(int law, int side, dv_real_t gap, dv_real_t delta,
+                                       dv_real_t kb, dv_real_t x)
+{
+    switch (law) {
+    case 1:
+        return kb * x / DV_SQRT(x * x + delta * delta);
+    case 2:
+        return kb * x * x * x;
+    case 3:
+        return kb * x * DV_FABS(x);
+    default:
+        return dv_priv_contact_g(side, gap, delta, kb, x);
+    }
+}
+
 #endif /* DV_PRIV_H */

@@ -32,6 +32,19 @@
  *   delta = 0 gives a plain bilinear spring g = kB max(s, 0). DV_CONTACT_NEG mirrors it:
  *   g(X) = -g_pos(-X) (engages when X < -gap); DV_CONTACT_BOTH is the sum of the two.
  *   The element pushes DOF a by +g and DOF b by -g (it resists X growing past the gap).
+ * - Other element laws (dv_contact_desc_t.law; same sub-node machinery, same sign: +g on DOF
+ *   a, -g on DOF b; V = v_b - v_a, the relative velocity, with v_ground = u' for
+ *   DV_INPUT_GROUND_DISP and 0 in the relative coordinates of DV_INPUT_GROUND_ACC):
+ *     DV_ELEM_FRICTION: regularised Coulomb friction, g(V) = F V / sqrt(V^2 + eps^2) with
+ *       F = kb_n_per_m (the slip force, N) and eps = delta_m (m/s, > 0): g -> F sign(V) for
+ *       |V| >> eps. init refuses F / eps * h * (1/m_a + 1/m_b) > DV_MODEL_CONTACT_MAX_WH
+ *       (h the sub-step), which keeps the fixed-point iterations contracting.
+ *     DV_ELEM_CUBIC: cubic spring, g(X) = k3 X^3 with k3 = kb_n_per_m (N/m^3). Its tangent
+ *       stiffness grows with X^2 and is not checked at init: keep 3 k3 X^2 of the same order
+ *       as the contact limit (the fixed-point iterations lose accuracy beyond).
+ *     DV_ELEM_VV: quadratic (velocity-squared) damper, g(V) = c2 V |V| with c2 = kb_n_per_m
+ *       (N s^2/m^2).
+ *   gap_m and side are ignored by these laws (side must still be a valid value).
  *
  * Discretisation, sample period T: the linear part is exact for an input linear between
  * samples (first-order hold), from the exponential of the augmented matrix
@@ -117,14 +130,23 @@ typedef enum {
     DV_OUT_REACTION = 5   /**< force of the structure on the ground, N (index ignored) */
 } dv_out_kind_t;
 
-/** @brief One contact element. */
+/** Force law of an element (see the file comment). */
+typedef enum {
+    DV_ELEM_CONTACT = 0,  /**< gap/bumper on X (the default, zero-initialised) */
+    DV_ELEM_FRICTION = 1, /**< regularised Coulomb friction on V */
+    DV_ELEM_CUBIC = 2,    /**< cubic spring on X */
+    DV_ELEM_VV = 3        /**< velocity-squared damper on V */
+} dv_elem_law_t;
+
+/** @brief One contact element (or, by law, a friction, cubic or v|v| element). */
 typedef struct {
     uint16_t dof_a;          /**< first DOF (0-based), or DV_GROUND */
     uint16_t dof_b;          /**< second DOF (0-based), X = x_b - x_a; not the ground */
     dv_contact_side_t side;  /**< DV_CONTACT_POS / NEG / BOTH */
     dv_real_t gap_m;         /**< gap, m, >= 0 */
     dv_real_t delta_m;       /**< transition width, m, >= 0 (0: plain bilinear) */
-    dv_real_t kb_n_per_m;    /**< contact stiffness kB, N/m, >= 0 */
+    dv_real_t kb_n_per_m;    /**< contact stiffness kB, N/m, >= 0 (other laws: see above) */
+    dv_elem_law_t law;       /**< DV_ELEM_CONTACT (0) unless set */
 } dv_contact_desc_t;
 
 /** @brief One output channel. */
@@ -199,7 +221,8 @@ typedef struct {
     dv_real_t rayleigh_b;           /**< Rayleigh b, s (DV_DAMP_RAYLEIGH, else 0) */
     dv_real_t w_contact_max;        /**< highest natural frequency, contacts engaged, rad/s */
     dv_contact_desc_t contact[DV_MAX_CONTACT]; /**< copies of the contact elements */
-    dv_real_t contact_dx[DV_MAX_CONTACT];      /**< dX/du (-1: ground end follows u) */
+    dv_real_t contact_dx[DV_MAX_CONTACT];      /**< dX/du, or dV/du' for the velocity laws
+                                                    (-1: ground end follows u) */
     dv_real_t *kmat;  /**< K, n x n */
     dv_real_t *cmat;  /**< C, n x n */
     dv_real_t *modes; /**< Phi, n x n, mass-normalised, column k = mode k */
@@ -310,8 +333,10 @@ dv_status_t dv_model_rayleigh(dv_real_t w_r, dv_real_t zeta_r, dv_real_t w_s, dv
                               dv_real_t *a, dv_real_t *b);
 
 /**
- * @brief The contact force law g(X) documented above (N), for tests and bindings.
- * @return g(X); 0 when @p c is NULL
+ * @brief The element's force law documented above (N), for tests and bindings: g(X) for
+ *        the contact and cubic laws, g(V) for friction and the v|v| damper (@p x_m is then
+ *        the relative velocity V, m/s).
+ * @return g; 0 when @p c is NULL
  */
 dv_real_t dv_contact_force(const dv_contact_desc_t *c, dv_real_t x_m);
 

@@ -269,7 +269,7 @@ static void test_model_contact_law_closed_form(void **state)
 {
     (void)state;
     dv_contact_desc_t c = {0, 1, DV_CONTACT_POS, (dv_real_t)1e-4, (dv_real_t)5e-4,
-                           (dv_real_t)2e6};
+                           (dv_real_t)2e6, DV_ELEM_CONTACT};
     const double gap = 1e-4, del = 5e-4, kb = 2e6;
     assert_true(dv_contact_force(&c, (dv_real_t)0.5e-4) == 0);
     assert_true(dv_contact_force(&c, (dv_real_t)-1.0) == 0);

@@ -1,0 +1,260 @@
+/* Element laws beyond the contact (dv_model.h): regularised Coulomb friction, cubic spring and
+ * velocity-squared damper, through the same sub-node scheme as the contact. Each is checked
+ * against an independent reference integration (classical RK4 at 64x the sample rate, in
+ * double, on the model's own K and C, the force linear between samples as the model's hold
+ * assumes), against the closed-form laws, and init's refusals. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <setjmp.h>
+#include <cmocka.h>
+
+#include "dv_test_util.h"
+#include "dv_model_test_util.h"
+
+enum { NE = 2048, NBE = 60000, FINE = 64 };
+
+static dv_real_t ebuf[NBE];
+static dv_real_t eobuf[NBE];
+static dv_real_t eu[NE];
+static dv_real_t ey[NE * 4];
+static double eref[NE * 4];
+
+/* A smooth multi-sine force, N (components well below Nyquist, near the modes) */
+static void make_force(double amp)
+{
+    for (int k = 0; k < NE; k++) {
+        const double t = k / MT_FS;
+        eu[k] = (dv_real_t)(amp * (sin(2 * M_PI * 23.0 * t) + 0.8 * sin(2 * M_PI * 41.3 * t + 1.0) +
+                                   0.6 * sin(2 * M_PI * 67.1 * t + 2.0)));
+    }
+}
+
+static double law(int lw, double p_delta, double p_kb, double a)
+{
+    switch (lw) {
+    case DV_ELEM_FRICTION:
+        return p_kb * a / sqrt(a * a + p_delta * p_delta);
+    case DV_ELEM_CUBIC:
+        return p_kb * a * a * a;
+    case DV_ELEM_VV:
+        return p_kb * a * fabs(a);
+    default:
+        return 0.0;
+    }
+}
+
+/* acc = M^-1 (f e_in - C v - K x - elements), elements pushing a by +g and b by -g */
+static void rhs(const dv_model_t *m, const double *kk, const double *cc, double f,
+                const double *x, const double *v, double *acc)
+{
+    const size_t n = m->n_dof;
+    double fe[DV_MAX_DOF] = {0};
+    for (size_t e = 0; e < m->n_contact; e++) {
+        const dv_contact_desc_t *c = &m->contact[e];
+        const int vel = c->law == DV_ELEM_FRICTION || c->law == DV_ELEM_VV;
+        const double *z = vel ? v : x;
+        const double za = c->dof_a == (uint16_t)DV_GROUND ? 0.0 : z[c->dof_a];
+        const double g = law((int)c->law, (double)c->delta_m, (double)c->kb_n_per_m,
+                             z[c->dof_b] - za);
+        fe[c->dof_b] += g;
+        if (c->dof_a != (uint16_t)DV_GROUND) {
+            fe[c->dof_a] -= g;
+        }
+    }
+    for (size_t i = 0; i < n; i++) {
+        double s = (i == 0 ? f : 0.0) - fe[i];
+        for (size_t j = 0; j < n; j++) {
+            s -= kk[i * n + j] * x[j] + cc[i * n + j] * v[j];
+        }
+        acc[i] = s / (double)m->mass_kg[i];
+    }
+}
+
+/* RK4 reference at FINE x the sample rate; accelerations at the samples into eref */
+static void reference(const dv_model_t *m)
+{
+    const size_t n = m->n_dof;
+    dv_mat_t kv, cv;
+    assert_int_equal(dv_model_get_mat(m, DV_MODEL_MAT_K, &kv), DV_OK);
+    assert_int_equal(dv_model_get_mat(m, DV_MODEL_MAT_C, &cv), DV_OK);
+    double kk[DV_MAX_DOF * DV_MAX_DOF], cc[DV_MAX_DOF * DV_MAX_DOF];
+    for (size_t i = 0; i < n * n; i++) {
+        kk[i] = (double)kv.data[i];
+        cc[i] = (double)cv.data[i];
+    }
+    double x[DV_MAX_DOF] = {0}, v[DV_MAX_DOF] = {0};
+    double k1x[DV_MAX_DOF], k1v[DV_MAX_DOF], k2x[DV_MAX_DOF], k2v[DV_MAX_DOF];
+    double k3x[DV_MAX_DOF], k3v[DV_MAX_DOF], k4x[DV_MAX_DOF], k4v[DV_MAX_DOF];
+    double xt[DV_MAX_DOF], vt[DV_MAX_DOF], a[DV_MAX_DOF];
+    const double h = 1.0 / (MT_FS * FINE);
+    rhs(m, kk, cc, (double)eu[0], x, v, a);
+    for (size_t i = 0; i < n; i++) eref[i] = a[i];
+    for (int k = 0; k + 1 < NE; k++) {
+        for (int s = 0; s < FINE; s++) {
+            const double f0 = (double)eu[k] + ((double)eu[k + 1] - (double)eu[k]) * s / FINE;
+            const double f1 = (double)eu[k] + ((double)eu[k + 1] - (double)eu[k]) * (s + 1) / FINE;
+            const double fm = 0.5 * (f0 + f1);
+            rhs(m, kk, cc, f0, x, v, k1v);
+            for (size_t i = 0; i < n; i++) {
+                k1x[i] = v[i];
+                xt[i] = x[i] + 0.5 * h * k1x[i];
+                vt[i] = v[i] + 0.5 * h * k1v[i];
+            }
+            rhs(m, kk, cc, fm, xt, vt, k2v);
+            for (size_t i = 0; i < n; i++) {
+                k2x[i] = vt[i];
+                xt[i] = x[i] + 0.5 * h * k2x[i];
+                vt[i] = v[i] + 0.5 * h * k2v[i];
+            }
+            rhs(m, kk, cc, fm, xt, vt, k3v);
+            for (size_t i = 0; i < n; i++) {
+                k3x[i] = vt[i];
+                xt[i] = x[i] + h * k3x[i];
+                vt[i] = v[i] + h * k3v[i];
+            }
+            rhs(m, kk, cc, f1, xt, vt, k4v);
+            for (size_t i = 0; i < n; i++) {
+                k4x[i] = vt[i];
+                x[i] += h / 6 * (k1x[i] + 2 * k2x[i] + 2 * k3x[i] + k4x[i]);
+                v[i] += h / 6 * (k1v[i] + 2 * k2v[i] + 2 * k3v[i] + k4v[i]);
+            }
+        }
+        rhs(m, kk, cc, (double)eu[k + 1], x, v, a);
+        for (size_t i = 0; i < n; i++) eref[(size_t)(k + 1) * n + i] = a[i];
+    }
+}
+
+/* dv_obs_simulate vs the reference: max over channels of RMS error / RMS reference, and the
+ * same for the linear model without the element (how big the element's effect is). */
+static void run_case(int lw, uint16_t a, uint16_t b, double delta, double kb, double amp,
+                     double *err, double *effect)
+{
+    dv_model_desc_t d;
+    dv_model_t m;
+    dv_obs_t o;
+    make_force(amp);
+    mt_lanl_desc(&d);
+    d.n_contact = 1;
+    d.n_sub = 8;
+    d.contact[0].dof_a = a;
+    d.contact[0].dof_b = b;
+    d.contact[0].side = DV_CONTACT_POS;
+    d.contact[0].delta_m = (dv_real_t)delta;
+    d.contact[0].kb_n_per_m = (dv_real_t)kb;
+    d.contact[0].law = (dv_elem_law_t)lw;
+    assert_true(dv_model_buf_len(&d) <= NBE);
+    assert_int_equal(dv_model_init(&m, &d, (dv_real_t)(1.0 / MT_FS), ebuf, NBE), DV_OK);
+    assert_true(dv_obs_buf_len(&m) <= NBE);
+    assert_int_equal(dv_obs_init(&o, &m, NULL, eobuf, NBE), DV_OK);
+    assert_int_equal(dv_obs_simulate(&o, eu, NE, ey), DV_OK);
+    reference(&m);
+    double worst = 0.0;
+    for (int c = 0; c < 4; c++) {
+        double se = 0, sr = 0;
+        for (int k = 0; k < NE; k++) {
+            const double r = eref[k * 4 + c];
+            se += ((double)ey[k * 4 + c] - r) * ((double)ey[k * 4 + c] - r);
+            sr += r * r;
+        }
+        worst = fmax(worst, sqrt(se / sr));
+    }
+    *err = worst;
+    d.n_contact = 0; /* the same model without the element */
+    assert_int_equal(dv_model_init(&m, &d, (dv_real_t)(1.0 / MT_FS), ebuf, NBE), DV_OK);
+    assert_int_equal(dv_obs_init(&o, &m, NULL, eobuf, NBE), DV_OK);
+    assert_int_equal(dv_obs_simulate(&o, eu, NE, ey), DV_OK);
+    double big = 0.0;
+    for (int c = 0; c < 4; c++) {
+        double se = 0, sr = 0;
+        for (int k = 0; k < NE; k++) {
+            const double r = eref[k * 4 + c];
+            se += ((double)ey[k * 4 + c] - r) * ((double)ey[k * 4 + c] - r);
+            sr += r * r;
+        }
+        big = fmax(big, sqrt(se / sr));
+    }
+    *effect = big;
+}
+
+static void test_elem_friction_matches_reference(void **state)
+{
+    (void)state;
+    double err, eff;
+    /* base on its rails with Coulomb friction 1.5 N, eps 1 mm/s */
+    run_case(DV_ELEM_FRICTION, (uint16_t)DV_GROUND, 0, 1e-3, 1.5, 5.0, &err, &eff);
+    fprintf(stderr, "friction: error %.3g, effect of the element %.3g\n", err, eff);
+    assert_true(eff > 0.1);
+    assert_true(err < 0.02 * eff);
+}
+
+static void test_elem_cubic_matches_reference(void **state)
+{
+    (void)state;
+    double err, eff;
+    run_case(DV_ELEM_CUBIC, 2, 3, 0.0, 2e13, 8.0, &err, &eff);
+    fprintf(stderr, "cubic: error %.3g, effect of the element %.3g\n", err, eff);
+    assert_true(eff > 0.1);
+    assert_true(err < 0.02 * eff);
+}
+
+static void test_elem_vv_matches_reference(void **state)
+{
+    (void)state;
+    double err, eff;
+    run_case(DV_ELEM_VV, 0, 1, 0.0, 1e4, 8.0, &err, &eff);
+    fprintf(stderr, "v|v|: error %.3g, effect of the element %.3g\n", err, eff);
+    assert_true(eff > 0.05);
+    assert_true(err < 0.02 * eff);
+}
+
+static void test_elem_laws_closed_form(void **state)
+{
+    (void)state;
+    dv_contact_desc_t c = {0, 1, DV_CONTACT_POS, (dv_real_t)0.0, (dv_real_t)1e-3,
+                           (dv_real_t)2.0, DV_ELEM_FRICTION};
+    const double tol = sizeof(dv_real_t) == 8 ? 1e-12 : 1e-5;
+    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)1e-3), 2.0 / sqrt(2.0), tol, 0));
+    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)-1.0), -2.0 / sqrt(1 + 1e-6), tol,
+                              0));
+    assert_true(dv_contact_force(&c, (dv_real_t)0.0) == 0);
+    c.law = DV_ELEM_CUBIC;
+    c.kb_n_per_m = (dv_real_t)3e12;
+    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)-1e-4), -3e12 * 1e-12, tol, 0));
+    c.law = DV_ELEM_VV;
+    c.kb_n_per_m = (dv_real_t)50.0;
+    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)-0.2), -50.0 * 0.04, tol, 0));
+}
+
+static void test_elem_init_refusals(void **state)
+{
+    (void)state;
+    dv_model_desc_t d;
+    dv_model_t m;
+    mt_lanl_desc(&d);
+    d.n_contact = 1;
+    d.contact[0].dof_a = (uint16_t)DV_GROUND;
+    d.contact[0].dof_b = 0;
+    d.contact[0].side = DV_CONTACT_POS;
+    d.contact[0].law = DV_ELEM_FRICTION;
+    d.contact[0].kb_n_per_m = (dv_real_t)1.0;
+    d.contact[0].delta_m = (dv_real_t)0.0; /* eps must be > 0 */
+    assert_int_equal(dv_model_init(&m, &d, (dv_real_t)(1.0 / MT_FS), ebuf, NBE), DV_EINVAL);
+    d.contact[0].delta_m = (dv_real_t)1e-9; /* F / eps far too steep for the sub-step */
+    assert_int_equal(dv_model_init(&m, &d, (dv_real_t)(1.0 / MT_FS), ebuf, NBE), DV_EUNSTABLE);
+    d.contact[0].delta_m = (dv_real_t)1e-3;
+    d.contact[0].law = (dv_elem_law_t)7;
+    assert_int_equal(dv_model_init(&m, &d, (dv_real_t)(1.0 / MT_FS), ebuf, NBE), DV_EINVAL);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_elem_friction_matches_reference),
+        cmocka_unit_test(test_elem_cubic_matches_reference),
+        cmocka_unit_test(test_elem_vv_matches_reference),
+        cmocka_unit_test(test_elem_laws_closed_form),
+        cmocka_unit_test(test_elem_init_refusals),
+    };
+    return cmocka_run_group_tests_name("dv_elem", tests, NULL, NULL);
+}
