@@ -116,6 +116,20 @@ def test_mahalanobis_matches_closed_form_and_hotelling_limit() -> None:
     assert 0.92 <= np.mean(inside) <= 0.98
 
 
+def test_paired_test_size_and_power() -> None:
+    rng = np.random.default_rng(4)
+    base = mh.fit(rng.standard_normal((20, 3)))
+    rejected = []
+    for _ in range(400):  # unbiased model: rejected in about 5 % of the cases
+        x = rng.standard_normal((12, 3))
+        rejected.append(not mh.paired_test(base, x, x + 0.3 * rng.standard_normal((12, 3)))["pass"])
+    assert 0.02 <= np.mean(rejected) <= 0.09
+    x = rng.standard_normal((12, 3))
+    biased = x + 0.3 * rng.standard_normal((12, 3)) + np.array([0.5, 0.0, 0.0])
+    assert mh.paired_test(base, x, biased)["pass"] is False
+    assert mh.paired_test(base, x[:3], x[:3])["pass"] is None  # n <= p: no verdict
+
+
 def test_mahalanobis_shrinks_when_tests_are_few(caplog: pytest.LogCaptureFixture) -> None:
     rng = np.random.default_rng(2)
     x = rng.standard_normal((6, 10))
@@ -210,6 +224,9 @@ def test_mahalanobis_ranks_runs_like_rmse_for_good_features_only(
     assert share["std@acc4_mps2"]["zeta2"] > 0.6
     assert good["pca"]["n_components_98"] <= 3  # Table 20: two components hold 98 %
     assert good["nominal"]["verdict"]["rule"].startswith("median D")
+    # the nominal damping (0.05, 0.01) sits inside the test-to-test scatter of eq. 41, but the
+    # paired test (each test's own force) sees its bias
+    assert good["nominal"]["paired"]["pass"] is False
 
 
 @pytest.mark.slow
@@ -228,6 +245,8 @@ def test_calibration_recovers_damping_gp_and_direct(
     for ch in res["rmse_channels"]:
         assert np.mean(c["calibrated"]["rmse"][ch]) < 0.5 * np.mean(c["nominal"]["rmse"][ch])
     assert c["calibrated"]["verdict"]["pass"]
+    # (5 held-out tests for 4 features: the paired test has almost no power there)
+    assert c["calibrated"]["paired"]["pass"] is not False
     assert m_cal.damping.zeta[1] == pytest.approx(res["calibrated"]["parameters"]["zeta2"])
     from dynval.validate import report
 

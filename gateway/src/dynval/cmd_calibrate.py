@@ -67,6 +67,9 @@ def run(args: argparse.Namespace) -> int:
     if "consistency" in res:
         for k in ("calibrated", "nominal"):
             v = res["consistency"][k]["verdict"]
+            pt = res["consistency"][k]["paired"]
+            paired = ("" if pt["pass"] is None else
+                      f"; paired test {'PASS' if pt['pass'] else 'FAIL'} (p = {pt['p_value']:.3g})")
             print(f"held-out check, {k} model: {'PASS' if v['pass'] else 'FAIL'} - median D "
-                  f"{v['median_d']:.4g} vs {v['threshold']:.4g}")
+                  f"{v['median_d']:.4g} vs {v['threshold']:.4g}{paired}")
     return 0

@@ -120,6 +120,10 @@ def run(args: argparse.Namespace) -> int:
     print(f"model {res['model']}: {'PASS' if v['pass'] else 'FAIL'} - median D "
           f"{v['median_d']:.4g} vs {v['threshold_kind']} threshold {v['threshold']:.4g} "
           f"({100 * v['fraction_within']:.0f} % of tests within)")
+    pt = res["nominal"]["paired"]
+    if pt["pass"] is not None:
+        print(f"paired test (each test's force, bias = 0): {'PASS' if pt['pass'] else 'FAIL'} - "
+              f"p = {pt['p_value']:.3g}")
     if "doe" in res:
         d = res["doe"]
         print(f"DOE {d['design']} x {d['runs']}: Spearman(D, RMSE) = "

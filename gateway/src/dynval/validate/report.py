@@ -198,11 +198,11 @@ def plot_psd(a: Artifacts) -> Any:
     sig = importlib.import_module("scipy.signal")
     ch = a.overlay_channel
     fig, ax = plt.subplots(figsize=(8, 3.4))
-    styles = {"measured": ("tab:blue", 1.4)}
+    colours = {"measured": "black", "nominal": "tab:gray", "best run": "tab:red",
+               "worst run": "tab:green", "calibrated": "tab:red"}
     for k, d in a.overlays.items():
         f, p = sig.welch(d[ch], fs=a.fs_hz, nperseg=1024)
-        c, lw = styles.get(k, (None, 0.9))
-        ax.semilogy(f, p, lw=lw, color=c, label=k)
+        ax.semilogy(f, p, lw=1.5 if k == "measured" else 0.9, color=colours.get(k), label=k)
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel(f"PSD of {ch} (unit^2/Hz)")
     ax.set_xlim(0, a.fs_hz / 2)
@@ -253,6 +253,12 @@ def _summary_html(res: dict[str, Any]) -> str:
                          f"&mdash; {html.escape(v['rule'])}: median D {v['median_d']:.4g} vs "
                          f"{v['threshold']:.4g}; {100 * v['fraction_within']:.0f} % of tests "
                          "within.</p>")
+            pt = res[key].get("paired", {})
+            if pt.get("pass") is not None:
+                parts.append(f"<p>Paired test (model driven by each test's force; "
+                             f"{html.escape(pt['test'])}): "
+                             f"<b>{'PASS' if pt['pass'] else 'FAIL'}</b>, p = "
+                             f"{pt['p_value']:.3g}.</p>")
     if "doe" in res:
         d = res["doe"]
         parts.append(f"<p>DOE: {d['design']} with {d['runs']} runs driven by {d['ref_test']}; "

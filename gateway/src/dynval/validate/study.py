@@ -163,7 +163,8 @@ def validate(m: mdl.Model, recs: Sequence[Recording], spec: str,
         "baseline": base.summary(),
         "nominal": {"d": d_nom.tolist(), "rmse": {c: r_nom[:, j].tolist()
                                                   for j, c in enumerate(s.rmse_channels)},
-                    "verdict": mh.verdict(base, d_nom)},
+                    "verdict": mh.verdict(base, d_nom),
+                    "paired": mh.paired_test(base, x_exp, f_nom)},
         "rmse_channels": s.rmse_channels}
     art = Artifacts(s.fs_hz, d_exp=base.baseline_d, threshold=base.threshold, d_model=d_nom)
     ref = s.recs[ref_test] if 0 <= ref_test < len(s.recs) else None
@@ -307,15 +308,18 @@ def calibrate(m: mdl.Model, recs: Sequence[Recording], spec: str,
         f_cal, r_cal, p_cal = _model_on_tests(s, m_cal, held)
         f_nom, r_nom, p_nom = _model_on_tests(s, m, held)
         d_cal, d_nom = base.distance(f_cal), base.distance(f_nom)
-        d_hx = base.distance(experiment_features(s, held))
+        x_hx = experiment_features(s, held)
+        d_hx = base.distance(x_hx)
         res["consistency"] = {
             "held_out": [r.name for r in held], "d_experiments": d_hx.tolist(),
             "calibrated": {"d": d_cal.tolist(), "rmse": {c: r_cal[:, j].tolist()
                                                          for j, c in enumerate(s.rmse_channels)},
-                           "verdict": mh.verdict(base, d_cal)},
+                           "verdict": mh.verdict(base, d_cal),
+                           "paired": mh.paired_test(base, x_hx, f_cal)},
             "nominal": {"d": d_nom.tolist(), "rmse": {c: r_nom[:, j].tolist()
                                                       for j, c in enumerate(s.rmse_channels)},
-                        "verdict": mh.verdict(base, d_nom)}}
+                        "verdict": mh.verdict(base, d_nom),
+                        "paired": mh.paired_test(base, x_hx, f_nom)}}
         art.d_model, art.d_heldout_exp = d_cal, d_hx
         ch0 = s.rmse_channels[0]
         art.overlay_channel = ch0
