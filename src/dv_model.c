@@ -151,8 +151,10 @@ static dv_status_t validate(const dv_model_desc_t *d, dv_real_t dt_s)
             (e->side != DV_CONTACT_POS && e->side != DV_CONTACT_NEG &&
              e->side != DV_CONTACT_BOTH) ||
             (e->law != DV_ELEM_CONTACT && e->law != DV_ELEM_FRICTION &&
-             e->law != DV_ELEM_CUBIC && e->law != DV_ELEM_VV) ||
-            (e->law == DV_ELEM_FRICTION && !(e->delta_m > DV_R(0.0)))) {
+             e->law != DV_ELEM_CUBIC && e->law != DV_ELEM_VV &&
+             e->law != DV_ELEM_STICKSLIP) ||
+            ((e->law == DV_ELEM_FRICTION || e->law == DV_ELEM_STICKSLIP) &&
+             !(e->delta_m > DV_R(0.0)))) {
             return DV_EINVAL;
         }
     }
@@ -655,10 +657,11 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
         }
         for (size_t e = 0; e < nc; e++) {
             const dv_contact_desc_t *ce = &d->contact[e];
-            if (ce->law != DV_ELEM_CONTACT) {
-                continue; /* only the contact law adds a bounded stiffness */
+            if (ce->law != DV_ELEM_CONTACT && ce->law != DV_ELEM_STICKSLIP) {
+                continue; /* only these laws add a bounded stiffness */
             }
-            const dv_real_t kb = ce->kb_n_per_m;
+            const dv_real_t kb = ce->law == DV_ELEM_STICKSLIP ? ce->kb_n_per_m / ce->delta_m
+                                                                : ce->kb_n_per_m;
             ke[ce->dof_b * n + ce->dof_b] += kb;
             if (ce->dof_a != (uint16_t)DV_GROUND) {
                 ke[ce->dof_a * n + ce->dof_a] += kb;

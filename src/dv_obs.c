@@ -423,12 +423,26 @@ void dv_obs_reset(dv_obs_t *o)
     o->n_steps = 0u;
     o->n_bad_input = 0u;
     o->n_bad_meas = 0u;
+    for (size_t e = 0; e < DV_MAX_CONTACT; e++) {
+        o->elem_x[e] = DV_R(0.0);
+        o->elem_g[e] = DV_R(0.0);
+    }
+}
+
+/* Stick-slip (Jenkins) force from the previous sub-node's (X, g) */
+static dv_real_t stickslip_g(const dv_contact_desc_t *c, dv_real_t xp, dv_real_t gp,
+                             dv_real_t x)
+{
+    const dv_real_t f = c->kb_n_per_m;
+    const dv_real_t g = gp + f / c->delta_m * (x - xp);
+    return g > f ? f : (g < -f ? -f : g);
 }
 
 /* Sub-node contact forces g into sv[ns + nin ..], from x = sv[0..ns) and the input window
- * sv[ns .. ns + nin). */
-static void contact_forces(const dv_model_t *m, dv_real_t *sv, size_t ns)
+ * sv[ns .. ns + nin). Stick-slip elements read and advance the observer's element history. */
+static void contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
 {
+    const dv_model_t *m = o->m;
     const size_t nc = m->n_contact;
     const size_t nf = m->n_f;
     const size_t nsub = m->n_sub;
@@ -437,6 +451,14 @@ static void contact_forces(const dv_model_t *m, dv_real_t *sv, size_t ns)
     dv_real_t *g = sv + ns + (cubic ? 4u : 2u);
     dv_real_t lin[DV_MAX_CONTACT];
     dv_real_t cur[DV_MAX_CONTACT];
+    dv_real_t xp[DV_MAX_CONTACT];
+    dv_real_t gp[DV_MAX_CONTACT];
+    dv_real_t xn[DV_MAX_CONTACT];
+    for (size_t e = 0; e < nc; e++) {
+        xp[e] = o->elem_x[e];
+        gp[e] = o->elem_g[e];
+        xn[e] = xp[e];
+    }
     for (size_t i = 0; i <= nsub; i++) {
         const size_t f0 = i * nc;
         for (size_t e = 0; e < nc; e++) {
@@ -469,13 +491,24 @@ static void contact_forces(const dv_model_t *m, dv_real_t *sv, size_t ns)
                     xr += srow[e2] * cur[e2];
                 }
                 const dv_contact_desc_t *c = &m->contact[e];
-                g[f0 + e] = dv_priv_elem_g((int)c->law, (int)c->side, c->gap_m, c->delta_m,
-                                           c->kb_n_per_m, xr);
+                xn[e] = xr;
+                g[f0 + e] = c->law == DV_ELEM_STICKSLIP
+                                ? stickslip_g(c, xp[e], gp[e], xr)
+                                : dv_priv_elem_g((int)c->law, (int)c->side, c->gap_m,
+                                                 c->delta_m, c->kb_n_per_m, xr);
             }
             for (size_t e = 0; e < nc; e++) {
                 cur[e] = g[f0 + e];
             }
         }
+        for (size_t e = 0; e < nc; e++) {
+            xp[e] = xn[e];
+            gp[e] = g[f0 + e];
+        }
+    }
+    for (size_t e = 0; e < nc; e++) {
+        o->elem_x[e] = xp[e];
+        o->elem_g[e] = gp[e];
     }
 }
 
@@ -656,7 +689,7 @@ static void step_first(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool correc
     dv_real_t *yhat = o->z + ns;
     sv[ns] = u;
     if (o->nf > 0u) {
-        contact_forces(m, sv, ns); /* every node sees the same state: use node 0 */
+        contact_forces(o, sv, ns); /* every node sees the same state: use node 0 */
     }
     for (size_t q = 0; q < no; q++) {
         dv_real_t s = (m->d0[q] + m->d1[q]) * u;
@@ -754,7 +787,7 @@ static void produce(dv_obs_t *o, const dv_real_t *y, uint32_t flags, bool use_ga
     if (ns == 8u && no == 4u && !first) {
         /* the 4-DOF, 4-channel case: constant sizes, one call */
         if (nf > 0u) {
-            contact_forces(o->m, sv, 8u);
+            contact_forces(o, sv, 8u);
         }
         if (flags == 0u) {
             if (correct) {
@@ -780,7 +813,7 @@ static void produce(dv_obs_t *o, const dv_real_t *y, uint32_t flags, bool use_ga
         }
     } else {
         if (nf > 0u) {
-            contact_forces(o->m, sv, ns);
+            contact_forces(o, sv, ns);
         }
         const dv_real_t *fx = o->f_open;
         const dv_real_t *fy = o->f_open + ns * (size_t)o->ncol_open;
@@ -838,7 +871,7 @@ static dv_status_t step(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool use_g
             const bool correct = use_gain && o->has_gain && flags == 0u;
             dv_real_t *yhat = o->z + 8u;
             if (nf > 0u) {
-                contact_forces(o->m, sv, 8u);
+                contact_forces(o, sv, 8u);
             }
             if (correct) {
                 kernel_8x4(2u + nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
@@ -915,6 +948,12 @@ static dv_status_t flush(dv_obs_t *o, bool use_gain)
     for (size_t i = 0; i < keep; i++) {
         save[i] = sv[i];
     }
+    dv_real_t sx[DV_MAX_CONTACT];
+    dv_real_t sg[DV_MAX_CONTACT];
+    for (size_t e = 0; e < DV_MAX_CONTACT; e++) {
+        sx[e] = o->elem_x[e];
+        sg[e] = o->elem_g[e];
+    }
     const dv_real_t ux = DV_R(3.0) * sv[ns + 3u] - DV_R(3.0) * sv[ns + 2u] + sv[ns + 1u];
     sv[ns] = sv[ns + 1u];
     sv[ns + 1u] = sv[ns + 2u];
@@ -928,6 +967,10 @@ static dv_status_t flush(dv_obs_t *o, bool use_gain)
     o->started = started;
     for (size_t i = 0; i < keep; i++) {
         sv[i] = save[i];
+    }
+    for (size_t e = 0; e < DV_MAX_CONTACT; e++) {
+        o->elem_x[e] = sx[e];
+        o->elem_g[e] = sg[e];
     }
     return DV_OK;
 }

@@ -152,6 +152,11 @@ static inline dv_real_t dv_priv_elem_g(int law, int side, dv_real_t gap, dv_real
         return kb * x * x * x;
     case 3:
         return kb * x * DV_FABS(x);
+    case 4: {
+        /* stick-slip without history: the virgin curve clip((F / z) X, -F, F) */
+        const dv_real_t g = kb / delta * x;
+        return g > kb ? kb : (g < -kb ? -kb : g);
+    }
     default:
         return dv_priv_contact_g(side, gap, delta, kb, x);
     }

@@ -44,6 +44,13 @@
  *       as the contact limit (the fixed-point iterations lose accuracy beyond).
  *     DV_ELEM_VV: quadratic (velocity-squared) damper, g(V) = c2 V |V| with c2 = kb_n_per_m
  *       (N s^2/m^2).
+ *     DV_ELEM_STICKSLIP: elasto-plastic (Jenkins) friction on X, a stick spring of stiffness
+ *       F / z in series with a slider that slips at F = kb_n_per_m (N), z = delta_m (the slip
+ *       displacement, m, > 0): at each sub-node g = clip(g_prev + (F / z) (X - X_prev), -F, F)
+ *       with (X_prev, g_prev) of the previous sub-node (the observer keeps them across steps,
+ *       dv_obs_t; zero after reset). Rate-independent hysteresis: stick, then slip at +-F.
+ *       Its stick stiffness F / z counts in the contact-stiffness check at init.
+ *       dv_contact_force() gives its virgin curve clip((F / z) X, -F, F).
  *   gap_m and side are ignored by these laws (side must still be a valid value).
  *
  * Discretisation, sample period T: the linear part is exact for an input linear between
@@ -135,7 +142,8 @@ typedef enum {
     DV_ELEM_CONTACT = 0,  /**< gap/bumper on X (the default, zero-initialised) */
     DV_ELEM_FRICTION = 1, /**< regularised Coulomb friction on V */
     DV_ELEM_CUBIC = 2,    /**< cubic spring on X */
-    DV_ELEM_VV = 3        /**< velocity-squared damper on V */
+    DV_ELEM_VV = 3,       /**< velocity-squared damper on V */
+    DV_ELEM_STICKSLIP = 4 /**< elasto-plastic (Jenkins) friction on X, with history */
 } dv_elem_law_t;
 
 /** @brief One contact element (or, by law, a friction, cubic or v|v| element). */

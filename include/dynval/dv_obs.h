@@ -89,6 +89,8 @@ typedef struct {
     dv_real_t *f_gain;   /**< with L: ns x ncol_gain state rows, then no x ncol_open output rows, each column-major */
     dv_real_t *gain;     /**< L, ns x no row-major */
     dv_real_t *scratch;  /**< init-time scratch */
+    dv_real_t elem_x[DV_MAX_CONTACT]; /**< stick-slip elements: X at the last sub-node, m */
+    dv_real_t elem_g[DV_MAX_CONTACT]; /**< stick-slip elements: force at the last sub-node, N */
     size_t scratch_len;  /**< elements in scratch */
 } dv_obs_t;
 

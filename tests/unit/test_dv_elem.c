@@ -44,6 +44,10 @@ static double law(int lw, double p_delta, double p_kb, double a)
     }
 }
 
+/* Stick-slip history: the force of each stick-slip element is a state gz[e] of the
+ * reference, dg/dt = (F / z) V while it sticks (|g| < F, or V drives it back), else 0. */
+static double gz[DV_MAX_CONTACT], gdot[DV_MAX_CONTACT], gzt[DV_MAX_CONTACT];
+
 /* acc = M^-1 (f e_in - C v - K x - elements), elements pushing a by +g and b by -g */
 static void rhs(const dv_model_t *m, const double *kk, const double *cc, double f,
                 const double *x, const double *v, double *acc)
@@ -55,8 +59,17 @@ static void rhs(const dv_model_t *m, const double *kk, const double *cc, double 
         const int vel = c->law == DV_ELEM_FRICTION || c->law == DV_ELEM_VV;
         const double *z = vel ? v : x;
         const double za = c->dof_a == (uint16_t)DV_GROUND ? 0.0 : z[c->dof_a];
-        const double g = law((int)c->law, (double)c->delta_m, (double)c->kb_n_per_m,
-                             z[c->dof_b] - za);
+        double g;
+        if (c->law == DV_ELEM_STICKSLIP) {
+            const double fs = (double)c->kb_n_per_m;
+            const double va = c->dof_a == (uint16_t)DV_GROUND ? 0.0 : v[c->dof_a];
+            const double vr = v[c->dof_b] - va;
+            g = gzt[e];
+            const int slipping = (g >= fs && vr > 0) || (g <= -fs && vr < 0);
+            gdot[e] = slipping ? 0.0 : fs / (double)c->delta_m * vr;
+        } else {
+            g = law((int)c->law, (double)c->delta_m, (double)c->kb_n_per_m, z[c->dof_b] - za);
+        }
         fe[c->dof_b] += g;
         if (c->dof_a != (uint16_t)DV_GROUND) {
             fe[c->dof_a] -= g;
@@ -88,6 +101,9 @@ static void reference(const dv_model_t *m)
     double k3x[DV_MAX_DOF], k3v[DV_MAX_DOF], k4x[DV_MAX_DOF], k4v[DV_MAX_DOF];
     double xt[DV_MAX_DOF], vt[DV_MAX_DOF], a[DV_MAX_DOF];
     const double h = 1.0 / (MT_FS * FINE);
+    double g1[DV_MAX_CONTACT], g2[DV_MAX_CONTACT], g3[DV_MAX_CONTACT], g4[DV_MAX_CONTACT];
+    const size_t nc = m->n_contact;
+    for (size_t e = 0; e < nc; e++) gz[e] = gzt[e] = 0.0;
     rhs(m, kk, cc, (double)eu[0], x, v, a);
     for (size_t i = 0; i < n; i++) eref[i] = a[i];
     for (int k = 0; k + 1 < NE; k++) {
@@ -95,31 +111,51 @@ static void reference(const dv_model_t *m)
             const double f0 = (double)eu[k] + ((double)eu[k + 1] - (double)eu[k]) * s / FINE;
             const double f1 = (double)eu[k] + ((double)eu[k + 1] - (double)eu[k]) * (s + 1) / FINE;
             const double fm = 0.5 * (f0 + f1);
+            for (size_t e = 0; e < nc; e++) gzt[e] = gz[e];
             rhs(m, kk, cc, f0, x, v, k1v);
+            for (size_t e = 0; e < nc; e++) {
+                g1[e] = gdot[e];
+                gzt[e] = gz[e] + 0.5 * h * g1[e];
+            }
             for (size_t i = 0; i < n; i++) {
                 k1x[i] = v[i];
                 xt[i] = x[i] + 0.5 * h * k1x[i];
                 vt[i] = v[i] + 0.5 * h * k1v[i];
             }
             rhs(m, kk, cc, fm, xt, vt, k2v);
+            for (size_t e = 0; e < nc; e++) {
+                g2[e] = gdot[e];
+                gzt[e] = gz[e] + 0.5 * h * g2[e];
+            }
             for (size_t i = 0; i < n; i++) {
                 k2x[i] = vt[i];
                 xt[i] = x[i] + 0.5 * h * k2x[i];
                 vt[i] = v[i] + 0.5 * h * k2v[i];
             }
             rhs(m, kk, cc, fm, xt, vt, k3v);
+            for (size_t e = 0; e < nc; e++) {
+                g3[e] = gdot[e];
+                gzt[e] = gz[e] + h * g3[e];
+            }
             for (size_t i = 0; i < n; i++) {
                 k3x[i] = vt[i];
                 xt[i] = x[i] + h * k3x[i];
                 vt[i] = v[i] + h * k3v[i];
             }
             rhs(m, kk, cc, f1, xt, vt, k4v);
+            for (size_t e = 0; e < nc; e++) {
+                g4[e] = gdot[e];
+                gz[e] += h / 6 * (g1[e] + 2 * g2[e] + 2 * g3[e] + g4[e]);
+                const double fs = (double)m->contact[e].kb_n_per_m;
+                gz[e] = gz[e] > fs ? fs : (gz[e] < -fs ? -fs : gz[e]);
+            }
             for (size_t i = 0; i < n; i++) {
                 k4x[i] = vt[i];
                 x[i] += h / 6 * (k1x[i] + 2 * k2x[i] + 2 * k3x[i] + k4x[i]);
                 v[i] += h / 6 * (k1v[i] + 2 * k2v[i] + 2 * k3v[i] + k4v[i]);
             }
         }
+        for (size_t e = 0; e < nc; e++) gzt[e] = gz[e];
         rhs(m, kk, cc, (double)eu[k + 1], x, v, a);
         for (size_t i = 0; i < n; i++) eref[(size_t)(k + 1) * n + i] = a[i];
     }
@@ -208,6 +244,17 @@ static void test_elem_vv_matches_reference(void **state)
     assert_true(err < 0.02 * eff);
 }
 
+static void test_elem_stickslip_matches_reference(void **state)
+{
+    (void)state;
+    double err, eff;
+    /* base on its rails with stick-slip friction: slips at 2 N after 5 um of stick */
+    run_case(DV_ELEM_STICKSLIP, (uint16_t)DV_GROUND, 0, 5e-6, 2.0, 5.0, &err, &eff);
+    fprintf(stderr, "stick-slip: error %.3g, effect of the element %.3g\n", err, eff);
+    assert_true(eff > 0.1);
+    assert_true(err < 0.05 * eff);
+}
+
 static void test_elem_laws_closed_form(void **state)
 {
     (void)state;
@@ -253,6 +300,7 @@ int main(void)
         cmocka_unit_test(test_elem_friction_matches_reference),
         cmocka_unit_test(test_elem_cubic_matches_reference),
         cmocka_unit_test(test_elem_vv_matches_reference),
+        cmocka_unit_test(test_elem_stickslip_matches_reference),
         cmocka_unit_test(test_elem_laws_closed_form),
         cmocka_unit_test(test_elem_init_refusals),
     };
