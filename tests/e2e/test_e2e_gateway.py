@@ -27,6 +27,9 @@ pytestmark = pytest.mark.skipif(not HAVE_VCAN, reason="no vcan0 (run tests/e2e/r
 
 TEST = E.ROOT / "data" / "lanl4dof-sim" / "clean" / "test_low_01.csv"
 WIN, SEG, NSEG = 64, 32, 16
+# a residual frame every 16 observer steps: per-step residuals (4 x 640 frames/s) outrun the
+# Python logger in the emulated VM (its socket drops; the firmware itself loses nothing)
+DECIM = 16
 
 
 def test_dynval_run_socketcan_against_firmware_sim(tmp_path):
@@ -36,7 +39,8 @@ def test_dynval_run_socketcan_against_firmware_sim(tmp_path):
 
     out = Path(os.environ.get("VCAN_OUT", tmp_path)) / "gateway_run"
     cmd = [sys.executable, "-m", "dynval", "-q", "run", str(TEST), "--bus", "socketcan",
-           "--channel", "vcan0", "--firmware", str(E.SIM_BIN), "--speed", "0.5",
+           "--channel", "vcan0", "--firmware", str(E.SIM_BIN), "--speed", "0.25",
+           "--resid-decim", str(DECIM),
            "--win", str(WIN), "--seg", str(SEG), "--nseg", str(NSEG), "-o", str(out)]
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=600,
                        env={**os.environ, "TMPDIR": os.environ.get("TMPDIR", "/tmp")})
@@ -60,7 +64,7 @@ def test_dynval_run_socketcan_against_firmware_sim(tmp_path):
     nf = plan.n_frames_per_channel
     assert sorted(seqs) == [0, 1, 2, 3, 4]
     assert all(v == list(range(nf)) for v in seqs.values())  # nothing lost or reordered
-    assert n_resid == 4 * (nf * 3)  # declared model: observer on, a residual per step
+    assert n_resid == 4 * -(-(nf * 3) // DECIM)  # declared model: observer on
     n_rec = rec.n_samples // (SEG * NSEG)
     for c in range(5):
         recs, _ = features.channel_records(plan.values(c), rec.fs_hz, WIN, SEG, NSEG)
