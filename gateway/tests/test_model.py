@@ -270,7 +270,7 @@ def _good() -> dict[str, Any]:
      "out of range"),
     (lambda d: d["outputs"]["acc2_mps2"].pop("dof"), "outputs.acc2_mps2.dof", "missing"),
     (lambda d: d["elements"][0].__setitem__("gap_m", -1e-4), "elements[0].gap_m", ">= 0"),
-    (lambda d: d["elements"][0].__setitem__("type", "friction"), "elements[0].type",
+    (lambda d: d["elements"][0].__setitem__("type", "hysteron"), "elements[0].type",
      "not one of contact"),
     (lambda d: d["elements"][0].__setitem__("between", [3]), "elements[0].between", "two DOFs"),
     (lambda d: d["masses_kg"].__setitem__(1, "heavy"), "masses_kg[1]", "expected a number"),

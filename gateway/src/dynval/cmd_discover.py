@@ -32,6 +32,10 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--noise", type=float, default=None, metavar="FRACTION",
                    help="stated sensor noise as a fraction of each channel's RMS (default: "
                         "estimated from the residual's high-frequency PSD)")
+    p.add_argument("--uncertain", default="", metavar="P1,P2",
+                   help="declared parameters that are uncertain (model parameter names, e.g. "
+                        "zeta2,zeta4 or k1,beta): calibrated first, then re-adjusted jointly "
+                        "with every candidate effect")
     p.add_argument("--fs", type=float, default=None, metavar="HZ",
                    help="sampling rate of whitespace text tests")
     p.set_defaults(run=run)
@@ -68,7 +72,9 @@ def run(args: argparse.Namespace) -> int:
                 import numpy as np
 
                 noise[c] = args.noise * float(np.sqrt(np.mean(np.concatenate(vals) ** 2)))
-    opts = loop.Options(max_effects=args.max_effects, min_gain=args.min_gain, noise=noise)
+    unc = tuple(x.strip() for x in args.uncertain.split(",") if x.strip())
+    opts = loop.Options(max_effects=args.max_effects, min_gain=args.min_gain, noise=noise,
+                        uncertain=unc)
     res = loop.discover(m, recs, opts, on_progress=lambda s: log.debug("%s", s))
     if args.model_out is not None:
         mdl.save(res.model, args.model_out)

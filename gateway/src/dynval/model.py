@@ -48,7 +48,7 @@ DAMPING_TYPES = ("modal", "rayleigh", "matrix")
 INPUT_KINDS = ("force", "ground_acc", "ground_disp")
 OUTPUT_KINDS = ("acc", "vel", "disp", "story_force", "contact_force", "reaction")
 SIDES = ("pos", "neg", "both")
-ELEMENT_TYPES = ("contact",)
+ELEMENT_TYPES = ("contact", "friction", "cubic_spring", "vv_damper", "stick_slip")
 INTERPOLATIONS = ("bandlimited", "foh", "cubic")
 
 # Limits of the compiled core (dv_config.h); the struct arrays tell their sizes.
@@ -130,7 +130,70 @@ class Contact:
     type: str = "contact"
 
 
-Element = Contact  # new element kinds (friction, cubic springs, ...) join this union
+@dataclass(frozen=True)
+class Friction:
+    """Regularised Coulomb friction between ``dof_a`` (0: ground) and ``dof_b`` on the relative
+    velocity V = v_b - v_a (dv_model.h DV_ELEM_FRICTION): g = F V / sqrt(V^2 + eps^2), F =
+    ``force_n`` (slip force, N), eps = ``v_eps_m_per_s`` (> 0); +g on DOF a, -g on DOF b."""
+
+    dof_a: int
+    dof_b: int
+    force_n: float
+    v_eps_m_per_s: float
+    name: str = ""
+    type: str = "friction"
+
+
+@dataclass(frozen=True)
+class CubicSpring:
+    """Cubic spring g = k3 X^3 on X = x_b - x_a (DV_ELEM_CUBIC), k3 = ``k3_n_per_m3`` >= 0."""
+
+    dof_a: int
+    dof_b: int
+    k3_n_per_m3: float
+    name: str = ""
+    type: str = "cubic_spring"
+
+
+@dataclass(frozen=True)
+class VVDamper:
+    """Velocity-squared damper g = c2 V |V| on V = v_b - v_a (DV_ELEM_VV), c2 =
+    ``c2_n_s2_per_m2`` >= 0."""
+
+    dof_a: int
+    dof_b: int
+    c2_n_s2_per_m2: float
+    name: str = ""
+    type: str = "vv_damper"
+
+
+@dataclass(frozen=True)
+class StickSlip:
+    """Elasto-plastic (Jenkins) friction on X = x_b - x_a (DV_ELEM_STICKSLIP): a stick spring
+    of stiffness F / z in series with a slider at F = ``force_n`` (N), z = ``slip_m`` (> 0, the
+    stick displacement before slip); rate-independent hysteresis, history kept by the core."""
+
+    dof_a: int
+    dof_b: int
+    force_n: float
+    slip_m: float
+    name: str = ""
+    type: str = "stick_slip"
+
+
+Element = Contact | Friction | CubicSpring | VVDamper | StickSlip
+
+# per element type: (parameter attribute, field of dv_contact_desc_t)
+_ELEM_PARAMS: dict[str, tuple[tuple[str, str], ...]] = {
+    "contact": (("gap_m", "gap_m"), ("delta_m", "delta_m"), ("kb_n_per_m", "kb_n_per_m")),
+    "friction": (("force_n", "kb_n_per_m"), ("v_eps_m_per_s", "delta_m")),
+    "cubic_spring": (("k3_n_per_m3", "kb_n_per_m"),),
+    "vv_damper": (("c2_n_s2_per_m2", "kb_n_per_m"),),
+    "stick_slip": (("force_n", "kb_n_per_m"), ("slip_m", "delta_m")),
+}
+_ELEM_LAW = {"contact": "DV_ELEM_CONTACT", "friction": "DV_ELEM_FRICTION",
+             "cubic_spring": "DV_ELEM_CUBIC", "vv_damper": "DV_ELEM_VV",
+             "stick_slip": "DV_ELEM_STICKSLIP"}
 
 
 @dataclass(frozen=True)
@@ -180,16 +243,15 @@ class Model:
             p["alpha"] = float(d.alpha_per_s or 0.0)
             p["beta"] = float(d.beta_s or 0.0)
         for i, e in enumerate(self.elements, 1):
-            if isinstance(e, Contact):
-                p[f"e{i}.gap_m"] = e.gap_m
-                p[f"e{i}.delta_m"] = e.delta_m
-                p[f"e{i}.kb_n_per_m"] = e.kb_n_per_m
+            for attr, _ in _ELEM_PARAMS[e.type]:
+                p[f"e{i}.{attr}"] = float(getattr(e, attr))
         return p
 
     def with_params(self, params: Mapping[str, float]) -> Model:
         """A copy with parameters replaced: m<i>, k<i>, zeta<i> (modal ratio of mode i, or the
-        i-th of the two Rayleigh ratios), alpha, beta (Rayleigh a, b), e<i>.gap_m,
-        e<i>.delta_m, e<i>.kb_n_per_m (element i). The copy is validated."""
+        i-th of the two Rayleigh ratios), alpha, beta (Rayleigh a, b), e<i>.<parameter> of
+        element i (contact: gap_m, delta_m, kb_n_per_m; friction: force_n, v_eps_m_per_s;
+        cubic_spring: k3_n_per_m3; vv_damper: c2_n_s2_per_m2). The copy is validated."""
         masses = list(self.masses_kg)
         ks = list(self.stiffness_n_per_m)
         zeta = list(self.damping.zeta)
@@ -208,12 +270,9 @@ class Model:
                 damp = dataclasses.replace(damp, alpha_per_s=v)
             elif attr == "beta":
                 damp = dataclasses.replace(damp, beta_s=v)
-            elif attr == "gap_m":
-                elems[idx] = dataclasses.replace(elems[idx], gap_m=v)
-            elif attr == "delta_m":
-                elems[idx] = dataclasses.replace(elems[idx], delta_m=v)
-            else:
-                elems[idx] = dataclasses.replace(elems[idx], kb_n_per_m=v)
+            else:  # an element parameter (checked against its type by _param_target)
+                upd: dict[str, Any] = {attr: v}
+                elems[idx] = dataclasses.replace(elems[idx], **upd)
         if zeta:
             damp = dataclasses.replace(damp, zeta=tuple(zeta))
         m = dataclasses.replace(self, masses_kg=tuple(masses), stiffness_n_per_m=tuple(ks),
@@ -222,7 +281,7 @@ class Model:
         return m
 
 
-_PARAM = re.compile(r"^(?:(m|k|zeta)(\d+)|(alpha|beta)|e(\d+)\.(gap_m|delta_m|kb_n_per_m))$")
+_PARAM = re.compile(r"^(?:(m|k|zeta)(\d+)|(alpha|beta)|e(\d+)\.([a-z0-9_]+))$")
 
 
 def _param_target(name: str, m: Model) -> tuple[int, str]:
@@ -244,6 +303,10 @@ def _param_target(name: str, m: Model) -> tuple[int, str]:
     i = int(g.group(4)) - 1
     if not 0 <= i < len(m.elements):
         raise ConfigError(f"parameter '{name}': the model has {len(m.elements)} elements")
+    known = [a for a, _ in _ELEM_PARAMS[m.elements[i].type]]
+    if g.group(5) not in known:
+        raise ConfigError(f"parameter '{name}': element {i + 1} ({m.elements[i].type}) has "
+                          f"{', '.join(known)}")
     return i, g.group(5)
 
 
@@ -412,6 +475,22 @@ def _from_dynval(d: Mapping[str, Any], ctx: _Ctx) -> Model:
                 kb_n_per_m=ctx.num(ctx.get(e, "kb_n_per_m", w), f"{w}.kb_n_per_m"),
                 side=ctx.choice(e.get("side", "pos"), f"{w}.side", SIDES),
                 name=str(e.get("name", ""))))
+        else:
+            btw = ctx.get(e, "between", w)
+            if not isinstance(btw, (list, tuple)) or len(btw) != 2:
+                raise ctx.err(f"{w}.between", "expected two DOFs [a, b] (a may be \"ground\")")
+            a_, b_ = _dof(btw[0], ctx, f"{w}.between[0]"), _dof(btw[1], ctx, f"{w}.between[1]")
+            vals = {attr: ctx.num(ctx.get(e, attr, w), f"{w}.{attr}")
+                    for attr, _ in _ELEM_PARAMS[t]}
+            nm = str(e.get("name", ""))
+            if t == "friction":
+                elems.append(Friction(a_, b_, vals["force_n"], vals["v_eps_m_per_s"], nm))
+            elif t == "cubic_spring":
+                elems.append(CubicSpring(a_, b_, vals["k3_n_per_m3"], nm))
+            elif t == "stick_slip":
+                elems.append(StickSlip(a_, b_, vals["force_n"], vals["slip_m"], nm))
+            else:
+                elems.append(VVDamper(a_, b_, vals["c2_n_s2_per_m2"], nm))
     sim = d.get("simulation", {})
     if not isinstance(sim, Mapping):
         raise ctx.err("simulation", "expected an object")
@@ -551,16 +630,27 @@ def validate(m: Model, ctx: _Ctx | None = None) -> None:
         if o.kind in ("acc", "vel", "disp", "story_force") and not 1 <= o.index <= n:
             raise c.err(w, f"{'story' if o.kind == 'story_force' else 'DOF'} {o.index} out of "
                         f"range 1..{n}")
-        if o.kind == "contact_force" and not (
-                1 <= o.index <= len(m.elements) and isinstance(m.elements[o.index - 1], Contact)):
-            raise c.err(f"{w}.element", f"element {o.index} is not a contact element")
+        if o.kind == "contact_force" and not 1 <= o.index <= len(m.elements):
+            raise c.err(f"{w}.element", f"element {o.index} out of range 1..{len(m.elements)}")
         if not (math.isfinite(o.gain) and o.gain != 0):
             raise c.err(f"{w}.gain", f"sensor gain must be finite and non-zero (negative: "
                         f"the sensor's sign convention is reversed), got {o.gain!r}")
-    if len(m.contacts) > MAX_CONTACT:
-        raise c.err("elements", f"{len(m.contacts)} contacts; this core supports {MAX_CONTACT}")
+    if len(m.elements) > MAX_CONTACT:
+        raise c.err("elements", f"{len(m.elements)} elements; this core supports {MAX_CONTACT}")
     for i, e in enumerate(m.elements):
         w = f"elements[{i}]"
+        if not isinstance(e, Contact):
+            if not 0 <= e.dof_a <= n or not 1 <= e.dof_b <= n or e.dof_a == e.dof_b:
+                raise c.err(f"{w}.between", f"[{e.dof_a}, {e.dof_b}]: DOFs in 1..{n} (the first "
+                            "may be 0 = ground), different")
+            for attr, _ in _ELEM_PARAMS[e.type]:
+                v = float(getattr(e, attr))
+                if not (math.isfinite(v) and v >= 0):
+                    raise c.err(f"{w}.{attr}", f"must be >= 0, got {v!r}")
+            if isinstance(e, Friction) and not e.v_eps_m_per_s > 0:
+                raise c.err(f"{w}.v_eps_m_per_s", "must be > 0 (the regularisation)")
+            if isinstance(e, StickSlip) and not e.slip_m > 0:
+                raise c.err(f"{w}.slip_m", "must be > 0 (the stick displacement)")
         if isinstance(e, Contact):
             if not 0 <= e.dof_a <= n or not 1 <= e.dof_b <= n or e.dof_a == e.dof_b:
                 raise c.err(f"{w}.between", f"[{e.dof_a}, {e.dof_b}]: DOFs in 1..{n} (the first "
@@ -611,8 +701,11 @@ def to_dict(m: Model) -> dict[str, Any]:
         ed: dict[str, Any] = {"type": e.type}
         if e.name:
             ed["name"] = e.name
-        ed.update(between=["ground" if e.dof_a == 0 else e.dof_a, e.dof_b], side=e.side,
-                  gap_m=e.gap_m, delta_m=e.delta_m, kb_n_per_m=e.kb_n_per_m)
+        ed["between"] = ["ground" if e.dof_a == 0 else e.dof_a, e.dof_b]
+        if isinstance(e, Contact):
+            ed["side"] = e.side
+        for attr, _ in _ELEM_PARAMS[e.type]:
+            ed[attr] = getattr(e, attr)
         elems.append(ed)
     out: dict[str, Any] = {"format": FORMAT}
     if m.name:
@@ -669,16 +762,18 @@ def _fill_desc(desc: Any, m: Model) -> None:
                 desc.c_n_s_per_m[i * n + j] = float(cm[i, j])
     desc.input_kind = _INPUT_C[m.input.kind]
     desc.input_dof = max(m.input.dof - 1, 0)
-    cs = m.contacts
+    cs = list(m.elements)
     desc.n_contact = len(cs)
     for i, e in enumerate(cs):
         c = desc.contact[i]
         c.dof_a = lib.DV_GROUND if e.dof_a == 0 else e.dof_a - 1
         c.dof_b = e.dof_b - 1
-        c.side = _SIDE_C[e.side]
-        c.gap_m = e.gap_m
-        c.delta_m = e.delta_m
-        c.kb_n_per_m = e.kb_n_per_m
+        c.side = _SIDE_C[e.side] if isinstance(e, Contact) else lib.DV_CONTACT_POS
+        c.gap_m = 0.0
+        c.delta_m = 0.0
+        c.law = getattr(lib, _ELEM_LAW[e.type])
+        for attr, fld in _ELEM_PARAMS[e.type]:
+            setattr(c, fld, float(getattr(e, attr)))
     desc.n_sub = m.substeps if cs else 1
     desc.input_hold = lib.DV_HOLD_CUBIC if m.interpolation == "cubic" else lib.DV_HOLD_FOH
     cidx = {id(e): i for i, e in enumerate(cs)}
@@ -913,12 +1008,9 @@ def _desc_setters(m: Model) -> dict[str, Callable[[Any, float], None]]:
     elif m.damping.type == "rayleigh" and m.damping.modes:
         for i in range(2):
             s[f"zeta{i + 1}"] = arr("rayleigh_zeta", i)
-    ci = 0
     for i, e in enumerate(m.elements):
-        if isinstance(e, Contact):
-            for attr in ("gap_m", "delta_m", "kb_n_per_m"):
-                s[f"e{i + 1}.{attr}"] = con(ci, attr)
-            ci += 1
+        for attr, fld in _ELEM_PARAMS[e.type]:
+            s[f"e{i + 1}.{attr}"] = con(i, fld)
     if m.damping.type == "rayleigh" and not m.damping.modes:
         # masses and stiffnesses also enter C = a M + b K: recompute C in Python for them
         s = {k: v for k, v in s.items() if not re.match(r"^[mk]\d+$", k)}

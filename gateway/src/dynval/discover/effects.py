@@ -149,6 +149,10 @@ class EffectType:
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
         raise NotImplementedError
 
+    def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        """Starting points of the fit (the best fit over them is kept)."""
+        return [self.initial(m, cand, amp)]
+
 
 class NoEffect(EffectType):
     type = "none"
@@ -393,25 +397,63 @@ class Contact(EffectType):
         return dataclasses.replace(m, elements=(*m.elements, e))
 
 
-class _Unavailable(EffectType):
-    available = False
-    note = ("needs a C element type that this build's dv_model lacks; ranked on evidence only, "
-            "never fitted (it is not faked in Python)")
+def _core_has(law: str) -> bool:
+    """Whether the compiled core knows an element law (dv_elem_law_t)."""
+    from dynval._core import lib
 
-    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
-        return []
-
-    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
-        return []
-
-    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
-        raise NotImplementedError(f"{self.type}: {self.note}")
+    try:
+        getattr(lib, law)
+    except AttributeError:
+        return False
+    return True
 
 
-class Friction(_Unavailable):
+class _ElementEffect(EffectType):
+    """An effect that is a new C element (dv_model element laws); unavailable, and then
+    ranked on evidence only and never fitted or imitated in Python, when the core lacks it."""
+
+    c_law = ""
+    note_missing = ("needs a C element type that this build's dv_model lacks; ranked on "
+                    "evidence only, never fitted (it is not faked in Python)")
+
+    def __init__(self) -> None:
+        self.available = _core_has(self.c_law)
+        self.note = "" if self.available else self.note_missing
+
+    @staticmethod
+    def _scale(cand: Candidate, default: float) -> float:
+        a = abs(float(cand.shape.get("amp", 0.0)))
+        return a if a > 0 else default
+
+
+class Friction(_ElementEffect):
     type = "friction"
     location_kind = "dof"
-    law = "Coulomb friction between DOF j and the ground: F_c sign(v_j)"
+    law = ("Coulomb friction between DOF j and the ground on the relative velocity V: "
+           "F V / sqrt(V^2 + eps^2) (a dv_model friction element, -> F sign(V))")
+    c_law = "DV_ELEM_FRICTION"
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        f = self._scale(cand, 1.0)
+        vr = float(cand.shape.get("v_rms", 1e-2))
+        return [Param("force_n", "N", 1e-3 * f, 20 * f, log=True),
+                Param("v_eps_m_per_s", "m/s", 1e-3 * vr, 0.5 * vr, log=True)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        vr = float(cand.shape.get("v_rms", 1e-2))
+        return [max(abs(amp), 1e-3 * self._scale(cand, 1.0) * 2), 0.03 * vr]
+
+    def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        # a sharp and a smooth regularisation: stick-slip data with a presliding range can
+        # prefer the smooth one
+        f0, e0 = self.initial(m, cand, amp)
+        return [[f0, e0], [f0, 10 * e0]]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        j = cand.location["dof"]
+        e = mdl.Friction(0, j, float(values[0]), float(values[1]),
+                         name=f"discovered friction DOF {j}")
+        return dataclasses.replace(m, elements=(*m.elements, e))
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         return [{"dof": j} for j in range(1, m.n_dof + 1)]
@@ -425,25 +467,77 @@ class Friction(_Unavailable):
         x = st.x[j] - (st.xg if st.xg is not None and j == 0 else 0.0)
         vs = float(np.std(v)) or 1.0
         xs = float(np.std(x)) or 1.0
+        del x, xs
         out = []
         for eps in (0.02, 0.1):
             b = np.zeros_like(st.v)
             b[j] = st.hp(np.tanh(v / (eps * vs)))
             out.append(({"v_eps_rel": eps}, b))
-        # stick-slip (Jenkins) shapes: a stick spring in series with the slider
-        fr = (0.01, 0.05, 0.15, 0.4, 0.8)
-        ys = jenkins(x, [f * xs for f in fr])
-        for f, y in zip(fr, ys, strict=True):
-            b = np.zeros_like(st.v)
-            b[j] = st.hp(y)
-            out.append(({"slip_disp_rel": f}, b))
         return out
 
 
-class CubicStiffness(_Unavailable):
+class StickSlipFriction(_ElementEffect):
+    type = "stick_slip"
+    location_kind = "dof"
+    law = ("stick-slip (Jenkins) friction between DOF j and the ground: a stick spring F/z in "
+           "series with a slider at F, rate-independent hysteresis (a dv_model stick_slip "
+           "element)")
+    c_law = "DV_ELEM_STICKSLIP"
+    _FR = (0.003, 0.01, 0.05, 0.15, 0.4, 0.8)
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"dof": j} for j in range(1, m.n_dof + 1)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"stick-slip friction, DOF {loc['dof']} (to ground)"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        j = cand.location["dof"] - 1
+        x = st.x[j] - (st.xg if st.xg is not None and j == 0 else 0.0)
+        xs = float(np.std(x)) or 1.0
+        out = []
+        ys = jenkins(x, [f * xs for f in self._FR])
+        for f, y in zip(self._FR, ys, strict=True):
+            b = np.zeros_like(st.v)
+            b[j] = st.hp(y)
+            out.append(({"slip_m": f * xs, "x_rms": xs}, b))
+        return out
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        f = self._scale(cand, 1.0)
+        xs = float(cand.shape.get("x_rms", 1e-4))
+        return [Param("force_n", "N", 1e-3 * f, 20 * f, log=True),
+                Param("slip_m", "m", 1e-4 * xs, 2.0 * xs, log=True)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        xs = float(cand.shape.get("x_rms", 1e-4))
+        return [max(abs(amp), 2e-3 * self._scale(cand, 1.0)),
+                float(cand.shape.get("slip_m", 0.05 * xs))]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        j = cand.location["dof"]
+        e = mdl.StickSlip(0, j, float(values[0]), float(values[1]),
+                          name=f"discovered stick-slip DOF {j}")
+        return dataclasses.replace(m, elements=(*m.elements, e))
+
+
+class CubicStiffness(_ElementEffect):
     type = "cubic_stiffness"
     location_kind = "story"
-    law = "cubic story spring: k3 X^3"
+    law = "cubic story spring: k3 X^3 (a dv_model cubic_spring element)"
+    c_law = "DV_ELEM_CUBIC"
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        k = self._scale(cand, 1e12)
+        return [Param("k3_n_per_m3", "N/m^3", 1e-3 * k, 1e2 * k, log=True)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        return [self._scale(cand, 1e12)]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        s = cand.location["story"]
+        e = mdl.CubicSpring(s - 1, s, float(values[0]), name=f"discovered cubic story {s}")
+        return dataclasses.replace(m, elements=(*m.elements, e))
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         return [{"story": s, "between": [s - 1, s]} for s in range(1, m.n_dof + 1)]
@@ -456,10 +550,23 @@ class CubicStiffness(_Unavailable):
         return [({}, _story_basis(st, cand.location["story"], st.hp(d ** 3)))]
 
 
-class VelocitySquaredDamping(_Unavailable):
+class VelocitySquaredDamping(_ElementEffect):
     type = "vv_damping"
     location_kind = "story"
-    law = "quadratic story damper: c2 V |V| on the drift velocity"
+    law = "quadratic story damper: c2 V |V| on the drift velocity (a dv_model vv_damper)"
+    c_law = "DV_ELEM_VV"
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        c = self._scale(cand, 1e3)
+        return [Param("c2_n_s2_per_m2", "N s^2/m^2", 1e-3 * c, 1e2 * c, log=True)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        return [self._scale(cand, 1e3)]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        s = cand.location["story"]
+        e = mdl.VVDamper(s - 1, s, float(values[0]), name=f"discovered v|v| damper story {s}")
+        return dataclasses.replace(m, elements=(*m.elements, e))
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         return [{"story": s, "between": [s - 1, s]} for s in range(1, m.n_dof + 1)]
@@ -474,7 +581,7 @@ class VelocitySquaredDamping(_Unavailable):
 
 LIBRARY: tuple[EffectType, ...] = (
     Contact(), StiffnessChange(), MassChange(), DampingChange(), SensorGain(),
-    Friction(), CubicStiffness(), VelocitySquaredDamping())
+    Friction(), StickSlipFriction(), CubicStiffness(), VelocitySquaredDamping())
 NONE = NoEffect()
 
 

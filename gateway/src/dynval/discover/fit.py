@@ -25,6 +25,7 @@ import numpy as np
 from dynval import model as mdl
 from dynval.discover import effects as fx
 from dynval.discover.residual import TestData, predict
+from dynval.errors import ConfigError
 
 log = logging.getLogger(__name__)
 least_squares: Any = importlib.import_module("scipy.optimize").least_squares
@@ -95,19 +96,48 @@ def n_eff_factor(r: np.ndarray, maxlag: int = 64) -> float:
     return max(1.0, 1.0 + 2.0 * s)
 
 
+def uncertain_params(m: mdl.Model, names: Sequence[str]) -> list[fx.Param]:
+    """Declared parameters the user called uncertain (Model.with_params names), free within
+    1/3..3 x their declared value (log-scaled); zero-valued ones within 0..1."""
+    cur = m.parameters()
+    out = []
+    for n in names:
+        if n not in cur:
+            raise ConfigError(f"uncertain parameter '{n}' is not a parameter of the model "
+                              f"(known: {', '.join(cur)})")
+        v = float(cur[n])
+        out.append(fx.Param(n, "", v / 3, 3 * v, log=True) if v > 0 else
+                   fx.Param(n, "", 0.0, 1.0))
+    return out
+
+
 def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence[TestData],
-        chans: Sequence[str], scales: dict[str, float], max_nfev: int = 40) -> FitResult:
+        chans: Sequence[str], scales: dict[str, float], max_nfev: int = 40,
+        uncertain: Sequence[str] = ()) -> FitResult:
+    """Fit the candidate's parameters, and with them the declared parameters named in
+    ``uncertain`` (re-adjusted jointly, so an effect they had absorbed can show)."""
     et = fx.by_type(cand.type)
     ps = et.params(m, cand)
-    z0 = np.array([min(max(_to_z(p, v), 0.02), 0.98) for p, v in zip(ps, init, strict=True)])
+    xs = uncertain_params(m, uncertain)
+    cur = m.parameters()
+    init_all = [*init, *(float(cur[p.name]) for p in xs)]
+    ps_all = [*ps, *xs]
+    z0 = np.array([min(max(_to_z(p, v), 0.02), 0.98)
+                   for p, v in zip(ps_all, init_all, strict=True)])
     n_res = sum(t.y[c].size for t in tests for c in chans)
+    npar = len(ps)
 
     def values(z: np.ndarray) -> list[float]:
-        return [_to_value(p, float(zi)) for p, zi in zip(ps, z, strict=True)]
+        return [_to_value(p, float(zi)) for p, zi in zip(ps_all, z, strict=True)]
+
+    def build(v: list[float]) -> mdl.Model:
+        base = m.with_params({p.name: x for p, x in zip(xs, v[npar:], strict=True)}) if xs \
+            else m
+        return et.apply(base, cand, v[:npar])
 
     def fun(z: np.ndarray) -> np.ndarray:
         try:
-            mm = et.apply(m, cand, values(z))
+            mm = build(values(z))
         except Exception as exc:  # a refused parameter set (validation): penalise
             log.debug("%s: %s", cand.label, exc)
             return np.full(n_res, _PENALTY / math.sqrt(n_res))
@@ -119,20 +149,22 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
     sol = least_squares(fun, z0, bounds=(0.0, 1.0), method="trf", diff_step=1e-3,
                         x_scale=1.0, max_nfev=max_nfev, xtol=1e-6, ftol=1e-8)
     vals = values(sol.x)
-    mm = et.apply(m, cand, vals)
+    mm = build(vals)
     r = sol.fun
     nsse = float(np.sum(r * r))
     factor = n_eff_factor(r)
-    sig = [math.nan] * len(ps)
+    sig = [math.nan] * len(ps_all)
     try:
         jtj = sol.jac.T @ sol.jac
-        s2 = nsse / max(r.size - len(ps), 1)
+        s2 = nsse / max(r.size - len(ps_all), 1)
         cov_z = np.linalg.pinv(jtj) * s2 * factor
         # dv/dz
-        for i, p in enumerate(ps):
+        for i, p in enumerate(ps_all):
             dvdz = (vals[i] * math.log(p.upper / p.lower)) if p.log else (p.upper - p.lower)
             sig[i] = float(abs(dvdz) * math.sqrt(max(cov_z[i, i], 0.0)))
     except (np.linalg.LinAlgError, ValueError):
         pass
-    return FitResult(cand, [p.name for p in ps], [p.unit for p in ps], vals, sig, mm, nsse,
-                     int(sol.nfev), bool(sol.success), str(sol.message), factor)
+    names = [p.name for p in ps] + [f"{p.name} (declared, re-adjusted)" for p in xs]
+    units = [p.unit for p in ps_all]
+    return FitResult(cand, names, units, vals, sig, mm, nsse, int(sol.nfev), bool(sol.success),
+                     str(sol.message), factor)

@@ -46,6 +46,7 @@ class Options:
     noise: dict[str, float] | None = None  # stated noise RMS per channel
     max_nfev: int = 40
     evidence_cut: float = 0.2  # fit only candidates with >= this share of the top evidence
+    uncertain: tuple[str, ...] = ()  # declared parameters to calibrate first and re-adjust
 
 
 @dataclass
@@ -81,6 +82,7 @@ class DiscoverResult:
     modes_hz: list[float]
     notes: list[str] = field(default_factory=list)
     timing_s: dict[str, float] = field(default_factory=dict)
+    calibration: dict[str, Any] = field(default_factory=dict)
 
 
 def split(tests: Sequence[rs.TestData]) -> tuple[list[rs.TestData], list[rs.TestData]]:
@@ -163,6 +165,31 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
     noise = dict(o.noise) if o.noise else rs.noise_floor(res_before, fs, chans)
     cur = m
     cur_table = before
+    calibration: dict[str, Any] = {}
+    if o.uncertain:
+        # calibrate the declared uncertain parameters first, so that a plain calibration
+        # error is not taken for a missing effect
+        cal = ft.fit(m, fx.NONE.candidates(m)[0], [], fit_t, chans, scales, o.max_nfev,
+                     o.uncertain)
+        tab, _ = rs.error_table(cal.model, tests, chans, scales)
+        pm = m.parameters()
+        calibration = {
+            "parameters": {n.split(" ")[0]: {"declared": pm[n.split(" ")[0]], "value": v,
+                                             "uncertainty": s}
+                           for n, v, s in zip(cal.names, cal.values, cal.sigma, strict=True)},
+            "held_out_gain": 1.0 - tab.total(held_names) / before.total(held_names)
+            if before.total(held_names) > 0 else 0.0}
+        calibration["accepted"] = bool(calibration["held_out_gain"] > 0)
+        if calibration["accepted"]:
+            cur = cal.model
+            cur_table = tab
+        else:
+            notes.append("calibrating the uncertain parameters alone made the held-out tests "
+                         "worse: the declared values are kept (they are still re-adjusted "
+                         "jointly with each candidate effect)")
+        log.info("calibrated the uncertain parameters %s: held-out gain %.3f (%s)",
+                 ", ".join(o.uncertain), calibration["held_out_gain"],
+                 "kept" if calibration["accepted"] else "rejected")
     rounds: list[Round] = []
     effects: list[dict[str, Any]] = []
     accepted_keys: set[str] = set()
@@ -216,11 +243,16 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
         for e in pool:
             cand = _with_shape(e)
             et = fx.by_type(cand.type)
-            init = et.initial(cur, cand, e.amp)
-            try:
-                res = ft.fit(cur, cand, init, fit_t, chans, scales, o.max_nfev)
-            except ConfigError as exc:
-                log.info("%s: fit failed: %s", cand.label, exc)
+            res = None
+            for init in et.starts(cur, cand, e.amp):
+                try:
+                    r1 = ft.fit(cur, cand, init, fit_t, chans, scales, o.max_nfev, o.uncertain)
+                except ConfigError as exc:
+                    log.info("%s: fit failed: %s", cand.label, exc)
+                    continue
+                if res is None or r1.nsse_fit < res.nsse_fit:
+                    res = r1
+            if res is None:
                 continue
             tab, _ = rs.error_table(res.model, held_t, chans, scales)
             held_after = tab.total(held_names)
@@ -257,7 +289,7 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
     timing["total"] = time.perf_counter() - t_start
     return DiscoverResult(m, cur, tests, fit_names, held_names, chans, scales, noise, before,
                           after, res_before, res_after, rounds, effects, mah, band, modes_hz,
-                          notes, timing)
+                          notes, timing, calibration)
 
 
 def _key(c: fx.Candidate) -> str:
@@ -266,7 +298,9 @@ def _key(c: fx.Candidate) -> str:
 
 def _with_shape(e: tr.Evidence) -> fx.Candidate:
     c = e.cand
-    return fx.Candidate(c.type, dict(c.location), c.label, c.available, c.note, dict(e.shape))
+    shape = dict(e.shape)
+    shape["amp"] = e.amp
+    return fx.Candidate(c.type, dict(c.location), c.label, c.available, c.note, shape)
 
 
 def _diverse(pool: list[tr.Evidence], k: int) -> list[tr.Evidence]:

@@ -82,9 +82,19 @@ def to_json(r: DiscoverResult, model_path: str = "", model_out: str = "") -> dic
                        "traits": {k: (_f(v) if isinstance(v, float) else v)
                                   for k, v in rd.traits.items()},
                        "candidates": _evidence_list(rd), "decision": rd.decision})
-    verdict = ("no effect: the declared model explains the tests to the noise floor"
-               if not r.effects else
-               "the model lacks: " + "; ".join(e["label"] for e in r.effects))
+    last = r.rounds[-1] if r.rounds else None
+    at_floor = last is not None and last.decision.startswith("residual at the noise floor")
+    if r.effects:
+        verdict = "the model lacks: " + "; ".join(e["label"] for e in r.effects)
+        if not at_floor:
+            verdict += " (a residual above the noise floor remains)"
+    elif at_floor:
+        verdict = "no effect: the declared model explains the tests to the noise floor"
+    else:
+        worst = max(last.ratio.values()) if last is not None and last.ratio else math.nan
+        verdict = ("no effect found that improves the held-out tests significantly, but the "
+                   f"residual is {worst:.3g} x the noise floor: the model lacks something "
+                   "this library cannot fit (see the candidate evidence)")
     doc: dict[str, Any] = _clean({
         "format": SCHEMA,
         "model": model_path,
@@ -110,6 +120,7 @@ def to_json(r: DiscoverResult, model_path: str = "", model_out: str = "") -> dic
         "library": fx.describe(),
         "input_band_hz": list(r.band_hz),
         "model_modes_hz": r.modes_hz,
+        "calibration": r.calibration,
         "notes": r.notes,
         "timing_s": {k: round(v, 3) for k, v in r.timing_s.items()},
     })

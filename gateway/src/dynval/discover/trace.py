@@ -157,9 +157,25 @@ def matrices(m: mdl.Model) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
     return mass, k, c, w, phi
 
 
-def _element_force(m: mdl.Model, x: np.ndarray) -> np.ndarray:
-    """Restoring forces of the model's contact elements on reconstructed displacements."""
+def _element_force(m: mdl.Model, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Restoring forces of the model's elements on reconstructed displacements/velocities."""
     f = np.zeros_like(x)
+    for el in m.elements:
+        if isinstance(el, mdl.Contact):
+            continue
+        z = v if isinstance(el, (mdl.Friction, mdl.VVDamper)) else x
+        rel = z[el.dof_b - 1] - (z[el.dof_a - 1] if el.dof_a > 0 else 0.0)
+        if isinstance(el, mdl.StickSlip):
+            g = el.force_n * fx.jenkins(np.asarray(rel), [el.slip_m])[0]
+        elif isinstance(el, mdl.Friction):
+            g = el.force_n * rel / np.sqrt(rel * rel + el.v_eps_m_per_s ** 2)
+        elif isinstance(el, mdl.CubicSpring):
+            g = el.k3_n_per_m3 * rel ** 3
+        else:
+            g = el.c2_n_s2_per_m2 * rel * np.abs(rel)
+        f[el.dof_b - 1] += g
+        if el.dof_a > 0:
+            f[el.dof_a - 1] -= g
     for e in m.contacts:
         xa = x[e.dof_a - 1] if e.dof_a > 0 else 0.0
         xx = x[e.dof_b - 1] - xa
@@ -207,7 +223,8 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
         u = _hp(t.u, fs, f_hp)
         fext = np.zeros_like(ah)
         fext[m.input.dof - 1] = u
-        fm = fext - mass[:, None] * ah - c @ vh - k @ xh - _element_force(m, xh)
+        fm = fext - mass[:, None] * ah - c @ vh - k @ xh - _hp(_element_force(m, xh, vh), fs,
+                                                                f_hp)
         cut = int(trim_frac * t.u.size)
         sl = slice(cut, t.u.size - cut)
         xs.append(xh[:, sl])
@@ -324,6 +341,10 @@ def score(view: ForceView, cands: Sequence[fx.Candidate]) -> list[Evidence]:
         if cand.type == "contact":
             d, _ = fx.drift(view.states, cand.location["story"])
             best.shape["drift_rms_m"] = float(np.std(d))
+        if cand.type == "friction":
+            j = cand.location["dof"] - 1
+            vg = view.states.vg if view.states.vg is not None and j == 0 else 0.0
+            best.shape["v_rms"] = float(np.std(view.states.v[j] - vg))
         out.append(best)
     out.sort(key=lambda e: -e.r2)
     log.debug("evidence: the linear nuisance bases explain %.3f of the missing force", r2_n)
