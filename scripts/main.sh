@@ -1,11 +1,19 @@
 #!/usr/bin/env bash
-# README's first command: install what dynval needs, then run the main job on the bundled data.
+# README's first command: install what dynval needs, then run the main job on the bundled data:
+# replay each bundled test through the firmware loop (the real firmware_sim on vcan0 where the
+# kernel has CAN, else the same loop in-process), log everything to one MCAP per test, and
+# summarise. Output goes to out/ (override with DV_OUT).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
+out=${DV_OUT:-out}
+mkdir -p "$out"
 echo
-echo "== dynval features: the bundled three-story-structure records (clean and with a bumper)"
-for f in data/lanl4dof-sim/clean/test_high_01.csv data/lanl4dof-sim/bumper/test_high_01.csv; do
-    dynval features "$f"
-    echo
-done
+echo "== dynval run: bundled three-story-structure tests (clean, and with an undeclared bumper)"
+dynval run data/lanl4dof-sim/clean data/lanl4dof-sim/bumper --asap -o "$out/run"
+echo
+echo "== dynval inspect: one of the logs"
+dynval inspect "$out/run/bumper_test_high_01.mcap"
+echo
+echo "== dynval residual: the declared model against each test (NRMSE per channel)"
+dynval residual data/lanl4dof-sim/clean/declared_model.json data/lanl4dof-sim/clean data/lanl4dof-sim/bumper
