@@ -406,6 +406,29 @@ def open_bus(interface: str, channel: str, **kw: Any) -> Any:
     import can
 
     try:
-        return can.Bus(interface=interface, channel=channel, **kw)
+        b = can.Bus(interface=interface, channel=channel, **kw)
     except (OSError, can.CanError, ValueError) as exc:
         raise BusError(f"cannot open {interface} bus '{channel}': {exc}") from exc
+    if interface == "socketcan":
+        _enlarge_rx_buffer(b)
+    return b
+
+
+def _enlarge_rx_buffer(b: Any, size: int = 8 << 20) -> None:
+    """A Python reader is paused by the GIL and the scheduler for milliseconds at a time; the
+    kernel's default socket buffer (~200 kB, ~1500 CAN frames) then overflows on bursts. Ask for
+    more (SO_RCVBUFFORCE as root, else SO_RCVBUF up to net.core.rmem_max)."""
+    import socket
+
+    sock = getattr(b, "socket", None)
+    if sock is None:
+        return
+    force = getattr(socket, "SO_RCVBUFFORCE", 33)
+    for opt in (force, socket.SO_RCVBUF):
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, opt, size)
+            break
+        except OSError:
+            continue
+    log.debug("socketcan receive buffer: %d bytes",
+              sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF))
