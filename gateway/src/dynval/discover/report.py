@@ -206,15 +206,16 @@ def figures(r: DiscoverResult) -> dict[str, str]:
             d, g = tr.surface(view, story)
             fig, ax = plt.subplots(figsize=(6, 4.5))
             step = max(1, d.size // 20000)
-            ax.plot(d[::step] * 1e6, g[::step], ".", ms=1, alpha=0.4, color="tab:red",
+            ax.plot(d[::step], g[::step], ".", ms=1, alpha=0.4, color="tab:red",
                     label="declared model")
             last = r.rounds[-1].view
             if last is not None and len(r.rounds) > 1:
                 d2, g2 = tr.surface(last, story)
-                ax.plot(d2[::step] * 1e6, g2[::step], ".", ms=1, alpha=0.4, color="tab:blue",
+                ax.plot(d2[::step], g2[::step], ".", ms=1, alpha=0.4, color="tab:blue",
                         label="updated model")
-            ax.set_xlabel(f"story {story} drift x{story} - x{story - 1} (um)")
-            ax.set_ylabel("missing story force (N)")
+            ax.set_xlabel(f"story {story} drift x{story} - x{story - 1} (model length unit: m "
+                          "in SI)")
+            ax.set_ylabel("missing story force (model force unit: N in SI)")
             ax.set_title("restoring-force surface (fitting tests)")
             ax.legend(fontsize=8, markerscale=8)
             out["surface"] = _png(fig)
