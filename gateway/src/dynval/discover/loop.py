@@ -16,6 +16,7 @@ Decisions (all documented in gateway/docs/discover-schema.md):
 """
 from __future__ import annotations
 
+import importlib
 import logging
 import math
 import time
@@ -30,7 +31,7 @@ from dynval.discover import effects as fx
 from dynval.discover import fit as ft
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
-from dynval.errors import ConfigError
+from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
 
 log = logging.getLogger(__name__)
@@ -132,7 +133,24 @@ def _mahal(m0: mdl.Model, m1: mdl.Model, tests: Sequence[rs.TestData],
         d, ref = rs.mahalanobis(meas, np.array(sims))
         out[key] = d
         out["measured_reference"] = ref
+        vm = _validate_mahalanobis()
+        if vm is not None:  # the project's validation module (report eq. 39-41), if usable
+            try:
+                base = vm.fit(meas, out["features"])
+                dq = np.asarray(base.distance(np.array(sims)))
+                out[f"validate_{key}"] = {"median_d": float(np.median(dq)),
+                                          **vm.verdict(base, dq)}
+                out["validate_threshold"] = float(base.threshold)
+            except DynvalError as exc:
+                log.info("dynval.validate.mahalanobis not usable here: %s", exc)
     return out
+
+
+def _validate_mahalanobis() -> Any:
+    try:
+        return importlib.import_module("dynval.validate.mahalanobis")
+    except ImportError:
+        return None
 
 
 def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = None,
