@@ -23,40 +23,30 @@ def shared_data() -> Path:
     return d
 
 
-@pytest.fixture
-def features_dump() -> Path:
-    """The C reference tool (tests/tools/dv_features_dump.c, double build). CI sets
-    DV_FEATURES_DUMP and then a missing tool is a failure, not a skip."""
-    env = os.environ.get("DV_FEATURES_DUMP")
-    p = Path(env) if env else REPO / "build" / "f64" / "tests" / "dv_features_dump"
+def _c_tool(name: str) -> Path:
+    """A C reference tool of the bit-for-bit checks (tests/tools/<name>.c, built by the f64
+    preset). CI sets DV_<NAME> (e.g. DV_FEATURES_DUMP), and then a missing tool is a failure,
+    not a skip."""
+    var = "DV_" + name.removeprefix("dv_").upper()
+    env = os.environ.get(var)
+    p = Path(env) if env else REPO / "build" / "f64" / "tests" / name
     if not p.is_file():
         if env:
-            pytest.fail(f"DV_FEATURES_DUMP={env} does not exist")
-        pytest.skip("build the f64 preset for the C reference dump tool")
+            pytest.fail(f"{var}={env} does not exist")
+        pytest.skip(f"build the f64 preset for the C reference tool {name}")
     return p
+
+
+@pytest.fixture
+def features_dump() -> Path:
+    return _c_tool("dv_features_dump")
 
 
 @pytest.fixture
 def ar_dump() -> Path:
-    """The AR reference tool (tests/tools/dv_ar_dump.c, double build). CI sets DV_AR_DUMP and
-    then a missing tool is a failure, not a skip."""
-    env = os.environ.get("DV_AR_DUMP")
-    p = Path(env) if env else REPO / "build" / "f64" / "tests" / "dv_ar_dump"
-    if not p.is_file():
-        if env:
-            pytest.fail(f"DV_AR_DUMP={env} does not exist")
-        pytest.skip("build the f64 preset for the C reference dump tool dv_ar_dump")
-    return p
+    return _c_tool("dv_ar_dump")
 
 
 @pytest.fixture
 def model_dump() -> Path:
-    """The model reference tool (tests/tools/dv_model_dump.c, double build). CI sets
-    DV_MODEL_DUMP and then a missing tool is a failure, not a skip."""
-    env = os.environ.get("DV_MODEL_DUMP")
-    p = Path(env) if env else REPO / "build" / "f64" / "tests" / "dv_model_dump"
-    if not p.is_file():
-        if env:
-            pytest.fail(f"DV_MODEL_DUMP={env} does not exist")
-        pytest.skip("build the f64 preset for the C reference dump tool dv_model_dump")
-    return p
+    return _c_tool("dv_model_dump")
