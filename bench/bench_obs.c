@@ -111,6 +111,8 @@ int main(int argc, char **argv)
                    sizeof(dv_obs_t));
             printf("size name=obs_buffer_%s bytes=%zu\n", c ? "contact" : "linear",
                    dv_obs_buf_len(&m) * nr);
+            printf("size name=obs_persistent_%s bytes=%zu\n", c ? "contact" : "linear",
+                   dv_obs_persistent_len(&m) * nr);
         }
         return 0;
     }

@@ -46,7 +46,8 @@ static const dv_real_t LAG3[4][4] = {
     {DV_R(0.5), DV_R(-1.0), DV_R(0.5), DV_R(0.0)},
     {DV_R(-1.0) / DV_R(6.0), DV_R(0.5), DV_R(-0.5), DV_R(1.0) / DV_R(6.0)}};
 
-size_t dv_model_buf_len(const dv_model_desc_t *d)
+/* 0: persistent, 1: scratch, 2: both (one buffer) */
+static size_t model_len(const dv_model_desc_t *d, int which)
 {
     if (!desc_sizes_ok(d)) {
         return 0u;
@@ -54,8 +55,26 @@ size_t dv_model_buf_len(const dv_model_desc_t *d)
     const size_t n = d->n_dof;
     const size_t nc = d->n_contact;
     const size_t nsub = nc > 0u ? d->n_sub : 1u;
-    return DV_MODEL_BUF_LEN_HOLD(n, nc, nsub, (size_t)d->n_out,
-                                 DV_MODEL_HOLD_NIN((int)d->input_hold));
+    const size_t no = d->n_out;
+    const size_t nin = DV_MODEL_HOLD_NIN((int)d->input_hold);
+    const size_t per = DV_MODEL_PERSIST_LEN_HOLD(n, nc, nsub, no, nin);
+    const size_t scr = DV_MODEL_SCRATCH_LEN_HOLD(n, nc, nsub, no, nin);
+    return which == 0 ? per : (which == 1 ? scr : per + scr);
+}
+
+size_t dv_model_buf_len(const dv_model_desc_t *d)
+{
+    return model_len(d, 2);
+}
+
+size_t dv_model_persistent_len(const dv_model_desc_t *d)
+{
+    return model_len(d, 0);
+}
+
+size_t dv_model_scratch_len(const dv_model_desc_t *d)
+{
+    return model_len(d, 1);
 }
 
 dv_status_t dv_model_rayleigh(dv_real_t w_r, dv_real_t zeta_r, dv_real_t w_s, dv_real_t zeta_s,
@@ -307,11 +326,29 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
     if (m == NULL || d == NULL || buf == NULL) {
         return DV_EINVAL;
     }
+    const dv_status_t st = validate(d, dt_s);
+    if (st != DV_OK) {
+        return st;
+    }
+    const size_t per = dv_model_persistent_len(d);
+    if (len < dv_model_buf_len(d)) {
+        return DV_ESIZE;
+    }
+    return dv_model_init_ex(m, d, dt_s, buf, per, buf + per, len - per);
+}
+
+dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_s,
+                             dv_real_t *buf, size_t len, dv_real_t *scratch,
+                             size_t scratch_len)
+{
+    if (m == NULL || d == NULL || buf == NULL || scratch == NULL) {
+        return DV_EINVAL;
+    }
     dv_status_t st = validate(d, dt_s);
     if (st != DV_OK) {
         return st;
     }
-    if (len < dv_model_buf_len(d)) {
+    if (len < dv_model_persistent_len(d) || scratch_len < dv_model_scratch_len(d)) {
         return DV_ESIZE;
     }
     const size_t n = d->n_dof;
@@ -359,7 +396,8 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
         m->du = take(&p, no * 4u);
         m->rxu = take(&p, nf * 4u);
     }
-    dv_real_t *scr = p; /* init-only scratch from here on */
+    DV_ASSERT((size_t)(p - buf) <= len);
+    dv_real_t *scr = scratch; /* init-only scratch, dead after init */
 
     for (size_t i = 0; i < n; i++) {
         m->mass_kg[i] = d->mass_kg[i];
@@ -379,8 +417,8 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
         }
     }
     /* generalised eigenproblem K phi = w^2 M phi via S = M^-1/2 K M^-1/2 (M diagonal) */
-    dv_real_t lam[DV_MAX_DOF];
-    dv_real_t w[DV_MAX_DOF];
+    dv_real_t lam[DV_MAX_DOF] = {DV_R(0.0)};
+    dv_real_t w[DV_MAX_DOF] = {DV_R(0.0)};
     dv_real_t *v = scr;
     dv_real_t *tmp = v + n * n;
     dv_real_t *ework = tmp + n * n;
@@ -507,7 +545,7 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
 
     /* full-step first-order hold on u (and the constant slope u' for ground displacement) */
     {
-        dv_real_t bb[2u * DV_MAX_DOF * 2u];
+        dv_real_t bb[2u * DV_MAX_DOF * 2u] = {DV_R(0.0)};
         dv_real_t g0[2u * DV_MAX_DOF * 2u];
         dv_real_t g1[2u * DV_MAX_DOF * 2u];
         for (size_t i = 0; i < ns; i++) {
@@ -603,7 +641,7 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
 
     if (cubic) {
         /* full-step cubic hold: x[k+1] = Ad x[k] + sum_j Pu_j u[k-1+j], with u' = du/dt */
-        dv_real_t bb[2u * DV_MAX_DOF * 2u];
+        dv_real_t bb[2u * DV_MAX_DOF * 2u] = {DV_R(0.0)};
         dv_real_t gq[4][2u * DV_MAX_DOF * 2u];
         dv_real_t *const gp[4] = {gq[0], gq[1], gq[2], gq[3]};
         dv_real_t *adc = scr;
@@ -784,7 +822,7 @@ dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_
     if (cubic) {
         /* X at the sub-nodes from each sample of the cubic, through the exact sub-step
          * response to the cubic's pieces (u and u' columns only) */
-        dv_real_t bb[2u * DV_MAX_DOF * 2u];
+        dv_real_t bb[2u * DV_MAX_DOF * 2u] = {DV_R(0.0)};
         dv_real_t gq[4][2u * DV_MAX_DOF * 2u];
         dv_real_t *const gp[4] = {gq[0], gq[1], gq[2], gq[3]};
         dv_real_t *phic = scr2;

@@ -3,17 +3,35 @@
 #include "dynval/dv_obs.h"
 #include "dv_priv.h"
 
-static size_t obs_len(size_t n, size_t nc, size_t nsub, size_t no, size_t nin)
-{
-    return DV_OBS_BUF_LEN_HOLD(n, nc, nsub, no, nin);
-}
-
-size_t dv_obs_buf_len(const dv_model_t *m)
+/* 0: persistent, 1: scratch, 2: both (one buffer) */
+static size_t obs_len(const dv_model_t *m, int which)
 {
     if (m == NULL || m->kmat == NULL) {
         return 0u;
     }
-    return obs_len(m->n_dof, m->n_contact, m->n_sub, m->n_out, m->n_in == 4u ? 4u : 2u);
+    const size_t n = m->n_dof;
+    const size_t nc = m->n_contact;
+    const size_t nsub = m->n_sub;
+    const size_t no = m->n_out;
+    const size_t nin = m->n_in == 4u ? 4u : 2u;
+    const size_t per = DV_OBS_PERSIST_LEN_HOLD(n, nc, nsub, no, nin);
+    const size_t scr = DV_OBS_SCRATCH_LEN_HOLD(n, nc, nsub, no, nin);
+    return which == 0 ? per : (which == 1 ? scr : per + scr);
+}
+
+size_t dv_obs_buf_len(const dv_model_t *m)
+{
+    return obs_len(m, 2);
+}
+
+size_t dv_obs_persistent_len(const dv_model_t *m)
+{
+    return obs_len(m, 0);
+}
+
+size_t dv_obs_scratch_len(const dv_model_t *m)
+{
+    return obs_len(m, 1);
 }
 
 /* Fill the folded matrices from the model and the gain (o->gain, used when has_gain).
@@ -190,13 +208,12 @@ static dv_status_t sda(size_t n, dv_real_t *a, dv_real_t *g, dv_real_t *h, dv_re
 }
 
 /* Steady-state Kalman gain L = P Cy^T (Cy P Cy^T + R)^-1 of the filter DARE. */
-static dv_status_t kalman_gain(dv_obs_t *o, const dv_obs_noise_t *nz)
+static dv_status_t kalman_gain(dv_obs_t *o, const dv_obs_noise_t *nz, dv_real_t *w)
 {
     const dv_model_t *m = o->m;
     const size_t n = m->n_dof;
     const size_t ns = o->ns;
     const size_t no = o->no;
-    dv_real_t *w = o->scratch;
     /* process noise: Gw = int_0^T exp(A s) ds [0; M^-1] from exp([[A T, Bw T], [0, 0]]) */
     const size_t na = ns + n;
     dv_real_t *e = w;
@@ -287,29 +304,57 @@ static dv_status_t kalman_gain(dv_obs_t *o, const dv_obs_noise_t *nz)
     return DV_OK;
 }
 
+/* q >= 0 and r > 0, all finite (NULL: open loop, fine) */
+static bool noise_ok(const dv_model_t *m, const dv_obs_noise_t *noise)
+{
+    if (noise == NULL) {
+        return true;
+    }
+    for (size_t i = 0; i < m->n_dof; i++) {
+        if (!dv_priv_finite(noise->q_force_n2[i]) || noise->q_force_n2[i] < DV_R(0.0)) {
+            return false;
+        }
+    }
+    for (size_t q = 0; q < m->n_out; q++) {
+        if (!dv_priv_finite(noise->r_meas[q]) || !(noise->r_meas[q] > DV_R(0.0))) {
+            return false;
+        }
+    }
+    return true;
+}
+
 dv_status_t dv_obs_init(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_t *noise,
                         dv_real_t *buf, size_t len)
 {
     if (o == NULL || m == NULL || buf == NULL || m->kmat == NULL) {
         return DV_EINVAL;
     }
+    if (!noise_ok(m, noise)) {
+        return DV_EINVAL;
+    }
+    const size_t per = dv_obs_persistent_len(m);
+    if (len < dv_obs_buf_len(m)) {
+        return DV_ESIZE;
+    }
+    return dv_obs_init_ex(o, m, noise, buf, per, buf + per, len - per);
+}
+
+dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_t *noise,
+                           dv_real_t *buf, size_t len, dv_real_t *scratch,
+                           size_t scratch_len)
+{
+    if (o == NULL || m == NULL || buf == NULL || m->kmat == NULL ||
+        (noise != NULL && scratch == NULL)) {
+        return DV_EINVAL;
+    }
     const size_t ns = m->n_state;
     const size_t no = m->n_out;
     const size_t nf = m->n_f;
-    if (noise != NULL) {
-        for (size_t i = 0; i < m->n_dof; i++) {
-            if (!dv_priv_finite(noise->q_force_n2[i]) || noise->q_force_n2[i] < DV_R(0.0)) {
-                return DV_EINVAL;
-            }
-        }
-        for (size_t q = 0; q < no; q++) {
-            if (!dv_priv_finite(noise->r_meas[q]) || !(noise->r_meas[q] > DV_R(0.0))) {
-                return DV_EINVAL;
-            }
-        }
+    if (!noise_ok(m, noise)) {
+        return DV_EINVAL;
     }
-    const size_t need = dv_obs_buf_len(m);
-    if (len < need) {
+    if (len < dv_obs_persistent_len(m) ||
+        (noise != NULL && scratch_len < dv_obs_scratch_len(m))) {
         return DV_ESIZE;
     }
     const dv_obs_t zero = {0};
@@ -340,13 +385,12 @@ dv_status_t dv_obs_init(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_t *
         o->ypend = p;
         p += no;
     }
-    o->scratch = p;
-    o->scratch_len = len - (size_t)(p - buf);
+    DV_ASSERT((size_t)(p - buf) <= len);
     for (size_t i = 0; i < ns * no; i++) {
         o->gain[i] = DV_R(0.0);
     }
     if (noise != NULL) {
-        const dv_status_t st = kalman_gain(o, noise);
+        const dv_status_t st = kalman_gain(o, noise, scratch);
         if (st != DV_OK) {
             return st;
         }

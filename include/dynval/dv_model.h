@@ -195,20 +195,41 @@ typedef struct {
 #define DV_MODEL_NAUG_HOLD(n, nc, nin) (2u * (n) + (nin) * (2u + (nc)))
 
 /**
- * Storage for dv_model_init() with @p nin input samples per step (DV_MODEL_HOLD_NIN()), in
- * elements: the model's matrices (kept for the model's lifetime) and the init-time scratch,
- * for @p n DOF, @p nc contacts, @p nsub sub-steps and @p nout outputs (nc = 0 needs no
- * sub-step storage).
+ * Persistent storage of a model with @p nin input samples per step (DV_MODEL_HOLD_NIN()), in
+ * elements: the matrices the model keeps for its lifetime (K, C, modes, A, Ad, B, the hold,
+ * output and contact sub-node matrices), for @p n DOF, @p nc contacts, @p nsub sub-steps and
+ * @p nout outputs (nc = 0 needs no sub-step storage). Only this much of the caller's storage
+ * is used after dv_model_init()/dv_model_init_ex() returns.
+ */
+#define DV_MODEL_PERSIST_LEN_HOLD(n, nc, nsub, nout, nin)                                       \
+    (3u * (n) * (n) + 2u * DV_MODEL_NS(n) * DV_MODEL_NS(n) +                                  \
+     DV_MODEL_NS(n) * (4u + (nc)) + (nout) * (DV_MODEL_NS(n) + 2u + (nc)) +                   \
+     DV_MODEL_NF(nc, nsub) * (2u * DV_MODEL_NS(n) + 2u + DV_MODEL_NF(nc, nsub)) +             \
+     ((nin) - 2u) * (DV_MODEL_NS(n) + (nout) + DV_MODEL_NF(nc, nsub)) * 2u)
+
+/**
+ * Init-time scratch of dv_model_init_ex(), in elements (eigen-solutions, the exponential of the
+ * augmented matrix and the sub-step response): dead once init returns, so one scratch area can
+ * serve several inits (e.g. dv_model_init_ex() then dv_obs_init_ex()) and be reused after.
+ */
+#define DV_MODEL_SCRATCH_LEN_HOLD(n, nc, nsub, nout, nin)                                       \
+    (7u * DV_MODEL_NAUG_HOLD(n, nc, nin) * DV_MODEL_NAUG_HOLD(n, nc, nin) +                   \
+     DV_MODEL_NS(n) * (2u * DV_MODEL_NS(n) + 2u * (2u + (nc)) + 7u) + 64u)
+
+/**
+ * Storage for dv_model_init() (one buffer: the persistent part first, then the init scratch),
+ * with @p nin input samples per step, in elements.
  */
 #define DV_MODEL_BUF_LEN_HOLD(n, nc, nsub, nout, nin)                                           \
-    (3u * (n) * (n) + 3u * DV_MODEL_NS(n) * DV_MODEL_NS(n) +                                  \
-     DV_MODEL_NS(n) * (4u + 2u * (nc)) + (nout) * (DV_MODEL_NS(n) + 2u + (nc)) +              \
-     DV_MODEL_NF(nc, nsub) * (2u * DV_MODEL_NS(n) + 2u + DV_MODEL_NF(nc, nsub)) +             \
-     ((nin) - 2u) * (DV_MODEL_NS(n) + (nout) + DV_MODEL_NF(nc, nsub)) * 2u +                 \
-     8u * DV_MODEL_NAUG_HOLD(n, nc, nin) * DV_MODEL_NAUG_HOLD(n, nc, nin) + 64u)
+    (DV_MODEL_PERSIST_LEN_HOLD(n, nc, nsub, nout, nin) +                                       \
+     DV_MODEL_SCRATCH_LEN_HOLD(n, nc, nsub, nout, nin))
 
 /** Storage for dv_model_init() with the default first-order hold, in elements. */
 #define DV_MODEL_BUF_LEN(n, nc, nsub, nout) DV_MODEL_BUF_LEN_HOLD(n, nc, nsub, nout, 2u)
+/** Persistent storage with the default first-order hold, in elements. */
+#define DV_MODEL_PERSIST_LEN(n, nc, nsub, nout) DV_MODEL_PERSIST_LEN_HOLD(n, nc, nsub, nout, 2u)
+/** Init scratch with the default first-order hold, in elements. */
+#define DV_MODEL_SCRATCH_LEN(n, nc, nsub, nout) DV_MODEL_SCRATCH_LEN_HOLD(n, nc, nsub, nout, 2u)
 
 /** @brief A built model. Fields are private; the arrays point into the caller's buffer. */
 typedef struct {
@@ -280,17 +301,34 @@ typedef enum {
 dv_status_t dv_model_desc_default(dv_model_desc_t *d);
 
 /**
- * @brief Storage dv_model_init() needs for @p d, in elements (DV_MODEL_BUF_LEN()).
+ * @brief Storage dv_model_init() needs for @p d, in elements (DV_MODEL_BUF_LEN_HOLD():
+ *        dv_model_persistent_len() + dv_model_scratch_len()).
  * @return the length, or 0 when @p d is NULL or its sizes are out of range
  */
 size_t dv_model_buf_len(const dv_model_desc_t *d);
+
+/**
+ * @brief Elements of storage the model keeps for its lifetime (DV_MODEL_PERSIST_LEN_HOLD()):
+ *        after dv_model_init() returns, only the first dv_model_persistent_len(d) elements of
+ *        its buffer are used; the caller may reuse the rest.
+ * @return the length, or 0 when @p d is NULL or its sizes are out of range
+ */
+size_t dv_model_persistent_len(const dv_model_desc_t *d);
+
+/**
+ * @brief Elements of init-time scratch dv_model_init_ex() needs (DV_MODEL_SCRATCH_LEN_HOLD()).
+ * @return the length, or 0 when @p d is NULL or its sizes are out of range
+ */
+size_t dv_model_scratch_len(const dv_model_desc_t *d);
 
 /**
  * @brief Build the model: eigen-solution, damping, state space, discretisation at @p dt_s.
  * @param[out] m     model
  * @param[in]  d     description (copied; need not outlive @p m)
  * @param[in]  dt_s  sample period, s, > 0
- * @param[in]  buf   storage of dv_model_buf_len(d) elements; must outlive @p m
+ * @param[in]  buf   storage of dv_model_buf_len(d) elements: the first
+ *                   dv_model_persistent_len(d) must outlive @p m; the rest is init-time
+ *                   scratch, free for the caller again when this returns
  * @param[in]  len   elements in @p buf
  * @retval DV_OK        built
  * @retval DV_EINVAL    NULL pointer; n_dof, n_out, n_contact or n_sub out of range; an
@@ -306,6 +344,27 @@ size_t dv_model_buf_len(const dv_model_desc_t *d);
  */
 dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_s,
                           dv_real_t *buf, size_t len);
+
+/**
+ * @brief dv_model_init() with the init-time scratch apart from the model's storage: @p buf
+ *        only needs the persistent part, and @p scratch is free again when this returns
+ *        (firmware: one shared scratch area, or the stack, for every init).
+ * @param[out] m            model
+ * @param[in]  d            description (copied)
+ * @param[in]  dt_s         sample period, s, > 0
+ * @param[in]  buf          dv_model_persistent_len(d) elements; must outlive @p m
+ * @param[in]  len          elements in @p buf
+ * @param[in]  scratch      dv_model_scratch_len(d) elements, not overlapping @p buf; its
+ *                          contents are destroyed and not used after the call
+ * @param[in]  scratch_len  elements in @p scratch
+ * @retval DV_OK        built
+ * @retval DV_EINVAL    as dv_model_init(), or @p scratch NULL
+ * @retval DV_ESIZE     @p len or @p scratch_len too small
+ * @retval DV_EUNSTABLE as dv_model_init()
+ */
+dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_s,
+                             dv_real_t *buf, size_t len, dv_real_t *scratch,
+                             size_t scratch_len);
 
 /**
  * @brief Natural frequencies (Hz, ascending) and mass-normalised mode shapes.

@@ -51,17 +51,35 @@ typedef struct {
     dv_real_t r_meas[DV_MAX_OUT];     /**< measurement noise variance per output, > 0 */
 } dv_obs_noise_t;
 
-/** Storage for dv_obs_init() with @p nin input samples per step (DV_MODEL_HOLD_NIN()), in
- *  elements (state, folded matrices, gain, pending measurement, DARE scratch). */
+/** Persistent storage of an observer with @p nin input samples per step
+ *  (DV_MODEL_HOLD_NIN()), in elements: state vector, prediction, residual, both folded step
+ *  matrices, the gain and (cubic) the kept measurement. Only this much of the caller's storage
+ *  is used after dv_obs_init()/dv_obs_init_ex() returns. */
+#define DV_OBS_PERSIST_LEN_HOLD(n, nc, nsub, nout, nin)                                         \
+    ((DV_MODEL_NS(n) + (nout)) *                                                              \
+         (2u * (DV_MODEL_NS(n) + (nin) + DV_MODEL_NF(nc, nsub)) + (nout) + 1u) +              \
+     DV_MODEL_NS(n) + (nin) + DV_MODEL_NF(nc, nsub) + 2u * (nout) +                           \
+     DV_MODEL_NS(n) * (nout) + ((nin) - 2u) / 2u * (nout))
+
+/** Init-time scratch of dv_obs_init_ex() with a noise model (the exponential for the process
+ *  noise and the DARE), in elements; dead once init returns (see DV_MODEL_SCRATCH_LEN_HOLD()).
+ *  Only @p n and @p nout matter; the other arguments keep the family's signature. */
+#define DV_OBS_SCRATCH_LEN_HOLD(n, nc, nsub, nout, nin)                                         \
+    (7u * (DV_MODEL_NS(n) + (n)) * (DV_MODEL_NS(n) + (n)) +                                   \
+     (nout) * (DV_MODEL_NS(n) + (nout)) + 64u)
+
+/** Storage for dv_obs_init() (one buffer: the persistent part first, then the init scratch)
+ *  with @p nin input samples per step, in elements. */
 #define DV_OBS_BUF_LEN_HOLD(n, nc, nsub, nout, nin)                                             \
-    (2u * (DV_MODEL_NS(n) + (nout)) * (DV_MODEL_NS(n) + 2u + DV_MODEL_NF(nc, nsub) + (nout)) + \
-     DV_MODEL_NS(n) * (nout) + 3u * (DV_MODEL_NS(n) + (nout) + DV_MODEL_NF(nc, nsub)) +        \
-     10u * DV_MODEL_NS(n) * DV_MODEL_NS(n) + 3u * (nout) * DV_MODEL_NS(n) + (nout) * (nout) +  \
-     7u * (DV_MODEL_NS(n) + (n)) * (DV_MODEL_NS(n) + (n)) +                                    \
-     ((nin) - 2u) * (2u * (DV_MODEL_NS(n) + (nout)) + (nout) + 1u) + 64u)
+    (DV_OBS_PERSIST_LEN_HOLD(n, nc, nsub, nout, nin) +                                         \
+     DV_OBS_SCRATCH_LEN_HOLD(n, nc, nsub, nout, nin))
 
 /** Storage for dv_obs_init() with the default first-order hold, in elements. */
 #define DV_OBS_BUF_LEN(n, nc, nsub, nout) DV_OBS_BUF_LEN_HOLD(n, nc, nsub, nout, 2u)
+/** Persistent storage with the default first-order hold, in elements. */
+#define DV_OBS_PERSIST_LEN(n, nc, nsub, nout) DV_OBS_PERSIST_LEN_HOLD(n, nc, nsub, nout, 2u)
+/** Init scratch (either hold), in elements. */
+#define DV_OBS_SCRATCH_LEN(n, nc, nsub, nout) DV_OBS_SCRATCH_LEN_HOLD(n, nc, nsub, nout, 2u)
 
 /** @brief Observer instance. Fields are private; arrays point into the caller's buffer. */
 typedef struct {
@@ -88,24 +106,40 @@ typedef struct {
     dv_real_t *f_open;   /**< L = 0: ns x ncol_open state rows, then no x ncol_open output rows, each column-major */
     dv_real_t *f_gain;   /**< with L: ns x ncol_gain state rows, then no x ncol_open output rows, each column-major */
     dv_real_t *gain;     /**< L, ns x no row-major */
-    dv_real_t *scratch;  /**< init-time scratch */
     dv_real_t elem_x[DV_MAX_CONTACT]; /**< stick-slip elements: X at the last sub-node, m */
     dv_real_t elem_g[DV_MAX_CONTACT]; /**< stick-slip elements: force at the last sub-node, N */
-    size_t scratch_len;  /**< elements in scratch */
 } dv_obs_t;
 
 /**
- * @brief Storage dv_obs_init() needs for model @p m, in elements.
- * @return DV_OBS_BUF_LEN() for the model's sizes, or 0 when @p m is NULL
+ * @brief Storage dv_obs_init() needs for model @p m, in elements
+ *        (dv_obs_persistent_len() + dv_obs_scratch_len()).
+ * @return DV_OBS_BUF_LEN_HOLD() for the model's sizes, or 0 when @p m is NULL or not built
  */
 size_t dv_obs_buf_len(const dv_model_t *m);
+
+/**
+ * @brief Elements of storage the observer keeps for its lifetime
+ *        (DV_OBS_PERSIST_LEN_HOLD()): after dv_obs_init() returns, only the first
+ *        dv_obs_persistent_len(m) elements of its buffer are used; the caller may reuse the rest.
+ * @return the length, or 0 when @p m is NULL or not built
+ */
+size_t dv_obs_persistent_len(const dv_model_t *m);
+
+/**
+ * @brief Elements of init-time scratch dv_obs_init_ex() needs with a noise model
+ *        (DV_OBS_SCRATCH_LEN_HOLD()).
+ * @return the length, or 0 when @p m is NULL or not built
+ */
+size_t dv_obs_scratch_len(const dv_model_t *m);
 
 /**
  * @brief Bind an observer to a built model; with @p noise, solve for the Kalman gain.
  * @param[out] o      observer
  * @param[in]  m      built model (dv_model_init()); must outlive @p o
  * @param[in]  noise  noise model for the gain, or NULL for open loop (L = 0)
- * @param[in]  buf    storage of dv_obs_buf_len(m) elements; must outlive @p o
+ * @param[in]  buf    storage of dv_obs_buf_len(m) elements: the first dv_obs_persistent_len(m)
+ *                    must outlive @p o; the rest is init-time scratch, free for the caller
+ *                    again when this returns
  * @param[in]  len    elements in @p buf
  * @retval DV_OK        ready; state at rest
  * @retval DV_EINVAL    NULL @p o, @p m or @p buf, model not built, a negative or non-finite
@@ -116,6 +150,27 @@ size_t dv_obs_buf_len(const dv_model_t *m);
  */
 dv_status_t dv_obs_init(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_t *noise,
                         dv_real_t *buf, size_t len);
+
+/**
+ * @brief dv_obs_init() with the init-time scratch apart from the observer's storage: @p buf
+ *        only needs the persistent part, and @p scratch is free again when this returns (it
+ *        may be the same area given to dv_model_init_ex()).
+ * @param[out] o            observer
+ * @param[in]  m            built model; must outlive @p o
+ * @param[in]  noise        noise model for the gain, or NULL for open loop (L = 0)
+ * @param[in]  buf          dv_obs_persistent_len(m) elements; must outlive @p o
+ * @param[in]  len          elements in @p buf
+ * @param[in]  scratch      dv_obs_scratch_len(m) elements, not overlapping @p buf (may be NULL
+ *                          when @p noise is NULL); contents destroyed, not used after the call
+ * @param[in]  scratch_len  elements in @p scratch
+ * @retval DV_OK        ready; state at rest
+ * @retval DV_EINVAL    as dv_obs_init(), or @p scratch NULL with @p noise given
+ * @retval DV_ESIZE     @p len or (with @p noise) @p scratch_len too small
+ * @retval DV_EUNSTABLE as dv_obs_init()
+ */
+dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_t *noise,
+                           dv_real_t *buf, size_t len, dv_real_t *scratch,
+                           size_t scratch_len);
 
 /**
  * @brief Set the correction gain L (or remove it) and refold the step matrix.

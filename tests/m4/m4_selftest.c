@@ -494,11 +494,11 @@ static void observer(void)
     report("obs.bump05.steps_nrmse_force", ok && e <= 2e-2, 1u, e, 2e-2);
     dump("obs.bump05.y", yout, NS * 5u);
 
-    /* The init-time scratch of both buffers is dead after init: overwrite it with NaN and the
-     * steps must give the same bits (the live part is what the memory budget counts). */
-    const size_t ns = m.n_state, nf = m.n_f;
-    const size_t mlive = (size_t)(m.vmat + ns * nf - mbuf);
-    const size_t olive = (size_t)(o.scratch - obuf);
+    /* The init-time scratch of both buffers is dead after init: everything past
+     * dv_model_persistent_len() / dv_obs_persistent_len() is overwritten with NaN and the steps
+     * must give the same bits (the persistent part is what the memory budget counts). */
+    const size_t mlive = dv_model_persistent_len(&d);
+    const size_t olive = dv_obs_persistent_len(&m);
     info("model live elements ", (uint32_t)mlive, "");
     info("model buffer elements (dv_model_buf_len) ", (uint32_t)dv_model_buf_len(&d), "");
     info("observer live elements ", (uint32_t)olive, "");

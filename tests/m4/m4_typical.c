@@ -33,8 +33,16 @@ dv_ar_resid_t ram_ar[N_CH];
 dv_real_t ram_ar_buf[N_CH][DV_AR_RESID_BUF_LEN(AR_P)];
 dv_model_t ram_model;
 dv_obs_t ram_obs;
-dv_real_t ram_model_buf[DV_MODEL_BUF_LEN(N_DOF, N_CONTACT, N_SUB, N_OUT)];
-dv_real_t ram_obs_buf[DV_OBS_BUF_LEN(N_DOF, N_CONTACT, N_SUB, N_OUT)];
+/* Only the persistent storage stays allocated for the observer's lifetime; the init-time
+ * scratch (eigen-solutions, expm, DARE) is one transient area that both inits share
+ * (dv_model_init_ex, dv_obs_init_ex) and that is free after init: here a static object named
+ * tmp_* (not ram_*), which a firmware would overlay on a buffer that is not live during init,
+ * or put on the stack. */
+dv_real_t ram_model_buf[DV_MODEL_PERSIST_LEN(N_DOF, N_CONTACT, N_SUB, N_OUT)];
+dv_real_t ram_obs_buf[DV_OBS_PERSIST_LEN(N_DOF, N_CONTACT, N_SUB, N_OUT)];
+#define MODEL_SCRATCH DV_MODEL_SCRATCH_LEN(N_DOF, N_CONTACT, N_SUB, N_OUT)
+#define OBS_SCRATCH DV_OBS_SCRATCH_LEN(N_DOF, N_CONTACT, N_SUB, N_OUT)
+dv_real_t tmp_init_scratch[MODEL_SCRATCH > OBS_SCRATCH ? MODEL_SCRATCH : OBS_SCRATCH];
 
 static uint32_t rng = 2463534242u;
 static dv_real_t noise(void) /* xorshift32, uniform in [-1, 1) */
@@ -97,10 +105,16 @@ static int init_all(uint16_t n_contact)
     for (unsigned i = 0; i < DV_MAX_OUT; i++) {
         nz.r_meas[i] = DV_R(0.04);
     }
-    ok &= dv_model_init(&ram_model, &d, DV_R(1.0) / DV_R(640.0), ram_model_buf,
-                        sizeof ram_model_buf / sizeof *ram_model_buf) == DV_OK;
-    ok &= dv_obs_init(&ram_obs, &ram_model, &nz, ram_obs_buf,
-                      sizeof ram_obs_buf / sizeof *ram_obs_buf) == DV_OK;
+    const size_t nscr = sizeof tmp_init_scratch / sizeof *tmp_init_scratch;
+    ok &= dv_model_init_ex(&ram_model, &d, DV_R(1.0) / DV_R(640.0), ram_model_buf,
+                           sizeof ram_model_buf / sizeof *ram_model_buf, tmp_init_scratch,
+                           nscr) == DV_OK;
+    ok &= dv_obs_init_ex(&ram_obs, &ram_model, &nz, ram_obs_buf,
+                         sizeof ram_obs_buf / sizeof *ram_obs_buf, tmp_init_scratch,
+                         nscr) == DV_OK;
+    for (size_t i = 0; i < nscr; i++) { /* dead after init: prove it */
+        tmp_init_scratch[i] = (dv_real_t)NAN;
+    }
     return ok;
 }
 
@@ -133,15 +147,14 @@ int main(void)
     int ok = init_all(N_CONTACT);
     const uint32_t stack_init = stack_used();
     stack_paint();
-    const size_t ns = ram_model.n_state, nf = ram_model.n_f;
     m4_put("LIVE model ");
-    m4_put_u((uint32_t)(ram_model.vmat + ns * nf - ram_model_buf));
-    m4_put(" obs ");
-    m4_put_u((uint32_t)(ram_obs.scratch - ram_obs_buf));
-    m4_put(" model_buf ");
     m4_put_u((uint32_t)(sizeof ram_model_buf / sizeof *ram_model_buf));
-    m4_put(" obs_buf ");
+    m4_put(" obs ");
     m4_put_u((uint32_t)(sizeof ram_obs_buf / sizeof *ram_obs_buf));
+    m4_put(" model_scratch ");
+    m4_put_u((uint32_t)MODEL_SCRATCH);
+    m4_put(" obs_scratch ");
+    m4_put_u((uint32_t)OBS_SCRATCH);
     m4_line_end();
     uint32_t records = 0, resid_ok = 0;
     double rsum = 0.0;

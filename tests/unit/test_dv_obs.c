@@ -367,6 +367,92 @@ static void test_obs_bad_init(void **state)
     assert_int_equal(dv_obs_init(&o, &m, NULL, obuf, NBUF), DV_OK); // open loop is fine
 }
 
+// Persistent storage vs init scratch: built with exactly dv_*_persistent_len() elements (a guard
+// after them must stay untouched) and a separate scratch of exactly dv_*_scratch_len() that is
+// overwritten with NaN after init, the observer (contact, Kalman gain, both holds) gives the same
+// bits as one built in a single buffer; the single-buffer path keeps to its persistent prefix
+// too (its tail NaN after init). The macros agree with the functions.
+enum { GUARD = 64 };
+static dv_real_t pm[NBUF], po[NBUF], scr[NBUF];
+
+static void fill(dv_real_t *x, size_t n, dv_real_t v)
+{
+    for (size_t i = 0; i < n; i++) x[i] = v;
+}
+
+static void test_obs_init_scratch_is_transient(void **state)
+{
+    (void)state;
+    load_force();
+    for (int hold = 0; hold < 2; hold++) {
+        dv_model_desc_t d;
+        dv_model_t mt, m, m2;
+        dv_obs_t ot, o, o2;
+        dv_obs_noise_t nz;
+        const size_t nk = 1024;
+        mt_lanl_desc(&d);
+        mt_add_bumper(&d, 5e-4, 8);
+        d.input_hold = hold ? DV_HOLD_CUBIC : DV_HOLD_FOH;
+        for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
+        assert_int_equal(dv_model_init(&mt, &d, DT, mbuf2, NBUF), DV_OK);
+        assert_int_equal(dv_obs_init(&ot, &mt, NULL, obuf2, NBUF), DV_OK);
+        assert_int_equal(dv_obs_simulate(&ot, force_r, nk, ytrue), DV_OK);
+        mt_lanl_desc(&d);
+        mt_add_bumper(&d, 5e-4, 8);
+        d.input_hold = hold ? DV_HOLD_CUBIC : DV_HOLD_FOH;
+        noise_model(&nz);
+        const size_t nin = DV_MODEL_HOLD_NIN(hold);
+        const size_t mper = dv_model_persistent_len(&d), mscr = dv_model_scratch_len(&d);
+        assert_int_equal(mper, DV_MODEL_PERSIST_LEN_HOLD(4u, 1u, 8u, 4u, nin));
+        assert_int_equal(mscr, DV_MODEL_SCRATCH_LEN_HOLD(4u, 1u, 8u, 4u, nin));
+        assert_int_equal(dv_model_buf_len(&d), mper + mscr);
+        assert_true(mper < mscr); // most of the old buffer was init scratch
+        // reference: one buffer, exactly dv_model_buf_len / dv_obs_buf_len
+        const size_t mlen = dv_model_buf_len(&d);
+        assert_int_equal(dv_model_init(&m, &d, DT, mbuf, mlen), DV_OK);
+        const size_t oper = dv_obs_persistent_len(&m), oscr = dv_obs_scratch_len(&m);
+        assert_int_equal(oper, DV_OBS_PERSIST_LEN_HOLD(4u, 1u, 8u, 4u, nin));
+        assert_int_equal(oscr, DV_OBS_SCRATCH_LEN_HOLD(4u, 1u, 8u, 4u, nin));
+        assert_int_equal(dv_obs_buf_len(&m), oper + oscr);
+        const size_t olen = dv_obs_buf_len(&m);
+        assert_int_equal(dv_obs_init(&o, &m, &nz, obuf, olen), DV_OK);
+        fill(mbuf + mper, mlen - mper, (dv_real_t)NAN);
+        fill(obuf + oper, olen - oper, (dv_real_t)NAN);
+        assert_int_equal(dv_obs_update_block(&o, force_r, ytrue, nk, ypred, res), DV_OK);
+        // split: exact persistent buffers with a guard after them, one shared scratch
+        fill(pm, mper + GUARD, (dv_real_t)-7.0);
+        fill(po, oper + GUARD, (dv_real_t)-7.0);
+        fill(scr, NBUF, (dv_real_t)1e30);
+        assert_int_equal(dv_model_init_ex(&m2, &d, DT, pm, mper, scr, mscr), DV_OK);
+        assert_int_equal(dv_obs_init_ex(&o2, &m2, &nz, po, oper, scr, oscr), DV_OK);
+        fill(scr, NBUF, (dv_real_t)NAN);
+        static dv_real_t yp2[NS * 4];
+        assert_int_equal(dv_obs_update_block(&o2, force_r, ytrue, nk, yp2, res2), DV_OK);
+        for (size_t i = 0; i < GUARD; i++) {
+            assert_true(pm[mper + i] == (dv_real_t)-7.0);
+            assert_true(po[oper + i] == (dv_real_t)-7.0);
+        }
+        assert_memory_equal(ypred, yp2, nk * 4 * sizeof(dv_real_t));
+        assert_memory_equal(res, res2, nk * 4 * sizeof(dv_real_t));
+        double rr = rms(res, nk * 4), yy = rms(ytrue, nk * 4);
+        assert_true(rr > 0 && rr < 0.5 * yy); // a real run: the gain tracks the stiffer truth
+        // sizes and arguments
+        assert_int_equal(dv_model_init_ex(&m2, &d, DT, pm, mper - 1, scr, mscr), DV_ESIZE);
+        assert_int_equal(dv_model_init_ex(&m2, &d, DT, pm, mper, scr, mscr - 1), DV_ESIZE);
+        assert_int_equal(dv_model_init_ex(&m2, &d, DT, pm, mper, NULL, mscr), DV_EINVAL);
+        assert_int_equal(dv_model_init(&m2, &d, DT, pm, mlen - 1), DV_ESIZE);
+        assert_int_equal(dv_model_init_ex(&m2, &d, DT, pm, mper, scr, mscr), DV_OK);
+        assert_int_equal(dv_obs_init_ex(&o2, &m2, &nz, po, oper - 1, scr, oscr), DV_ESIZE);
+        assert_int_equal(dv_obs_init_ex(&o2, &m2, &nz, po, oper, scr, oscr - 1), DV_ESIZE);
+        assert_int_equal(dv_obs_init_ex(&o2, &m2, &nz, po, oper, NULL, oscr), DV_EINVAL);
+        assert_int_equal(dv_obs_init_ex(&o2, &m2, NULL, po, oper, NULL, 0), DV_OK); // open loop
+    }
+    // the typical firmware sizes (4 DOF, 1 contact, 8 sub-steps, 4 outputs, FOH), in elements
+    fprintf(stderr, "persistent model %u + obs %u, init scratch model %u / obs %u\n",
+            (unsigned)DV_MODEL_PERSIST_LEN(4u, 1u, 8u, 4u), (unsigned)DV_OBS_PERSIST_LEN(4u, 1u, 8u, 4u),
+            (unsigned)DV_MODEL_SCRATCH_LEN(4u, 1u, 8u, 4u), (unsigned)DV_OBS_SCRATCH_LEN(4u, 1u, 8u, 4u));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -380,6 +466,7 @@ int main(void)
         cmocka_unit_test(test_obs_bad_init),
         cmocka_unit_test(test_obs_cubic_latency_and_alignment),
         cmocka_unit_test(test_obs_cubic_gain_and_nan),
+        cmocka_unit_test(test_obs_init_scratch_is_transient),
     };
     return cmocka_run_group_tests_name("dv_obs", tests, NULL, NULL);
 }
