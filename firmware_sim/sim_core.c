@@ -20,6 +20,7 @@ void sim_config_default(struct sim_config *cfg)
     cfg->force_chan = 0;
     cfg->heartbeat_ms = 1000;
     cfg->recording = 1;
+    cfg->model[SIM_MODEL_HOLD] = (float)DV_HOLD_CUBIC; /* the better hold, by default */
     for (int i = 0; i < SIM_MAX_CHAN; i++) {
         cfg->fs_hz[i] = 640;
         cfg->lsb[i] = DV_CODEC_DEFAULT_LSB;
@@ -88,6 +89,10 @@ int sim_config_check(const struct sim_config *cfg)
     const float in = m[SIM_MODEL_INPUT_DOF];
     if (in < 0.0f || in != floorf(in) || (n > 0 && in >= nd)) {
         return SIM_HR_MODEL + 2 * SIM_MODEL_INPUT_DOF;
+    }
+    const float hold = m[SIM_MODEL_HOLD];
+    if (hold != (float)DV_HOLD_FOH && hold != (float)DV_HOLD_CUBIC) {
+        return SIM_HR_MODEL + 2 * SIM_MODEL_HOLD;
     }
     return -1;
 }
@@ -336,6 +341,7 @@ static void obs_setup(struct sim_core *c)
     d.damp_kind = DV_DAMP_MODAL;
     d.input_kind = DV_INPUT_FORCE;
     d.input_dof = (uint16_t)p[SIM_MODEL_INPUT_DOF];
+    d.input_hold = p[SIM_MODEL_HOLD] == (float)DV_HOLD_CUBIC ? DV_HOLD_CUBIC : DV_HOLD_FOH;
     d.n_contact = 0;
     /* measured channels: every channel but the force channel, in order, = acc of DOF 0.. */
     uint16_t n_out = 0;
@@ -443,8 +449,23 @@ static void stage_observer(struct sim_core *c, unsigned ch, dv_real_t x, dv_can_
         for (unsigned j = 0; j < o->n_out; j++) {
             y[j] = obs_pop(o, o->meas_ch[j]);
         }
+        const uint64_t n_pred = o->obs.n_pred;
         (void)dv_obs_step(&o->obs, u, y); /* NaN u: held; NaN y: predicted only */
-        const uint32_t step = o->steps++;
+        uint32_t step = o->steps++;
+        if (dv_obs_latency(&o->obs) > 0u) {
+            /* cubic hold: this call completes the previous accepted sample, whose residual
+             * goes out now, labelled with that sample's own step; nothing new when the input
+             * was refused (NaN) or on the first sample */
+            if ((o->obs.flags & DV_OBS_FLAG_BAD_INPUT) != 0u) {
+                continue;
+            }
+            const uint32_t done = o->pend_step;
+            o->pend_step = step;
+            if (o->obs.n_pred == n_pred) {
+                continue;
+            }
+            step = done;
+        }
         if (dv_obs_get(&o->obs, NULL, r, DV_MAX_OUT) != DV_OK) {
             continue;
         }

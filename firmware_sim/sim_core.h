@@ -78,6 +78,7 @@ struct sim_obs {
     dv_real_t *q[SIM_MAX_CHAN]; /* per-channel sample queues (heap, SIM_OBS_QCAP) */
     uint32_t qh[SIM_MAX_CHAN], qn[SIM_MAX_CHAN]; /* queue heads and fill */
     uint32_t steps;         /* steps since the last START */
+    uint32_t pend_step;     /* cubic hold: step of the sample the observer still holds */
     uint32_t overrun;       /* samples discarded from full queues */
 };
 

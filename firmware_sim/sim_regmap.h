@@ -110,5 +110,9 @@
 #define SIM_MODEL_Q 25      /* white force variance at each DOF, N^2, >= 0; 0 = open loop */
 #define SIM_MODEL_R 26      /* measurement noise variance per channel, > 0 when Q > 0 */
 #define SIM_MODEL_INPUT_DOF 27 /* DOF the force channel loads, < n_dof, integral */
+#define SIM_MODEL_HOLD 28   /* input hold: 0 first-order (linear), 1 cubic (DV_HOLD_CUBIC, one
+                             * sample of latency: the residual frame of sample k leaves with
+                             * sample k + 1, labelled k). Power-on default 1; a model list that
+                             * does not set it (-m, a whole-block write) leaves 0 = first-order */
 
 #endif /* SIM_REGMAP_H */
