@@ -163,7 +163,7 @@ def main() -> int:
                 extra = "".join(f", {k} {v:.3g}" for k, v in c.items()
                                 if k not in ("case", "what", "ns", "unit") and isinstance(v, float))
                 out.append(f"| ↳ comparison: {c['what']} | double | {c['ns']:.2f} /{c['unit']}"
-                           f" | | ratio dynval/this {r['ns'] / c['ns']:.2f}{extra} | |")
+                           f" | | dynval is {c['ns'] / r['ns']:.3g}x as fast{extra} | |")
         out.append("")
     if sizes:
         out += ["## State sizes", "", "| program | real | size |", "|---|---|---|", *sizes, ""]
