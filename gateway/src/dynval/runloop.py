@@ -88,9 +88,12 @@ class FirmwareConfig:
 
 
 def model_params(model: Any, rec: Recording, q: float = 0.0, r: float = 0.0) -> list[float]:
-    """The firmware observer's 28 parameters (SIM_MODEL_*) from a dynval Model: a chain with
+    """The firmware observer's 29 parameters (SIM_MODEL_*) from a dynval Model: a chain with
     modal damping loaded at its input DOF; the firmware measures every non-force channel, in
-    order, as the acceleration of DOF 1, 2, ... — so the test's outputs must be exactly that."""
+    order, as the acceleration of DOF 1, 2, ... — so the test's outputs must be exactly that.
+    The input hold is the model's: `foh` stays linear; `cubic` and the offline default
+    `bandlimited` (which firmware cannot do: it needs the whole record) use the cubic hold,
+    which reaches the same noise floor on band-limited forces one sample later."""
     n = model.n_dof
     if n > 8:
         raise ConfigError(f"{model.source}: the firmware observer takes at most 8 DOF, not {n}")
@@ -107,13 +110,14 @@ def model_params(model: Any, rec: Recording, q: float = 0.0, r: float = 0.0) -> 
     if want != list(range(1, len(outs) + 1)):
         log.warning("%s: outputs are DOF %s; the firmware reads channel order as DOF 1..%d",
                     rec.name, want, len(outs))
-    p = [0.0] * 28
+    p = [0.0] * 29
     p[0] = float(n)
     for i in range(n):
         p[1 + i] = float(model.masses_kg[i])
         p[9 + i] = float(model.stiffness_n_per_m[i])
         p[17 + i] = float(model.damping.zeta[i])
     p[25], p[26], p[27] = q, r, float(model.input.dof - 1)
+    p[28] = 0.0 if model.interpolation == "foh" else 1.0
     return p
 
 
