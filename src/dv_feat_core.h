@@ -15,6 +15,10 @@ void dv_priv_sliding_turn_over(dv_sliding_t *s);
 void dv_priv_sliding_push_finite(dv_sliding_t *s, const dv_real_t *x, size_t n);
 void dv_priv_temporal_flush(dv_temporal_t *s);
 
+/* A whole block of DV_BLOCK_LEN samples given as its sums w[k] = sum x^2 tau^k (tau = 0..),
+ * added to the record; the open block must be empty (s->blk == 0). */
+void dv_priv_temporal_push_block(dv_temporal_t *s, const dv_real_t w[5]);
+
 /* Merge a complete block of n samples, given as power sums p[k] = sum (x - shift)^(k+1) and
  * its extremes, into the record totals. The moments' own open block must be empty. */
 void dv_priv_moments_push_block(dv_moments_t *m, dv_real_t shift, uint32_t n, const dv_real_t p[4],

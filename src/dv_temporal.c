@@ -49,6 +49,19 @@ void dv_priv_temporal_flush(dv_temporal_t *s)
     s->blk = 0u;
 }
 
+void dv_priv_temporal_push_block(dv_temporal_t *s, const dv_real_t w[5])
+{
+    DV_ASSERT(s->blk == 0u);
+    s->s0 = w[0];
+    s->s1 = w[1];
+    s->s2 = w[2];
+    s->s3 = w[3];
+    s->s4 = w[4];
+    s->tau = (dv_real_t)DV_BLOCK_LEN;
+    s->count += DV_BLOCK_LEN;
+    dv_priv_temporal_flush(s);
+}
+
 dv_status_t dv_temporal_update(dv_temporal_t *s, dv_real_t x)
 {
     DV_ASSERT(s != NULL);
