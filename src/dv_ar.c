@@ -4,37 +4,20 @@
 
 /* ---- record preparation ---------------------------------------------------------------- */
 
-static dv_real_t sum4(const dv_real_t *x, size_t n)
-{
-    dv_real_t s0 = DV_R(0.0), s1 = DV_R(0.0), s2 = DV_R(0.0), s3 = DV_R(0.0);
-    size_t i = 0u;
-    for (; i + 4u <= n; i += 4u) {
-        s0 += x[i];
-        s1 += x[i + 1u];
-        s2 += x[i + 2u];
-        s3 += x[i + 3u];
-    }
-    for (; i < n; i++) {
-        s0 += x[i];
-    }
-    return (s0 + s1) + (s2 + s3);
-}
-
 /* y = x - mean. A non-finite sample shows up as a non-finite sum. */
-static dv_status_t center(const dv_real_t *x, size_t n, dv_real_t *y, dv_real_t *mean)
+static dv_status_t center(const dv_real_t *x, size_t n, dv_real_t *y, dv_real_t *mean,
+                          uint32_t kern)
 {
     const dv_real_t nn = (dv_real_t)n;
-    dv_real_t mu = sum4(x, n) / nn;
+    dv_real_t mu = dv_priv_ar_sum(x, n, kern) / nn;
     if (!dv_priv_finite(mu)) {
         /* A sum can overflow with finite samples; look before blaming the data. */
         return DV_ENUMERIC;
     }
-    for (size_t i = 0u; i < n; i++) {
-        y[i] = x[i] - mu;
-    }
+    dv_priv_ar_sub(x, n, mu, y, kern);
 #ifndef DV_REAL_DOUBLE
     /* In float the first mean is off by ~n eps |mean|; one correction pass removes it. */
-    const dv_real_t d = sum4(y, n) / nn;
+    const dv_real_t d = dv_priv_ar_sum(y, n, kern) / nn;
     for (size_t i = 0u; i < n; i++) {
         y[i] -= d;
     }
@@ -60,16 +43,37 @@ typedef struct {
     dv_real_t r0;
 } run_out_t;
 
-/* Order-update a <- [a - k * reverse(a), k] (m-1 -> m); tmp has room for m-1. */
-static void order_update(dv_real_t *a, uint32_t m, dv_real_t k, dv_real_t *tmp)
+/* Order-update a <- [a - k * reverse(a), k] (m-1 -> m), in place: a[j] and a[m-2-j] are
+ * updated as a pair from their old values. */
+static void order_update(dv_real_t *a, uint32_t m, dv_real_t k)
 {
-    for (uint32_t j = 1u; j < m; j++) {
-        tmp[j - 1u] = a[j - 1u] - k * a[m - j - 1u];
+    uint32_t lo = 0u, hi = m >= 2u ? m - 2u : 0u;
+    for (; m >= 2u && lo < hi; lo++, hi--) {
+        const dv_real_t al = a[lo], ah = a[hi];
+        a[lo] = al - k * ah;
+        a[hi] = ah - k * al;
     }
-    for (uint32_t j = 1u; j < m; j++) {
-        a[j - 1u] = tmp[j - 1u];
+    if (m >= 2u && lo == hi) {
+        a[lo] = a[lo] - k * a[lo];
     }
     a[m - 1u] = k;
+}
+
+/* r[m] - sum_{j=1}^{m-1} a[j-1] r[m-j], four partial sums (one chain is latency-bound). */
+static dv_real_t levinson_num(const dv_real_t *a, const dv_real_t *r, uint32_t m)
+{
+    dv_real_t s0 = DV_R(0.0), s1 = DV_R(0.0), s2 = DV_R(0.0), s3 = DV_R(0.0);
+    uint32_t j = 1u;
+    for (; j + 4u <= m; j += 4u) {
+        s0 += a[j - 1u] * r[m - j];
+        s1 += a[j] * r[m - j - 1u];
+        s2 += a[j + 1u] * r[m - j - 2u];
+        s3 += a[j + 2u] * r[m - j - 3u];
+    }
+    for (; j < m; j++) {
+        s0 += a[j - 1u] * r[m - j];
+    }
+    return r[m] - ((s0 + s1) + (s2 + s3));
 }
 
 /* Runs orders 1..pmax; stops at the first order whose reflection coefficient is not inside
@@ -84,10 +88,9 @@ static dv_status_t run(dv_ar_method_t method, uint32_t pmax, const dv_real_t *x,
     dv_real_t *small = work + 2u * n;    /* 4 (pmax + 1) */
     dv_real_t *r = small;                /* pmax + 1 autocorrelation values */
     dv_real_t *ak = small + (pmax + 1u); /* order-m coefficients in progress */
-    dv_real_t *tmp = ak + (pmax + 1u);
     dv_real_t mean;
 
-    dv_status_t st = center(x, n, y, &mean);
+    dv_status_t st = center(x, n, y, &mean, kern);
     if (st != DV_OK) {
         return st;
     }
@@ -105,11 +108,7 @@ static dv_status_t run(dv_ar_method_t method, uint32_t pmax, const dv_real_t *x,
         }
         dv_real_t err = r[0];
         for (uint32_t m = 1u; m <= pmax; m++) {
-            dv_real_t acc = r[m];
-            for (uint32_t j = 1u; j < m; j++) {
-                acc -= ak[j - 1u] * r[m - j];
-            }
-            const dv_real_t k = acc / err;
+            const dv_real_t k = levinson_num(ak, r, m) / err;
             if (!(DV_FABS(k) < DV_R(1.0))) {
                 break;
             }
@@ -117,7 +116,7 @@ static dv_status_t run(dv_ar_method_t method, uint32_t pmax, const dv_real_t *x,
             if (!(e2 > DV_R(0.0))) {
                 break;
             }
-            order_update(ak, m, k, tmp);
+            order_update(ak, m, k);
             err = e2;
             refl[m - 1u] = k;
             sig[m - 1u] = err;
@@ -169,7 +168,7 @@ static dv_status_t run(dv_ar_method_t method, uint32_t pmax, const dv_real_t *x,
             if (!(e2 > DV_R(0.0))) {
                 break;
             }
-            order_update(ak, m, k, tmp);
+            order_update(ak, m, k);
             err = e2;
             refl[m - 1u] = k;
             sig[m - 1u] = err;
@@ -195,7 +194,7 @@ static dv_status_t run(dv_ar_method_t method, uint32_t pmax, const dv_real_t *x,
             if (!(e2 > DV_R(0.0))) {
                 break;
             }
-            order_update(ak, m + 1u, k2, tmp);
+            order_update(ak, m + 1u, k2);
             err = e2;
             refl[m] = k2;
             sig[m] = err;
@@ -380,13 +379,7 @@ dv_status_t dv_ar_resid_update(dv_ar_resid_t *r, dv_real_t x, dv_real_t *e)
         /* hist[head .. head+p-1] holds the last p centred samples, oldest first. The newest
          * DV_AR_RESID_NEW of them are read from nw[] instead: their stores may still be in
          * flight, and a wide load spanning them would wait for the stores to drain. */
-        const uint32_t k = p < DV_AR_RESID_NEW ? p : DV_AR_RESID_NEW, v = p - k;
-        dv_real_t acc = v > 0u ? dv_priv_ar_dot(r->c, r->hist + r->head, v, r->kern) : DV_R(0.0);
-        dv_real_t acc2 = DV_R(0.0);
-        for (uint32_t j = 0u; j < k; j++) {
-            acc2 += r->c[p - 1u - j] * r->nw[(c4 - 1u - j) & (DV_AR_RESID_NEW - 1u)];
-        }
-        *e = y - (acc + acc2);
+        *e = y - dv_priv_ar_resid_dot(r->c, r->hist + r->head, p, r->nw, c4, r->kern);
         st = DV_OK;
     }
     /* a ring indexed by the sample count: one scalar store, no shifting (a compiler merging

@@ -34,6 +34,22 @@ static dv_real_t dot_c(const dv_real_t *a, const dv_real_t *b, size_t n)
     return (s0 + s1) + (s2 + s3);
 }
 
+static dv_real_t sum_c(const dv_real_t *x, size_t n)
+{
+    dv_real_t s0 = DV_R(0.0), s1 = DV_R(0.0), s2 = DV_R(0.0), s3 = DV_R(0.0);
+    size_t i = 0u;
+    for (; i + 4u <= n; i += 4u) {
+        s0 += x[i];
+        s1 += x[i + 1u];
+        s2 += x[i + 2u];
+        s3 += x[i + 3u];
+    }
+    for (; i < n; i++) {
+        s0 += x[i];
+    }
+    return (s0 + s1) + (s2 + s3);
+}
+
 static void acf_c(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r)
 {
     for (size_t k = 0u; k <= maxlag; k++) {
@@ -367,55 +383,134 @@ DV_TGT_AVX512 static double dot_avx512(const double *a, const double *b, size_t 
     return _mm512_reduce_add_pd(_mm512_add_pd(s0, s1));
 }
 
-/* As acf_avx2 with 8 x 8 lags and rows 8 apart. */
+#define DV_FMA8(S, B, W0, W1, W2, W3, W4, W5, W6, W7)                                             \
+    do {                                                                                        \
+        S##0 = _mm512_fmadd_pd(B, W0, S##0);                                                    \
+        S##1 = _mm512_fmadd_pd(B, W1, S##1);                                                    \
+        S##2 = _mm512_fmadd_pd(B, W2, S##2);                                                    \
+        S##3 = _mm512_fmadd_pd(B, W3, S##3);                                                    \
+        S##4 = _mm512_fmadd_pd(B, W4, S##4);                                                    \
+        S##5 = _mm512_fmadd_pd(B, W5, S##5);                                                    \
+        S##6 = _mm512_fmadd_pd(B, W6, S##6);                                                    \
+        S##7 = _mm512_fmadd_pd(B, W7, S##7);                                                    \
+    } while (0)
+
+/* As acf_avx2 with 8 x 8 lags and rows 8 apart, two rows (i, i+8) per step into two sets of
+ * accumulators: row i+8's windows are row i's shifted by one vector (w1..w8), so a step costs
+ * two loads, two broadcasts and 16 FMAs, and each accumulator chain sees one FMA per 16 (the
+ * FMA latency no longer limits). The last rows, whose windows run past the record, go through
+ * a zero-padded copy with the same vector code instead of scalar loops. */
 DV_TGT_AVX512 static void acf_avx512(const double *x, size_t n, size_t maxlag, double *r)
 {
     for (size_t g = 0u; g <= maxlag; g += 64u) {
-        __m512d c0 = _mm512_setzero_pd(), c1 = c0, c2 = c0, c3 = c0, c4 = c0, c5 = c0, c6 = c0,
-                c7 = c0;
-        const size_t imax = n > g + 63u ? n - g - 63u : 0u;
+        const __m512d z = _mm512_setzero_pd();
+        __m512d a0 = z, a1 = z, a2 = z, a3 = z, a4 = z, a5 = z, a6 = z, a7 = z;
+        __m512d b0 = z, b1 = z, b2 = z, b3 = z, b4 = z, b5 = z, b6 = z, b7 = z;
+        const size_t imax = n > g + 63u ? n - g - 63u : 0u; /* rows whose 64 lags are in range */
         for (size_t rho = 0u; rho < 8u && rho < imax; rho++) {
             const double *w = x + rho + g;
             __m512d w0 = _mm512_loadu_pd(w), w1 = _mm512_loadu_pd(w + 8), w2 = _mm512_loadu_pd(w + 16),
                     w3 = _mm512_loadu_pd(w + 24), w4 = _mm512_loadu_pd(w + 32),
-                    w5 = _mm512_loadu_pd(w + 40), w6 = _mm512_loadu_pd(w + 48),
-                    w7 = _mm512_loadu_pd(w + 56);
-            for (size_t i = rho;;) {
-                const __m512d xi = _mm512_set1_pd(x[i]);
-                c0 = _mm512_fmadd_pd(xi, w0, c0);
-                c1 = _mm512_fmadd_pd(xi, w1, c1);
-                c2 = _mm512_fmadd_pd(xi, w2, c2);
-                c3 = _mm512_fmadd_pd(xi, w3, c3);
-                c4 = _mm512_fmadd_pd(xi, w4, c4);
-                c5 = _mm512_fmadd_pd(xi, w5, c5);
-                c6 = _mm512_fmadd_pd(xi, w6, c6);
-                c7 = _mm512_fmadd_pd(xi, w7, c7);
-                i += 8u;
-                if (i >= imax) {
-                    break;
-                }
-                w0 = w1; w1 = w2; w2 = w3; w3 = w4; w4 = w5; w5 = w6; w6 = w7;
-                w7 = _mm512_loadu_pd(x + i + g + 56u);
+                    w5 = _mm512_loadu_pd(w + 40), w6 = _mm512_loadu_pd(w + 48);
+            size_t i = rho;
+            for (; i + 8u < imax; i += 16u) {
+                const __m512d w7 = _mm512_loadu_pd(x + i + g + 56u);
+                const __m512d w8 = _mm512_loadu_pd(x + i + g + 64u);
+                const __m512d xa = _mm512_set1_pd(x[i]), xb = _mm512_set1_pd(x[i + 8u]);
+                DV_FMA8(a, xa, w0, w1, w2, w3, w4, w5, w6, w7);
+                DV_FMA8(b, xb, w1, w2, w3, w4, w5, w6, w7, w8);
+                w0 = w2; w1 = w3; w2 = w4; w3 = w5; w4 = w6; w5 = w7; w6 = w8;
+            }
+            if (i < imax) {
+                const __m512d w7 = _mm512_loadu_pd(x + i + g + 56u);
+                const __m512d xa = _mm512_set1_pd(x[i]);
+                DV_FMA8(a, xa, w0, w1, w2, w3, w4, w5, w6, w7);
+            }
+        }
+        if (n > g) {
+            /* rows imax .. n-g-1 (at most 63); later rows have no lag of this group in range */
+            double tb[128];
+            const size_t base = imax + g;
+            for (size_t j = 0u; j < 128u; j++) {
+                tb[j] = base + j < n ? x[base + j] : 0.0;
+            }
+            for (size_t i = imax; i + g < n; i++) {
+                const double *w = tb + (i - imax);
+                const __m512d xb = _mm512_set1_pd(x[i]);
+                DV_FMA8(b, xb, _mm512_loadu_pd(w), _mm512_loadu_pd(w + 8), _mm512_loadu_pd(w + 16),
+                        _mm512_loadu_pd(w + 24), _mm512_loadu_pd(w + 32), _mm512_loadu_pd(w + 40),
+                        _mm512_loadu_pd(w + 48), _mm512_loadu_pd(w + 56));
             }
         }
         double tmp[64];
-        _mm512_storeu_pd(tmp, c0);
-        _mm512_storeu_pd(tmp + 8, c1);
-        _mm512_storeu_pd(tmp + 16, c2);
-        _mm512_storeu_pd(tmp + 24, c3);
-        _mm512_storeu_pd(tmp + 32, c4);
-        _mm512_storeu_pd(tmp + 40, c5);
-        _mm512_storeu_pd(tmp + 48, c6);
-        _mm512_storeu_pd(tmp + 56, c7);
+        _mm512_storeu_pd(tmp, _mm512_add_pd(a0, b0));
+        _mm512_storeu_pd(tmp + 8, _mm512_add_pd(a1, b1));
+        _mm512_storeu_pd(tmp + 16, _mm512_add_pd(a2, b2));
+        _mm512_storeu_pd(tmp + 24, _mm512_add_pd(a3, b3));
+        _mm512_storeu_pd(tmp + 32, _mm512_add_pd(a4, b4));
+        _mm512_storeu_pd(tmp + 40, _mm512_add_pd(a5, b5));
+        _mm512_storeu_pd(tmp + 48, _mm512_add_pd(a6, b6));
+        _mm512_storeu_pd(tmp + 56, _mm512_add_pd(a7, b7));
         for (size_t l = 0u; l < 64u && g + l <= maxlag; l++) {
-            const size_t k = g + l;
-            double s = tmp[l];
-            for (size_t i = imax; i + k < n; i++) {
-                s += x[i] * x[i + k];
-            }
-            r[k] = s;
+            r[g + l] = tmp[l];
         }
     }
+}
+
+DV_TGT_AVX512 static double sum_avx512(const double *x, size_t n)
+{
+    __m512d s0 = _mm512_setzero_pd(), s1 = s0, s2 = s0, s3 = s0;
+    size_t i = 0u;
+    for (; i + 32u <= n; i += 32u) {
+        s0 = _mm512_add_pd(s0, _mm512_loadu_pd(x + i));
+        s1 = _mm512_add_pd(s1, _mm512_loadu_pd(x + i + 8u));
+        s2 = _mm512_add_pd(s2, _mm512_loadu_pd(x + i + 16u));
+        s3 = _mm512_add_pd(s3, _mm512_loadu_pd(x + i + 24u));
+    }
+    for (; i + 8u <= n; i += 8u) {
+        s0 = _mm512_add_pd(s0, _mm512_loadu_pd(x + i));
+    }
+    if (i < n) {
+        const __mmask8 m = (__mmask8)((1u << (unsigned)(n - i)) - 1u);
+        s1 = _mm512_add_pd(s1, _mm512_maskz_loadu_pd(m, x + i));
+    }
+    return _mm512_reduce_add_pd(_mm512_add_pd(_mm512_add_pd(s0, s1), _mm512_add_pd(s2, s3)));
+}
+
+DV_TGT_AVX512 static void sub_avx512(const double *x, size_t n, double c, double *y)
+{
+    const __m512d vc = _mm512_set1_pd(c);
+    size_t i = 0u;
+    for (; i + 16u <= n; i += 16u) {
+        const __m512d v0 = _mm512_loadu_pd(x + i), v1 = _mm512_loadu_pd(x + i + 8u);
+        _mm512_storeu_pd(y + i, _mm512_sub_pd(v0, vc));
+        _mm512_storeu_pd(y + i + 8u, _mm512_sub_pd(v1, vc));
+    }
+    for (; i < n; i++) {
+        y[i] = x[i] - c;
+    }
+}
+
+/* The streaming residual's history dot product, v < 2^31 terms: 8-wide, the last partial
+ * vector through a masked load (no scalar tail, no reads past the v terms). */
+DV_TGT_AVX512 static double rdot_avx512(const double *c, const double *h, uint32_t v)
+{
+    __m512d s0 = _mm512_setzero_pd(), s1 = _mm512_setzero_pd();
+    uint32_t j = 0u;
+    for (; j + 16u <= v; j += 16u) {
+        s0 = _mm512_fmadd_pd(_mm512_loadu_pd(c + j), _mm512_loadu_pd(h + j), s0);
+        s1 = _mm512_fmadd_pd(_mm512_loadu_pd(c + j + 8u), _mm512_loadu_pd(h + j + 8u), s1);
+    }
+    if (j + 8u <= v) {
+        s0 = _mm512_fmadd_pd(_mm512_loadu_pd(c + j), _mm512_loadu_pd(h + j), s0);
+        j += 8u;
+    }
+    if (j < v) {
+        const __mmask8 m = (__mmask8)((1u << (v - j)) - 1u);
+        s1 = _mm512_fmadd_pd(_mm512_maskz_loadu_pd(m, c + j), _mm512_maskz_loadu_pd(m, h + j), s1);
+    }
+    s0 = _mm512_add_pd(s0, s1);
+    return hsum256(_mm256_add_pd(_mm512_castpd512_pd256(s0), _mm512_extractf64x4_pd(s0, 1)));
 }
 
 /* As fir_avx2 with 8 x 8 outputs and taps 8 apart. */
@@ -642,4 +737,59 @@ bool dv_priv_ar_all_finite(const dv_real_t *x, size_t n, uint32_t kern)
 #endif
     (void)kern;
     return dv_priv_all_finite(x, n);
+}
+
+dv_real_t dv_priv_ar_sum(const dv_real_t *x, size_t n, uint32_t kern)
+{
+#if DV_AR_X86
+    if (kern == 2u) {
+        return sum_avx512(x, n);
+    }
+#endif
+    (void)kern;
+    return sum_c(x, n);
+}
+
+void dv_priv_ar_sub(const dv_real_t *x, size_t n, dv_real_t c, dv_real_t *y, uint32_t kern)
+{
+#if DV_AR_X86
+    if (kern == 2u) {
+        sub_avx512(x, n, c, y);
+        return;
+    }
+#endif
+    (void)kern;
+    for (size_t i = 0u; i < n; i++) {
+        y[i] = x[i] - c;
+    }
+}
+
+dv_real_t dv_priv_ar_resid_dot(const dv_real_t *c, const dv_real_t *h, uint32_t p,
+                               const dv_real_t *nw, uint32_t cnt, uint32_t kern)
+{
+    if (p < 4u) {
+        dv_real_t s = DV_R(0.0);
+        for (uint32_t t = 0u; t < p; t++) {
+            s += c[p - 1u - t] * nw[(cnt - 1u - t) & 3u];
+        }
+        return s;
+    }
+    const uint32_t v = p - 4u;
+    const dv_real_t *cn = c + v; /* a_4 .. a_1 */
+    const dv_real_t sn = (cn[3] * nw[(cnt - 1u) & 3u] + cn[2] * nw[(cnt - 2u) & 3u]) +
+                         (cn[1] * nw[(cnt - 3u) & 3u] + cn[0] * nw[cnt & 3u]);
+    dv_real_t sh;
+#if DV_AR_X86
+    if (kern == 2u) {
+        sh = rdot_avx512(c, h, v);
+    } else if (kern == 1u) {
+        sh = dot_avx2(c, h, v);
+    } else {
+        sh = dot_c(c, h, v);
+    }
+#else
+    (void)kern;
+    sh = dot_c(c, h, v);
+#endif
+    return sh + sn;
 }

@@ -162,4 +162,16 @@ static inline dv_real_t dv_priv_elem_g(int law, int side, dv_real_t gap, dv_real
     }
 }
 
+/* sum_{i<n} x_i with independent partial sums (AR record mean). */
+dv_real_t dv_priv_ar_sum(const dv_real_t *x, size_t n, uint32_t kern);
+
+/* y[i] = x[i] - c, i < n (y may equal x). */
+void dv_priv_ar_sub(const dv_real_t *x, size_t n, dv_real_t c, dv_real_t *y, uint32_t kern);
+
+/* Streaming AR residual's prediction sum_{j<p} c[j] w[j] over the last p centred samples w,
+ * oldest first, 1 <= p: w[j] = h[j] for j < p - q, and the newest q = min(p, 4) come from the
+ * ring nw (w[p-1-t] = nw[(cnt-1-t) & 3]), not from h (their stores may still be in flight). */
+dv_real_t dv_priv_ar_resid_dot(const dv_real_t *c, const dv_real_t *h, uint32_t p,
+                               const dv_real_t *nw, uint32_t cnt, uint32_t kern);
+
 #endif /* DV_PRIV_H */
