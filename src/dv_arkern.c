@@ -491,8 +491,9 @@ DV_TGT_AVX512 static void sub_avx512(const double *x, size_t n, double c, double
     }
 }
 
-/* The streaming residual's history dot product, v < 2^31 terms: 8-wide, the last partial
- * vector through a masked load (no scalar tail, no reads past the v terms). */
+/* The streaming residual's history dot product: 8-wide, then one 4-wide step and scalars. No
+ * masked load: one covering the slots of the newest samples (masked out or not) would wait for
+ * their stores to drain (measured: ~20 % slower per sample). */
 DV_TGT_AVX512 static double rdot_avx512(const double *c, const double *h, uint32_t v)
 {
     __m512d s0 = _mm512_setzero_pd(), s1 = _mm512_setzero_pd();
@@ -505,12 +506,17 @@ DV_TGT_AVX512 static double rdot_avx512(const double *c, const double *h, uint32
         s0 = _mm512_fmadd_pd(_mm512_loadu_pd(c + j), _mm512_loadu_pd(h + j), s0);
         j += 8u;
     }
-    if (j < v) {
-        const __mmask8 m = (__mmask8)((1u << (v - j)) - 1u);
-        s1 = _mm512_fmadd_pd(_mm512_maskz_loadu_pd(m, c + j), _mm512_maskz_loadu_pd(m, h + j), s1);
-    }
     s0 = _mm512_add_pd(s0, s1);
-    return hsum256(_mm256_add_pd(_mm512_castpd512_pd256(s0), _mm512_extractf64x4_pd(s0, 1)));
+    __m256d t = _mm256_add_pd(_mm512_castpd512_pd256(s0), _mm512_extractf64x4_pd(s0, 1));
+    if (j + 4u <= v) {
+        t = _mm256_fmadd_pd(_mm256_loadu_pd(c + j), _mm256_loadu_pd(h + j), t);
+        j += 4u;
+    }
+    double s = hsum256(t);
+    for (; j < v; j++) {
+        s += c[j] * h[j];
+    }
+    return s;
 }
 
 /* As fir_avx2 with 8 x 8 outputs and taps 8 apart. */
