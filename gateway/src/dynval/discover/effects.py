@@ -177,6 +177,11 @@ class NoEffect(EffectType):
         return m
 
 
+# relative changes screened as starts of linear parameter changes (a resonance shift beyond
+# the modes' bandwidth puts the output error's minimum out of reach of a local start)
+_REL_GRID = (-0.4, -0.25, -0.15, -0.08, -0.03, 0.03, 0.08, 0.15, 0.25, 0.5)
+
+
 class StiffnessChange(EffectType):
     type = "stiffness_change"
     location_kind = "story"
@@ -200,6 +205,13 @@ class StiffnessChange(EffectType):
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         p = self.params(m, cand)[0]
         return [float(np.clip(amp, p.lower * 0.9, p.upper * 0.9))]
+
+    def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        # the evidence amplitude plus a grid of relative changes (screened by the loop)
+        p = self.params(m, cand)[0]
+        k = m.stiffness_n_per_m[cand.location["story"] - 1]
+        grid = [r * k for r in _REL_GRID if p.lower < r * k < p.upper]
+        return [self.initial(m, cand, amp), *([g] for g in grid)]
 
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
         s = cand.location["story"]
@@ -230,6 +242,12 @@ class MassChange(EffectType):
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         p = self.params(m, cand)[0]
         return [float(np.clip(amp, p.lower * 0.9, p.upper * 0.9))]
+
+    def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        p = self.params(m, cand)[0]
+        mj = m.masses_kg[cand.location["dof"] - 1]
+        grid = [r * mj for r in _REL_GRID if p.lower < r * mj < p.upper]
+        return [self.initial(m, cand, amp), *([g] for g in grid)]
 
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
         j = cand.location["dof"]

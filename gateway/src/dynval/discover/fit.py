@@ -111,6 +111,34 @@ def uncertain_params(m: mdl.Model, names: Sequence[str]) -> list[fx.Param]:
     return out
 
 
+def screen_scored(m: mdl.Model, cand: fx.Candidate, starts: Sequence[Sequence[float]],
+                  tests: Sequence[TestData], chans: Sequence[str],
+                  scales: dict[str, float]) -> list[tuple[float, list[float]]]:
+    """(normalised SSE, start) of every starting point, best first (one simulation each)."""
+    et = fx.by_type(cand.type)
+    scored = []
+    for st in starts:
+        try:
+            r = residual_vector(et.apply(m, cand, st), tests, chans, scales)
+        except Exception as exc:  # a refused parameter set (validation)
+            log.debug("%s: start %s refused: %s", cand.label, st, exc)
+            continue
+        if r is not None:
+            scored.append((float(r @ r), list(st)))
+    scored.sort(key=lambda p: p[0])
+    return scored
+
+
+def screen(m: mdl.Model, cand: fx.Candidate, starts: Sequence[Sequence[float]],
+           tests: Sequence[TestData], chans: Sequence[str], scales: dict[str, float],
+           keep: int = 2) -> list[list[float]]:
+    """The ``keep`` starting points with the smallest normalised SSE: an output-error
+    objective of a resonance shift has local minima once the shift exceeds the modes'
+    bandwidth, so a coarse scan picks the basin before least squares refines."""
+    scored = screen_scored(m, cand, starts, tests, chans, scales)
+    return [st for _, st in scored[:keep]] or [list(starts[0])]
+
+
 def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence[TestData],
         chans: Sequence[str], scales: dict[str, float], max_nfev: int = 40,
         uncertain: Sequence[str] = ()) -> FitResult:

@@ -219,13 +219,15 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
         evs = [tr.events(r[c], fs) for r in res_cur.values() for c in chans]
         sps = [tr.spectrum(r[c], fs, modes_hz, band) for r in res_cur.values() for c in chans]
         traits = tr.describe(evs, sps)
-        view = tr.force_view(cur, fit_t) or tr.reaction_view(cur, fit_t)
+        view = (tr.force_view(cur, fit_t) or tr.output_view(cur, fit_t, chans, scales)
+                or tr.reaction_view(cur, fit_t))
         cands = fx.catalogue(cur, quiet=rnd > 1)
         if view is not None:
             evidence = tr.score(view, cands)
         else:
-            notes.append("the force view needs a force input and an accelerometer on every "
-                         "DOF: candidates are ranked by a short fit each instead")
+            notes.append("no evidence view for this model (it needs a force input with "
+                         "acc/vel/disp outputs, or a reaction output): every candidate is "
+                         "fitted instead")
             evidence = [tr.Evidence(c, 0.0, 0.0) for c in cands]
         # "no effect": the share of the residual energy the noise floor explains
         noise_share = float(np.mean([min(1.0, 1.0 / max(r, 1e-12) ** 2)
@@ -254,7 +256,13 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
                 notes.append(msg)
         if view is not None:
             top = max((e.r2 for e in pool), default=0.0)
+            full = pool
             pool = _diverse([e for e in pool if e.r2 >= o.evidence_cut * top], o.top_k)
+            if view.propagate is not None:
+                # the output view's evidence is first order: a linear change that shifts a
+                # resonance by more than its bandwidth can rank low; screen them all
+                pool += _screen_linear(cur, [e for e in full if e not in pool], fit_t, chans,
+                                       scales, cur_table.total(fit_names))
         held_before = cur_table.total(held_names)
         nsse_fit_before = cur_table.total(fit_names)
         best: dict[str, Any] | None = None
@@ -262,7 +270,10 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
             cand = _with_shape(e)
             et = fx.by_type(cand.type)
             res = None
-            for init in et.starts(cur, cand, e.amp):
+            starts = et.starts(cur, cand, e.amp)
+            if len(starts) > 2:
+                starts = ft.screen(cur, cand, starts, fit_t, chans, scales)
+            for init in starts:
                 try:
                     r1 = ft.fit(cur, cand, init, fit_t, chans, scales, o.max_nfev, o.uncertain)
                 except ConfigError as exc:
@@ -308,6 +319,27 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
     return DiscoverResult(m, cur, tests, fit_names, held_names, chans, scales, noise, before,
                           after, res_before, res_after, rounds, effects, mah, band, modes_hz,
                           notes, timing, calibration)
+
+
+_LINEAR = ("stiffness_change", "mass_change")
+
+
+def _screen_linear(m: mdl.Model, evs: Sequence[tr.Evidence], tests: Sequence[rs.TestData],
+                   chans: Sequence[str], scales: dict[str, float], nsse_now: float,
+                   keep: int = 2) -> list[tr.Evidence]:
+    """The ``keep`` linear candidates (stiffness and mass changes) not yet in the pool whose
+    grid of relative changes (EffectType.starts, one simulation each) lowers the fitting
+    tests' normalised SSE the most (at least by a tenth)."""
+    scored = []
+    for e in evs:
+        if e.cand.type not in _LINEAR:
+            continue
+        et = fx.by_type(e.cand.type)
+        sc = ft.screen_scored(m, e.cand, et.starts(m, e.cand, e.amp), tests, chans, scales)
+        if sc and sc[0][0] < 0.9 * nsse_now:
+            scored.append((sc[0][0], e))
+    scored.sort(key=lambda p: p[0])
+    return [e for _, e in scored[:keep]]
 
 
 def _key(c: fx.Candidate) -> str:

@@ -196,7 +196,7 @@ def figures(r: DiscoverResult) -> dict[str, str]:
     # 2. restoring-force surface for the accepted (or best) story candidate
     rd0 = r.rounds[0]
     view = rd0.view
-    if view is not None:
+    if view is not None and view.propagate is None:  # the output view has no DOF forces
         story = None
         for e in rd0.evidence:
             if "story" in e.cand.location:
@@ -209,7 +209,7 @@ def figures(r: DiscoverResult) -> dict[str, str]:
             ax.plot(d[::step], g[::step], ".", ms=1, alpha=0.4, color="tab:red",
                     label="declared model")
             last = r.rounds[-1].view
-            if last is not None and len(r.rounds) > 1:
+            if last is not None and last.propagate is None and len(r.rounds) > 1:
                 d2, g2 = tr.surface(last, story)
                 ax.plot(d2[::step], g2[::step], ".", ms=1, alpha=0.4, color="tab:blue",
                         label="updated model")

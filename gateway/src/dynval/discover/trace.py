@@ -17,7 +17,7 @@ import dataclasses
 import importlib
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -65,8 +65,13 @@ class ForceView:
     """The restoring-force surface data of the fitting tests (concatenated)."""
 
     states: fx.States
-    f_miss: np.ndarray  # n x T
+    f_miss: np.ndarray  # n x T (output view: 1 x N, the normalised output residual, negated)
     trim: slice
+    # output view: maps a restoring-force field (n x T over the concatenated tests) to the
+    # normalised measured outputs it would take away (1 x N); None: f_miss is in DOF space
+    propagate: Callable[[np.ndarray], np.ndarray] | None = None
+    out_pred: dict[str, np.ndarray] = field(default_factory=dict)  # normalised predictions
+    seg_lens: list[int] = field(default_factory=list)  # samples of each test (output view)
 
 
 def events(r: np.ndarray, fs_hz: float, win: int = 32, k: float = 5.0) -> Events:
@@ -253,19 +258,12 @@ def reaction_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
         return None
     c0 = rc[0]
     n = m.n_dof
-    outs = dict(m.outputs)
-    for j in range(1, n + 1):
-        outs[f"__x{j}"] = mdl.Output("disp", j)
-        outs[f"__v{j}"] = mdl.Output("vel", j)
-        outs[f"__a{j}"] = mdl.Output("acc", j)
-    probe = dataclasses.replace(m, outputs=outs)
     mass, k, c, w, phi = matrices(m)
     xs, vs, as_, fl, xg, vg = [], [], [], [], [], []
     pred: dict[str, list[np.ndarray]] = {ch: [] for ch in m.outputs}
     for t in tests:
-        try:
-            p = mdl.simulate(probe, t.u, t.fs_hz)
-        except DynvalError:
+        p = _simulate_states(m, t)
+        if p is None:
             return None
         xs.append(np.vstack([p[f"__x{j}"] for j in range(1, n + 1)]))
         vs.append(np.vstack([p[f"__v{j}"] for j in range(1, n + 1)]))
@@ -291,6 +289,122 @@ def reaction_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
     return ForceView(st, np.hstack(fl), slice(None))
 
 
+def _frf(m: mdl.Model, chans: Sequence[str], nf: int, fs: float) -> np.ndarray:
+    """Frequency responses (rfft grid of length nf, n_out x n_dof) of the model's linear part
+    from a force at each DOF to each output channel (acc/vel/disp, with its gain)."""
+    mass, k, c, _, _ = matrices(m)
+    w = 2 * np.pi * np.fft.rfftfreq(nf, 1.0 / fs)
+    dyn = (k[None, :, :] - (w ** 2)[:, None, None] * np.diag(mass)[None, :, :]
+           + 1j * w[:, None, None] * c[None, :, :])
+    if float(np.min(np.abs(np.linalg.det(dyn[:1])))) == 0.0:  # a rigid-body mode at DC
+        dyn[0] += np.eye(mass.size) * 1e-9 * float(np.max(np.abs(k)) or 1.0)
+    hx = np.linalg.inv(dyn)  # nfreq x n x n, displacement per force
+    rows = []
+    for ch in chans:
+        o = m.outputs[ch]
+        fac = {"acc": -(w ** 2), "vel": 1j * w, "disp": np.ones_like(w)}[o.kind] * o.gain
+        rows.append(fac[:, None] * hx[:, o.index - 1, :])
+    return np.stack(rows, axis=1)  # nfreq x n_out x n
+
+
+def _simulate_states(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
+    """The model's outputs and every DOF's displacement, velocity and acceleration (__x<j>,
+    __v<j>, __a<j>), in runs of at most the core's 16 output channels."""
+    want = dict(m.outputs)
+    for j in range(1, m.n_dof + 1):
+        want[f"__x{j}"] = mdl.Output("disp", j)
+        want[f"__v{j}"] = mdl.Output("vel", j)
+        want[f"__a{j}"] = mdl.Output("acc", j)
+    names = list(want)
+    out: dict[str, np.ndarray] = {}
+    for i in range(0, len(names), 16):
+        probe = dataclasses.replace(m, outputs={c: want[c] for c in names[i:i + 16]})
+        try:
+            out.update(mdl.simulate(probe, t.u, t.fs_hz))
+        except DynvalError:
+            return None
+    return out
+
+
+def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
+                scales: dict[str, float]) -> ForceView | None:
+    """The evidence view for any sensor set (some DOFs without an accelerometer, the force at
+    any DOF): the states of every DOF come from the model's own open-loop simulation (the
+    observer's estimate) and a candidate's restoring-force field g is judged by what it would
+    take away from the measured outputs, G g, with G the model's linear frequency response
+    from a force at each DOF to each channel (first-order, Born approximation: y_meas =
+    y_model - G g). Channels are normalised by their measured RMS, as in the fit. None when
+    the input is not a force or a channel is not an acc/vel/disp output."""
+    if m.input.kind != "force" or not chans:
+        return None
+    if any(m.outputs[c].kind not in ("acc", "vel", "disp") for c in chans):
+        return None
+    n = m.n_dof
+    mass, k, c, w, phi = matrices(m)
+    fs = tests[0].fs_hz
+    xs, vs, as_, target = [], [], [], []
+    pred: dict[str, list[np.ndarray]] = {ch: [] for ch in chans}
+    lens: list[int] = []
+    for t in tests:
+        p = _simulate_states(m, t)
+        if p is None:
+            return None
+        xs.append(np.vstack([p[f"__x{j}"] for j in range(1, n + 1)]))
+        vs.append(np.vstack([p[f"__v{j}"] for j in range(1, n + 1)]))
+        as_.append(np.vstack([p[f"__a{j}"] for j in range(1, n + 1)]))
+        target.append(np.concatenate([-(t.y[ch] - p[ch]) / scales[ch] for ch in chans]))
+        for ch in chans:
+            pred[ch].append(p[ch] / scales[ch])
+        lens.append(t.u.size)
+    frf: dict[int, np.ndarray] = {}
+    for ln in set(lens):
+        nf = next_fast_len(2 * ln, real=True)
+        frf[ln] = _frf(m, chans, nf, fs)
+    inv_scale = np.array([1.0 / scales[ch] for ch in chans])
+
+    def propagate(b: np.ndarray) -> np.ndarray:
+        parts = []
+        i0 = 0
+        rows = np.flatnonzero(np.any(b != 0.0, axis=1))
+        for ln in lens:
+            seg = b[rows, i0:i0 + ln]
+            i0 += ln
+            h = frf[ln]
+            nf = 2 * (h.shape[0] - 1)
+            if rows.size == 0:
+                parts.append(np.zeros(len(chans) * ln))
+                continue
+            spec = np.fft.rfft(seg, nf, axis=-1)  # r x F
+            ys = np.einsum("fcr,rf->cf", h[:, :, rows], spec)
+            y = np.fft.irfft(ys, nf, axis=-1)[:, :ln] * inv_scale[:, None]
+            parts.append(y.ravel())
+        return np.concatenate(parts)
+
+    def ident(z: np.ndarray) -> np.ndarray:
+        return z
+
+    st = fx.States(np.hstack(xs), np.hstack(vs), np.hstack(as_), mass, k, c, w, phi, ident,
+                   {})
+    return ForceView(st, np.concatenate(target)[None, :], slice(None), propagate,
+                     {ch: np.concatenate(v) for ch, v in pred.items()}, lens)
+
+
+def _output_gain_basis(view: ForceView, cand: fx.Candidate) -> np.ndarray | None:
+    """A sensor gain in the output view: channel c's prediction (normalised), zero elsewhere
+    (layout of the target: per test, the channels one after the other); its amplitude is
+    1 - g/g0 (the reaction view's convention)."""
+    ch = cand.location["channel"]
+    if ch not in view.out_pred:
+        return None
+    out = []
+    i0 = 0
+    for ln in view.seg_lens:
+        for c, v in view.out_pred.items():
+            out.append(v[i0:i0 + ln] if c == ch else np.zeros(ln))
+        i0 += ln
+    return np.concatenate(out)
+
+
 _NUISANCE = ("stiffness_change", "damping_change")
 
 
@@ -304,11 +418,23 @@ def score(view: ForceView, cands: Sequence[fx.Candidate]) -> list[Evidence]:
     ro = view.states.reaction_only
     f = (view.f_miss[:1] if ro else view.f_miss).ravel()
     ff = float(f @ f) or 1e-300
+
+    def image(b: np.ndarray) -> np.ndarray:
+        if view.propagate is not None:
+            return view.propagate(b)
+        return (b[:1] if ro else b).ravel()
+
+    def bases(cand: fx.Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        if view.propagate is not None and cand.type == "sensor_gain":
+            g = _output_gain_basis(view, cand)
+            return [] if g is None else [({"reaction": 1.0}, g)]
+        return [(sh, image(b)) for sh, b in fx.by_type(cand.type).basis(view.states, cand)]
+
     nuis = []
     for cand in cands:
         if cand.type in _NUISANCE:
-            for _, b in fx.by_type(cand.type).basis(view.states, cand):
-                nuis.append((b[:1] if ro else b).ravel())
+            for _, bv in bases(cand):
+                nuis.append(bv)
     q = np.zeros((f.size, 0))
     if nuis:
         a = np.column_stack(nuis)
@@ -319,11 +445,9 @@ def score(view: ForceView, cands: Sequence[fx.Candidate]) -> list[Evidence]:
     fr = float(f_res @ f_res) or 1e-300
     out = []
     for cand in cands:
-        et = fx.by_type(cand.type)
         plain = cand.type in _NUISANCE
         best = Evidence(cand, 0.0, 0.0)
-        for shape, b in et.basis(view.states, cand):
-            bv = (b[:1] if ro else b).ravel()
+        for shape, bv in bases(cand):
             bb = float(bv @ bv)
             if bb <= 0:
                 continue
