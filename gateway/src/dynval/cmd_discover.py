@@ -59,7 +59,11 @@ def expand(paths: list[Path]) -> list[Path]:
 def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     m = mdl.load(args.model)
-    files = expand(args.tests)
+    # the model file may sit in the tests' folder: it is not a test
+    model_path = args.model.resolve()
+    files = [f for f in expand(args.tests) if f.resolve() != model_path]
+    if not files:
+        raise InputFileError(args.tests[0], "no tests besides the model file")
     recs = [read_test(f, fs_hz=args.fs) for f in files]
     noise = None
     if args.noise is not None:

@@ -293,12 +293,10 @@ def generate(m: mdl.Model, truth: Truth, *, n_tests: int = 10,
 
 
 def write_csv(rec: Recording, path: Path | str) -> None:
-    """Write a Recording in the shared data's CSV layout (time_s first)."""
+    """Write a Recording in the shared data's CSV layout (time_s first). Column names are the
+    channel names as they are (a model names its channels by the tests' columns, so a
+    generated test must keep them: 'a1' stays 'a1', 'acc1_mps2' stays 'acc1_mps2')."""
     t = rec.t0_s + np.arange(rec.n_samples) / rec.fs_hz
-    names = []
-    for c in rec.channels:
-        suffix = {"N": "_N", "m/s^2": "_mps2"}.get(c.unit, "")
-        names.append(c.name if c.name.endswith(suffix) else c.name + suffix)
     data = np.column_stack([t] + [c.data for c in rec.channels])
-    np.savetxt(path, data, delimiter=",", header=",".join(["time_s", *names]), comments="",
+    np.savetxt(path, data, delimiter=",", header=",".join(["time_s", *rec.names]), comments="",
                fmt="%.10g")
