@@ -722,6 +722,33 @@ static void kernel_8x4(size_t nin, size_t ny, const dv_real_t *restrict fx,
     }
 }
 
+/* End of a first sample: residual against y (a NaN channel: predicted only), the gain's
+ * correction of the state in sv, and the state copied out. yhat = o->z + ns is filled. */
+static void finish_first(dv_obs_t *o, const dv_real_t *y, bool correct)
+{
+    const size_t ns = o->ns;
+    const size_t no = o->no;
+    dv_real_t *sv = o->sv;
+    const dv_real_t *yhat = o->z + ns;
+    for (size_t q = 0; q < no; q++) {
+        const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
+        o->resid[q] = yq - yhat[q];
+    }
+    if (correct) {
+        for (size_t j = 0; j < ns; j++) {
+            dv_real_t s = DV_R(0.0);
+            for (size_t q = 0; q < no; q++) {
+                s += o->gain[j * no + q] * o->resid[q];
+            }
+            sv[j] += s;
+        }
+    }
+    for (size_t j = 0; j < ns; j++) {
+        o->z[j] = sv[j];
+    }
+    o->started = true;
+}
+
 /* First sample (first-order hold): the state is at t0 already; output only, then correct. */
 static void step_first(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool correct)
 {
@@ -745,23 +772,7 @@ static void step_first(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool correc
         }
         yhat[q] = s;
     }
-    for (size_t q = 0; q < no; q++) {
-        const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
-        o->resid[q] = yq - yhat[q];
-    }
-    if (correct) {
-        for (size_t j = 0; j < ns; j++) {
-            dv_real_t s = DV_R(0.0);
-            for (size_t q = 0; q < no; q++) {
-                s += o->gain[j * no + q] * o->resid[q];
-            }
-            sv[j] += s;
-        }
-    }
-    for (size_t j = 0; j < ns; j++) {
-        o->z[j] = sv[j];
-    }
-    o->started = true;
+    finish_first(o, y, correct);
 }
 
 /* First sample (cubic hold): the state is at t0 (at rest); the window is [0, 0, u[0], u[1]].
@@ -798,23 +809,7 @@ static void step_first_cubic(dv_obs_t *o, const dv_real_t *y, bool correct)
         }
         yhat[q] = s;
     }
-    for (size_t q = 0; q < no; q++) {
-        const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
-        o->resid[q] = yq - yhat[q];
-    }
-    if (correct) {
-        for (size_t j = 0; j < ns; j++) {
-            dv_real_t s = DV_R(0.0);
-            for (size_t q = 0; q < no; q++) {
-                s += o->gain[j * no + q] * o->resid[q];
-            }
-            sv[j] += s;
-        }
-    }
-    for (size_t j = 0; j < ns; j++) {
-        o->z[j] = sv[j];
-    }
-    o->started = true;
+    finish_first(o, y, correct);
 }
 
 /* Complete one sample from the state and input window in sv: predict, residual against y
