@@ -96,34 +96,15 @@ static dv_status_t close_block(dv_chan_t *s)
  * for the power sums, the extremes and the time-weighted energy sums (one load per sample). */
 static void add_aligned_block(dv_chan_t *s, const dv_real_t *restrict x)
 {
-    const dv_real_t k = s->shift;
-    dv_real_t p1 = DV_R(0.0), p2 = DV_R(0.0), p3 = DV_R(0.0), p4 = DV_R(0.0);
-    dv_real_t w0 = DV_R(0.0), w1 = DV_R(0.0), w2 = DV_R(0.0), w3 = DV_R(0.0), w4 = DV_R(0.0);
-    dv_real_t mn = s->pmin, mx = s->pmax, t = DV_R(0.0);
-    for (size_t i = 0u; i < DV_BLOCK_LEN; i++) {
-        const dv_real_t v = x[i];
-        const dv_real_t u = v - k, u2 = u * u;
-        p1 += u;
-        p2 += u2;
-        p3 += u2 * u;
-        p4 += u2 * u2;
-        const dv_real_t e = v * v, e1 = e * t, e2 = e1 * t, e3 = e2 * t;
-        w0 += e;
-        w1 += e1;
-        w2 += e2;
-        w3 += e3;
-        w4 += e3 * t;
-        t += DV_R(1.0);
-        mn = v < mn ? v : mn;
-        mx = v > mx ? v : mx;
-    }
-    s->p[0] += p1;
-    s->p[1] += p2;
-    s->p[2] += p3;
-    s->p[3] += p4;
-    s->pmin = mn;
-    s->pmax = mx;
-    const dv_real_t w[5] = {w0, w1, w2, w3, w4};
+    dv_real_t p[4], w[5];
+    dv_real_t mm[2] = {s->pmin, s->pmax};
+    dv_priv_feat_block(x, s->shift, p, mm, w);
+    s->p[0] += p[0];
+    s->p[1] += p[1];
+    s->p[2] += p[2];
+    s->p[3] += p[3];
+    s->pmin = mm[0];
+    s->pmax = mm[1];
     dv_priv_temporal_push_block(&s->tm, w);
 }
 

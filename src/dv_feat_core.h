@@ -11,6 +11,21 @@
 
 void dv_priv_sliding_turn_over(dv_sliding_t *s);
 
+/* ---- block kernels (src/dv_featkern.c): portable C, and on x86-64 double builds AVX2/FMA and
+ * AVX-512F versions picked at run time. ---- */
+
+/* 0 portable, 1 AVX2+FMA, 2 AVX-512F */
+uint32_t dv_priv_feat_kern(void);
+
+/* One block of DV_BLOCK_LEN finite samples: p[k] = sum (x - k0)^(k+1), mm = {min, max} folded
+ * into the given {min, max}, w[k] = sum x^2 tau^k with tau = 0, 1, ... */
+void dv_priv_feat_block(const dv_real_t *x, dv_real_t k0, dv_real_t p[4], dv_real_t mm[2],
+                        dv_real_t w[5]);
+
+/* s[k] = sum (r - k0)^(k+1) over r[0..n), smax[i] / smin[i] = max / min of r[i..n). */
+void dv_priv_feat_turn(const dv_real_t *r, uint32_t n, dv_real_t k0, dv_real_t *smax,
+                       dv_real_t *smin, dv_real_t s[4]);
+
 /* dv_sliding_update_block() for samples known to be finite (the caller checked). */
 void dv_priv_sliding_push_finite(dv_sliding_t *s, const dv_real_t *x, size_t n);
 void dv_priv_temporal_flush(dv_temporal_t *s);

@@ -41,51 +41,9 @@ void dv_sliding_reset(dv_sliding_t *s)
  * small deviations. */
 void dv_priv_sliding_turn_over(dv_sliding_t *s)
 {
-    const dv_real_t *restrict r = s->ring;
-    const uint32_t n = s->len;
-    dv_real_t *restrict smax = s->sufmax;
-    dv_real_t *restrict smin = s->sufmin;
     const dv_real_t k = s->shift;
-    dv_real_t mx = -DV_REAL_MAX, mn = DV_REAL_MAX;
-    dv_real_t a1 = DV_R(0.0), a2 = DV_R(0.0), a3 = DV_R(0.0), a4 = DV_R(0.0);
-    dv_real_t b1 = DV_R(0.0), b2 = DV_R(0.0), b3 = DV_R(0.0), b4 = DV_R(0.0);
-    uint32_t i = n;
-    for (; i >= 2u; i -= 2u) {
-        const dv_real_t v = r[i - 1u], w = r[i - 2u];
-        const dv_real_t u = v - k, z = w - k;
-        const dv_real_t u2 = u * u, z2 = z * z;
-        a1 += u;
-        b1 += z;
-        a2 += u2;
-        b2 += z2;
-        a3 += u2 * u;
-        b3 += z2 * z;
-        a4 += u2 * u2;
-        b4 += z2 * z2;
-        mx = v > mx ? v : mx;
-        mn = v < mn ? v : mn;
-        smax[i - 1u] = mx;
-        smin[i - 1u] = mn;
-        mx = w > mx ? w : mx;
-        mn = w < mn ? w : mn;
-        smax[i - 2u] = mx;
-        smin[i - 2u] = mn;
-    }
-    if (i == 1u) {
-        const dv_real_t v = r[0], u = v - k, u2 = u * u;
-        a1 += u;
-        a2 += u2;
-        a3 += u2 * u;
-        a4 += u2 * u2;
-        mx = v > mx ? v : mx;
-        mn = v < mn ? v : mn;
-        smax[0] = mx;
-        smin[0] = mn;
-    }
-    s->s[0] = a1 + b1;
-    s->s[1] = a2 + b2;
-    s->s[2] = a3 + b3;
-    s->s[3] = a4 + b4;
+    const uint32_t n = s->len;
+    dv_priv_feat_turn(s->ring, n, k, s->sufmax, s->sufmin, s->s);
     const dv_real_t delta = s->s[0] / (dv_real_t)n; /* window mean - shift */
     dv_priv_sums_shift(s->s, (dv_real_t)n, -delta);
     s->shift = k + delta;
