@@ -2,6 +2,7 @@
  * at the sub-nodes with a fixed number of fixed-point iterations, DARE by doubling at init. */
 #include "dynval/dv_obs.h"
 #include "dv_priv.h"
+#include "dv_obskern.h"
 
 /* 0: persistent, 1: scratch, 2: both (one buffer) */
 static size_t obs_len(const dv_model_t *m, int which)
@@ -396,6 +397,11 @@ dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_
         }
         o->has_gain = true;
     }
+    o->fast = ns == 8u && no == 4u && nin == 2u;
+    o->simd = (uint8_t)dv_priv_ar_kern();
+    if (o->simd == 2u && (!o->fast || nf > 0u)) {
+        o->simd = 1u; /* the AVX-512 step is the linear 8 x 4 one; AVX2 kernel otherwise */
+    }
     fold(o);
     dv_obs_reset(o);
     return DV_OK;
@@ -692,7 +698,7 @@ static void colsum4(size_t ncol, const dv_real_t *restrict f, const dv_real_t *r
  * regular step folded in: sv[0..8) is overwritten by the new state, yo gets the prediction and,
  * with y (4 finite measurements, used for the correction when ny = 4), resid = y - yo. */
 OBS_NO_LOOP_VEC
-static void kernel_8x4(size_t nin, size_t ny, const dv_real_t *restrict fx,
+static void kernel_8x4_c(size_t nin, size_t ny, const dv_real_t *restrict fx,
                        const dv_real_t *restrict fy, dv_real_t *restrict sv,
                        const dv_real_t *restrict y, dv_real_t *restrict yo,
                        dv_real_t *restrict resid)
@@ -720,6 +726,22 @@ static void kernel_8x4(size_t nin, size_t ny, const dv_real_t *restrict fx,
             resid[q] = y[q] - yo[q];
         }
     }
+}
+
+/* kernel_8x4_c(), or its AVX2 + FMA form when the CPU has it (chosen at init, o->simd). */
+static inline void kernel_8x4(const dv_obs_t *o, size_t nin, size_t ny, const dv_real_t *fx,
+                              const dv_real_t *fy, dv_real_t *sv, const dv_real_t *y,
+                              dv_real_t *yo, dv_real_t *resid)
+{
+#if DV_OBS_X86
+    if (o->simd != 0u) {
+        dv_priv_obs_kern8x4_avx2(nin, ny, fx, fy, sv, y, yo, resid);
+        return;
+    }
+#else
+    (void)o;
+#endif
+    kernel_8x4_c(nin, ny, fx, fy, sv, y, yo, resid);
 }
 
 /* End of a first sample: residual against y (a NaN channel: predicted only), the gain's
@@ -830,14 +852,14 @@ static void produce(dv_obs_t *o, const dv_real_t *y, uint32_t flags, bool use_ga
         }
         if (flags == 0u) {
             if (correct) {
-                kernel_8x4(nin + nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
+                kernel_8x4(o, nin + nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
                            yhat, o->resid);
             } else {
-                kernel_8x4(nin + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, y,
+                kernel_8x4(o, nin + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, y,
                            yhat, o->resid);
             }
         } else {
-            kernel_8x4(nin + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, NULL,
+            kernel_8x4(o, nin + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, NULL,
                        yhat, o->resid);
             for (size_t q = 0; q < 4u; q++) {
                 const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
@@ -913,13 +935,13 @@ static dv_status_t step(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool use_g
                 contact_forces(o, sv, 8u);
             }
             if (correct) {
-                kernel_8x4(2u + nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
+                kernel_8x4(o, 2u + nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
                            yhat, o->resid);
             } else if (flags == 0u) {
-                kernel_8x4(2u + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, y,
+                kernel_8x4(o, 2u + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, y,
                            yhat, o->resid);
             } else {
-                kernel_8x4(2u + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv,
+                kernel_8x4(o, 2u + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv,
                            NULL, yhat, o->resid);
                 for (size_t q = 0; q < 4u; q++) {
                     const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
@@ -962,9 +984,49 @@ static dv_status_t step(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool use_g
     return DV_OK;
 }
 
+/* The regular step of the 4-DOF, 4-channel case (first-order hold, vector kernel, past the
+ * first sample, finite u and y, with the gain if there is one): step() for it, written out
+ * without its general cases. Returns false, with nothing changed, for any other step. */
+static inline bool fast_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y)
+{
+    if (!(o->fast && o->started && y != NULL)) {
+        return false;
+    }
+#if DV_OBS_X86
+    if (o->simd == 2u) {
+        return dv_priv_obs_step8x4_avx512(o, u, y);
+    }
+#endif
+    const dv_real_t bad =
+        ((u - u) + (y[0] - y[0])) + ((y[1] - y[1]) + ((y[2] - y[2]) + (y[3] - y[3])));
+    if (bad != DV_R(0.0)) {
+        return false;
+    }
+    dv_real_t *sv = o->sv;
+    sv[9] = u;
+    if (o->nf > 0u) {
+        contact_forces(o, sv, 8u);
+    }
+    if (o->has_gain) {
+        kernel_8x4(o, 2u + o->nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
+                   o->z + 8, o->resid);
+    } else {
+        kernel_8x4(o, 2u + o->nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, y,
+                   o->z + 8, o->resid);
+    }
+    sv[8] = u;
+    o->flags = 0u;
+    o->n_pred++;
+    o->n_steps++;
+    return true;
+}
+
 dv_status_t dv_obs_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas)
 {
     DV_ASSERT(o != NULL && o->m != NULL);
+    if (fast_step(o, u, y_meas)) {
+        return DV_OK;
+    }
     return step(o, u, y_meas, true);
 }
 
@@ -1065,7 +1127,8 @@ static dv_status_t run_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y
     dv_status_t worst = DV_OK;
     for (size_t k = 0; k < n; k++) {
         const dv_real_t *yk = y_meas != NULL ? y_meas + k * no : NULL;
-        const dv_status_t st = step(o, u[k], yk, use_gain);
+        const dv_status_t st =
+            (use_gain && fast_step(o, u[k], yk)) ? DV_OK : step(o, u[k], yk, use_gain);
         if (st != DV_OK) {
             worst = st;
         }

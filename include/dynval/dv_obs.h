@@ -93,6 +93,8 @@ typedef struct {
     uint16_t ncol_gain;  /**< ns + nin + nf + no */
     bool has_gain;       /**< L != 0 */
     bool started;        /**< the first sample has been seen */
+    uint8_t simd;        /**< 8 x 4 step kernel: 0 portable, 1 AVX2 + FMA, 2 AVX-512 (linear step) */
+    bool fast;           /**< 8 states, 4 outputs, first-order hold: the direct step path */
     uint32_t flags;      /**< DV_OBS_FLAG_* of the last step */
     uint64_t n_steps;    /**< accepted steps */
     uint64_t n_bad_input; /**< steps refused for a NaN/Inf input */

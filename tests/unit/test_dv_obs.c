@@ -115,6 +115,52 @@ static void test_obs_gain_tracks_perturbed_model(void **state)
     assert_true(rk < 0.5 * ropen);
 }
 
+// The vector step kernels (AVX2 + FMA, AVX-512; chosen at init on x86-64 double builds) against
+// the portable kernel, on a perturbed truth (non-zero residuals), with and without the gain and
+// the bumper: the same arithmetic up to rounding (FMA, summation order).
+static void test_obs_vector_kernels_match_portable(void **state)
+{
+    (void)state;
+    load_force();
+    dv_model_desc_t d;
+    dv_model_t mt, m;
+    dv_obs_t ot, o;
+    dv_obs_noise_t nz;
+    noise_model(&nz);
+    for (int contact = 0; contact < 2; contact++) {
+        for (int gain = 0; gain < 2; gain++) {
+            mt_lanl_desc(&d);
+            for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
+            if (contact) mt_add_bumper(&d, 1e-4, 8);
+            assert_int_equal(dv_model_init(&mt, &d, DT, mbuf2, NBUF), DV_OK);
+            assert_int_equal(dv_obs_init(&ot, &mt, NULL, obuf2, NBUF), DV_OK);
+            assert_int_equal(dv_obs_simulate(&ot, force_r, NS, ytrue), DV_OK);
+            mt_lanl_desc(&d);
+            if (contact) mt_add_bumper(&d, 1e-4, 8);
+            assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
+            assert_int_equal(dv_obs_init(&o, &m, gain ? &nz : NULL, obuf, NBUF), DV_OK);
+            const unsigned simd = o.simd;
+            assert_true(o.fast);
+            for (size_t k = 0; k < NS; k++) {
+                assert_int_equal(dv_obs_step(&o, force_r[k], ytrue + 4 * k), DV_OK);
+                assert_int_equal(dv_obs_get(&o, ypred + 4 * k, res + 4 * k, 4), DV_OK);
+            }
+            o.simd = 0; // the portable kernel, same direct path
+            dv_obs_reset(&o);
+            for (size_t k = 0; k < NS; k++) {
+                assert_int_equal(dv_obs_step(&o, force_r[k], ytrue + 4 * k), DV_OK);
+                assert_int_equal(dv_obs_get(&o, NULL, res2 + 4 * k, 4), DV_OK);
+            }
+            double e = 0, r = rms(res2, NS * 4);
+            for (size_t i = 0; i < NS * 4; i++) e = fmax(e, fabs((double)res[i] - res2[i]));
+            fprintf(stderr, "vector kernel %u vs portable (contact %d, gain %d): max |dr| / rms r "
+                    "= %.3g\n", simd, contact, gain, e / r);
+            assert_true(r > 1e-3 * rms(ytrue, NS * 4)); // the residuals are not trivial
+            assert_true(e <= (sizeof(dv_real_t) == 8 ? 1e-9 : 1e-4) * r);
+        }
+    }
+}
+
 static void test_obs_nan_measurement_predicts_without_correction(void **state)
 {
     (void)state;
@@ -459,6 +505,7 @@ int main(void)
         cmocka_unit_test(test_obs_kalman_gain_matches_scipy_dare),
         cmocka_unit_test(test_obs_perfect_model_residual_is_zero),
         cmocka_unit_test(test_obs_gain_tracks_perturbed_model),
+        cmocka_unit_test(test_obs_vector_kernels_match_portable),
         cmocka_unit_test(test_obs_nan_measurement_predicts_without_correction),
         cmocka_unit_test(test_obs_nan_input_holds_state),
         cmocka_unit_test(test_obs_simulate_equals_steps),

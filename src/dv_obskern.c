@@ -1,0 +1,160 @@
+/* Observer step kernel with AVX2 + FMA (x86-64, double builds; see dv_obskern.h). The product
+ * is the portable kernel_8x4()'s, column by column: one broadcast of the column's entry of the
+ * step vector, then fused multiply-adds on the two 4-row halves of the state rows and on the
+ * 4 output rows. The state columns, the only ones on the chain from one step to the next,
+ * go in four independent partial sums of two columns each, with the inputs' sum (ready early)
+ * as the first one's start, so the chain is two FMAs and two additions long. */
+#include "dv_obskern.h"
+#include "dynval/dv_obs.h"
+
+#if DV_OBS_X86
+#include <immintrin.h>
+
+#define DV_TGT_AVX2 __attribute__((target("avx2,fma")))
+#define DV_TGT_AVX512 __attribute__((target("avx512f,avx2,fma")))
+
+/* always inlined into the entry points below, so the common sizes get fixed trip counts */
+/* The next step reads the state back one element at a time (broadcast loads); scalar stores
+ * keep each of those loads served by store-to-load forwarding from one store of its own size
+ * (a load from part of a wide store is not always forwarded, and stalls when it is not).
+ * The empty asm statements stop the compiler from merging the stores again. */
+DV_TGT_AVX2 static inline void store4(double *p, __m256d v)
+{
+    const __m128d lo = _mm256_castpd256_pd128(v);
+    const __m128d hi = _mm256_extractf128_pd(v, 1);
+    _mm_storel_pd(p, lo);
+    __asm__ volatile("" ::: "memory");
+    _mm_storeh_pd(p + 1, lo);
+    __asm__ volatile("" ::: "memory");
+    _mm_storel_pd(p + 2, hi);
+    __asm__ volatile("" ::: "memory");
+    _mm_storeh_pd(p + 3, hi);
+}
+
+DV_TGT_AVX2 static inline __attribute__((always_inline)) void
+kern8x4(size_t nin, size_t ny, const double *fx, const double *fy, double *sv, const double *y,
+        double *yo, double *resid)
+{
+    const double *in = sv + 8;
+    const double *fxi = fx + 64;
+    const double *fyi = fy + 32;
+    /* inputs (u window, contact forces) and measurements: off the state chain */
+    __m256d s = _mm256_broadcast_sd(in);
+    __m256d a0 = _mm256_mul_pd(_mm256_loadu_pd(fxi), s);
+    __m256d a1 = _mm256_mul_pd(_mm256_loadu_pd(fxi + 4), s);
+    __m256d ay = _mm256_mul_pd(_mm256_loadu_pd(fyi), s);
+    for (size_t j = 1; j < nin; j++) {
+        s = _mm256_broadcast_sd(in + j);
+        a0 = _mm256_fmadd_pd(_mm256_loadu_pd(fxi + 8u * j), s, a0);
+        a1 = _mm256_fmadd_pd(_mm256_loadu_pd(fxi + 8u * j + 4u), s, a1);
+        ay = _mm256_fmadd_pd(_mm256_loadu_pd(fyi + 4u * j), s, ay);
+    }
+    const double *fxm = fxi + 8u * nin;
+    for (size_t j = 0; j < ny; j++) {
+        s = _mm256_broadcast_sd(y + j);
+        a0 = _mm256_fmadd_pd(_mm256_loadu_pd(fxm + 8u * j), s, a0);
+        a1 = _mm256_fmadd_pd(_mm256_loadu_pd(fxm + 8u * j + 4u), s, a1);
+    }
+    /* state columns c and c + 4 in partial sum c */
+    __m256d p0[4], p1[4], py[4];
+    for (size_t c = 0; c < 4u; c++) {
+        const __m256d x0 = _mm256_broadcast_sd(sv + c);
+        const __m256d x1 = _mm256_broadcast_sd(sv + c + 4u);
+        if (c == 0u) {
+            p0[c] = _mm256_fmadd_pd(_mm256_loadu_pd(fx), x0, a0);
+            p1[c] = _mm256_fmadd_pd(_mm256_loadu_pd(fx + 4), x0, a1);
+            py[c] = _mm256_fmadd_pd(_mm256_loadu_pd(fy), x0, ay);
+        } else {
+            p0[c] = _mm256_mul_pd(_mm256_loadu_pd(fx + 8u * c), x0);
+            p1[c] = _mm256_mul_pd(_mm256_loadu_pd(fx + 8u * c + 4u), x0);
+            py[c] = _mm256_mul_pd(_mm256_loadu_pd(fy + 4u * c), x0);
+        }
+        p0[c] = _mm256_fmadd_pd(_mm256_loadu_pd(fx + 8u * (c + 4u)), x1, p0[c]);
+        p1[c] = _mm256_fmadd_pd(_mm256_loadu_pd(fx + 8u * (c + 4u) + 4u), x1, p1[c]);
+        py[c] = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 4u * (c + 4u)), x1, py[c]);
+    }
+    const __m256d x0n = _mm256_add_pd(_mm256_add_pd(p0[0], p0[1]), _mm256_add_pd(p0[2], p0[3]));
+    const __m256d x1n = _mm256_add_pd(_mm256_add_pd(p1[0], p1[1]), _mm256_add_pd(p1[2], p1[3]));
+    const __m256d yh = _mm256_add_pd(_mm256_add_pd(py[0], py[1]), _mm256_add_pd(py[2], py[3]));
+    store4(sv, x0n);
+    store4(sv + 4, x1n);
+    _mm256_storeu_pd(yo, yh);
+    if (y != NULL) {
+        _mm256_storeu_pd(resid, _mm256_sub_pd(_mm256_loadu_pd(y), yh));
+    }
+}
+
+DV_TGT_AVX2 void dv_priv_obs_kern8x4_avx2(size_t nin, size_t ny, const double *fx,
+                                          const double *fy, double *sv, const double *y,
+                                          double *yo, double *resid)
+{
+    /* the linear 4-DOF step (u[k-1], u[k]; with or without the gain's 4 measurement columns)
+     * with constant sizes; anything else (contact forces) through the general form */
+    if (nin == 2u && ny == 4u) {
+        kern8x4(2u, 4u, fx, fy, sv, y, yo, resid);
+    } else if (nin == 2u && ny == 0u) {
+        kern8x4(2u, 0u, fx, fy, sv, y, yo, resid);
+    } else {
+        kern8x4(nin, ny, fx, fy, sv, y, yo, resid);
+    }
+}
+
+
+/* The whole regular linear step of the 4-DOF, 4-channel observer with AVX-512: the 8 state
+ * rows of a column fill one register. Returns false, touching nothing, when u or a measured
+ * channel is not finite (the caller's general path flags it). */
+DV_TGT_AVX512 bool dv_priv_obs_step8x4_avx512(dv_obs_t *o, double u, const double *y)
+{
+    const __m256d ym = _mm256_loadu_pd(y);
+    const __m256d fin = _mm256_add_pd(_mm256_sub_pd(ym, ym), _mm256_set1_pd(u - u));
+    if (_mm256_movemask_pd(_mm256_cmp_pd(fin, _mm256_setzero_pd(), _CMP_NEQ_UQ)) != 0) {
+        return false;
+    }
+    double *sv = o->sv;
+    const bool gain = o->has_gain;
+    const double *fx = gain ? o->f_gain : o->f_open;
+    const double *fy = fx + 8u * (size_t)(gain ? o->ncol_gain : o->ncol_open);
+    /* inputs: u[k-1] (sv[8]) and u[k] */
+    const __m512d up = _mm512_set1_pd(sv[8]);
+    const __m512d uk = _mm512_set1_pd(u);
+    __m512d a = _mm512_mul_pd(_mm512_loadu_pd(fx + 64), up);
+    a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 72), uk, a);
+    __m256d ay = _mm256_mul_pd(_mm256_loadu_pd(fy + 32), _mm512_castpd512_pd256(up));
+    ay = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 36), _mm512_castpd512_pd256(uk), ay);
+    if (gain) {
+        for (size_t j = 0; j < 4u; j++) {
+            a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 80u + 8u * j), _mm512_set1_pd(y[j]), a);
+        }
+    }
+    __m512d p[4];
+    __m256d py[4];
+    for (size_t c = 0; c < 4u; c++) {
+        const __m512d x0 = _mm512_set1_pd(sv[c]);
+        const __m512d x1 = _mm512_set1_pd(sv[c + 4u]);
+        if (c == 0u) {
+            p[c] = _mm512_fmadd_pd(_mm512_loadu_pd(fx), x0, a);
+            py[c] = _mm256_fmadd_pd(_mm256_loadu_pd(fy), _mm512_castpd512_pd256(x0), ay);
+        } else {
+            p[c] = _mm512_mul_pd(_mm512_loadu_pd(fx + 8u * c), x0);
+            py[c] = _mm256_mul_pd(_mm256_loadu_pd(fy + 4u * c), _mm512_castpd512_pd256(x0));
+        }
+        p[c] = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 8u * (c + 4u)), x1, p[c]);
+        py[c] = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 4u * (c + 4u)), _mm512_castpd512_pd256(x1),
+                                py[c]);
+    }
+    const __m512d xn = _mm512_add_pd(_mm512_add_pd(p[0], p[1]), _mm512_add_pd(p[2], p[3]));
+    const __m256d yh = _mm256_add_pd(_mm256_add_pd(py[0], py[1]), _mm256_add_pd(py[2], py[3]));
+    _mm512_storeu_pd(sv, xn);
+    _mm256_storeu_pd(o->z + 8, yh);
+    _mm256_storeu_pd(o->resid, _mm256_sub_pd(ym, yh));
+    sv[8] = u;
+    o->flags = 0u;
+    o->n_pred++;
+    o->n_steps++;
+    return true;
+}
+
+#else
+/* ISO C wants at least one declaration in a translation unit. */
+typedef int dv_obskern_unused_t;
+#endif
