@@ -8,6 +8,13 @@
 #include "dv_feat_core.h"
 #include "dv_priv.h"
 
+/* The block close stays out of line so the per-sample path is a leaf with a tail call. */
+#if defined(__GNUC__) || defined(__clang__)
+#define DV_COLD __attribute__((noinline))
+#else
+#define DV_COLD
+#endif
+
 dv_status_t dv_chan_init(dv_chan_t *s, const dv_chan_config_t *cfg, dv_real_t *buf,
                          size_t buf_len)
 {
@@ -41,12 +48,25 @@ dv_status_t dv_chan_init(dv_chan_t *s, const dv_chan_config_t *cfg, dv_real_t *b
     return DV_OK;
 }
 
+/* Length of the next block when seg_pos samples of the segment are in. */
+static uint32_t block_len(const dv_chan_t *s, uint32_t seg_pos)
+{
+    const uint32_t seg_left = s->cfg.seg_len - seg_pos;
+    return s->blk_max < seg_left ? s->blk_max : seg_left;
+}
+
+/* Samples in the open block. */
+static uint32_t open_len(const dv_chan_t *s)
+{
+    return block_len(s, s->seg_pos) - s->left;
+}
+
 static void clear_block(dv_chan_t *s)
 {
     s->p[0] = s->p[1] = s->p[2] = s->p[3] = DV_R(0.0);
     s->pmin = DV_REAL_MAX;
     s->pmax = -DV_REAL_MAX;
-    s->blk = 0u;
+    s->left = block_len(s, s->seg_pos);
 }
 
 void dv_chan_reset(dv_chan_t *s)
@@ -73,19 +93,22 @@ static void close_record(dv_chan_t *s)
     s->records++;
 }
 
-/* Hand the open block to the record moments; at a segment end also to the segmented STD. */
-static dv_status_t close_block(dv_chan_t *s)
+/* Hand the n-sample open block to the record moments; at a segment end also to the segmented
+ * STD. */
+static dv_status_t close_block(dv_chan_t *s, uint32_t n)
 {
-    dv_priv_moments_push_block(&s->rec, s->shift, s->blk, s->p, s->pmin, s->pmax);
+    dv_priv_moments_push_block(&s->rec, s->shift, n, s->p, s->pmin, s->pmax);
     s->seg1 += s->p[0];
     s->seg2 += s->p[1];
-    clear_block(s);
+    s->seg_pos += n;
     if (s->seg_pos < s->cfg.seg_len) {
+        clear_block(s);
         return DV_OK;
     }
     const dv_status_t st = dv_priv_segstd_push(&s->seg, s->seg1, s->seg2);
     s->seg1 = s->seg2 = DV_R(0.0);
     s->seg_pos = 0u;
+    clear_block(s);
     if (st == DV_RECORD) {
         close_record(s);
     }
@@ -155,19 +178,19 @@ static void add_span(dv_chan_t *s, const dv_real_t *restrict x, size_t n, bool s
     s->pmax = mx;
 }
 
-/* The last blk samples sit in the sliding ring, ending just before its head. */
-static dv_status_t close_ring_block(dv_chan_t *s)
+/* The open block's samples sit in the sliding ring, ending just before its head. */
+DV_COLD static dv_status_t close_ring_block(dv_chan_t *s)
 {
-    const uint32_t len = s->win.len, n = s->blk;
+    const uint32_t len = s->win.len, n = block_len(s, s->seg_pos);
     const uint32_t end = s->win.head == 0u ? len : s->win.head;
-    const bool starts = s->seg_pos == n;
+    const bool starts = s->seg_pos == 0u;
     if (end >= n) {
         add_span(s, s->win.ring + (end - n), n, starts);
     } else { /* the block wraps around the ring's end */
         add_span(s, s->win.ring + (len - (n - end)), n - end, starts);
         add_span(s, s->win.ring, end, false);
     }
-    return close_block(s);
+    return close_block(s, n);
 }
 
 dv_status_t dv_chan_update(dv_chan_t *s, dv_real_t x)
@@ -178,18 +201,10 @@ dv_status_t dv_chan_update(dv_chan_t *s, dv_real_t x)
         return DV_ENUMERIC;
     }
     dv_priv_sliding_push(&s->win, x);
-    s->seg_pos++;
-    if (++s->blk < s->blk_max && s->seg_pos < s->cfg.seg_len) {
+    if (--s->left != 0u) {
         return DV_OK;
     }
-    return close_ring_block(s);
-}
-
-/* Length of the next block when seg_pos samples of the segment are in. */
-static uint32_t block_len(const dv_chan_t *s, uint32_t seg_pos)
-{
-    const uint32_t seg_left = s->cfg.seg_len - seg_pos;
-    return s->blk_max < seg_left ? s->blk_max : seg_left;
+    return close_ring_block(s); /* a tail call: the hot path saves no registers */
 }
 
 dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, size_t *n_used)
@@ -204,7 +219,7 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
          * caller's array; an open block, a short tail or a block with NaN/Inf goes through the
          * per-sample path, which keeps its pending samples in the ring. */
         size_t whole = 0u;
-        if (s->blk == 0u) {
+        if (open_len(s) == 0u) {
             const size_t rec_left = (size_t)(s->cfg.n_seg - s->seg.seg) * s->cfg.seg_len -
                                     s->seg_pos;
             const size_t stretch = n - used < rec_left ? n - used : rec_left;
@@ -236,9 +251,7 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
         for (size_t off = 0u; off < whole;) {
             const uint32_t m = block_len(s, s->seg_pos);
             add_span(s, p + off, m, s->seg_pos == 0u);
-            s->blk = m;
-            s->seg_pos += m;
-            st = close_block(s);
+            st = close_block(s, m);
             off += m;
         }
         used += whole;

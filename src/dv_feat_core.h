@@ -43,28 +43,29 @@ void dv_priv_moments_push_block(dv_moments_t *m, dv_real_t shift, uint32_t n, co
  * Returns DV_DONE, or DV_RECORD when it was the record's last segment. */
 dv_status_t dv_priv_segstd_push(dv_segstd_t *s, dv_real_t s1, dv_real_t s2);
 
+/* Push while the window is still filling (out of line: only the first len samples). */
+void dv_priv_sliding_fill(dv_sliding_t *s, dv_real_t x);
+
 static inline void dv_priv_sliding_push(dv_sliding_t *s, dv_real_t x)
 {
-    if (s->fill == 0u) {
-        s->shift = x; /* first sample since reset: centre the sums on it */
+    if (s->fill != s->len) {
+        dv_priv_sliding_fill(s, x);
+        return;
     }
-    const dv_real_t d = x - s->shift;
-    const dv_real_t d2 = d * d;
-    const dv_real_t d3 = d2 * d, d4 = d2 * d2;
-    if (s->fill == s->len) {
-        const dv_real_t e = s->ring[s->head] - s->shift;
-        const dv_real_t e2 = e * e;
-        s->s[0] += d - e;
-        s->s[1] += d2 - e2;
-        s->s[2] += d3 - e2 * e;
-        s->s[3] += d4 - e2 * e2;
-    } else {
-        s->fill++;
-    }
+    const uint32_t h = s->head;
+    dv_real_t *slot = s->ring + h;
+    const dv_real_t k = s->shift;
+    const dv_real_t d = x - k, e = *slot - k;
+    const dv_real_t d2 = d * d, e2 = e * e;
+    s->s[0] += d - e;
+    s->s[1] += d2 - e2;
+    s->s[2] += d2 * d - e2 * e;
+    s->s[3] += d2 * d2 - e2 * e2;
     s->premax = x > s->premax ? x : s->premax;
     s->premin = x < s->premin ? x : s->premin;
-    s->ring[s->head] = x;
-    if (++s->head == s->len) {
+    *slot = x;
+    s->head = h + 1u;
+    if (h + 1u == s->len) {
         dv_priv_sliding_turn_over(s);
     }
 }

@@ -52,6 +52,25 @@ void dv_priv_sliding_turn_over(dv_sliding_t *s)
     s->head = 0u;
 }
 
+void dv_priv_sliding_fill(dv_sliding_t *s, dv_real_t x)
+{
+    if (s->fill == 0u) {
+        s->shift = x; /* first sample since reset: centre the sums on it */
+    }
+    const dv_real_t d = x - s->shift, d2 = d * d;
+    s->s[0] += d;
+    s->s[1] += d2;
+    s->s[2] += d2 * d;
+    s->s[3] += d2 * d2;
+    s->fill++;
+    s->premax = x > s->premax ? x : s->premax;
+    s->premin = x < s->premin ? x : s->premin;
+    s->ring[s->head] = x;
+    if (++s->head == s->len) {
+        dv_priv_sliding_turn_over(s);
+    }
+}
+
 dv_status_t dv_sliding_update(dv_sliding_t *s, dv_real_t x)
 {
     DV_ASSERT(s != NULL);

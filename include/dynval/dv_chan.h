@@ -46,9 +46,9 @@ typedef struct {
     dv_real_t p[4];         /**< power sums of (x - shift) over the open block */
     dv_real_t pmin, pmax;   /**< extremes of the open block */
     dv_real_t seg1, seg2;   /**< sums of (x - shift), (x - shift)^2 of earlier blocks of the segment */
-    uint32_t blk;           /**< samples in the open block */
+    uint32_t left;          /**< samples until the open block closes */
     uint32_t blk_max;       /**< block length: min(DV_BLOCK_LEN, win_len), so a block is in the ring */
-    uint32_t seg_pos;       /**< samples in the open segment */
+    uint32_t seg_pos;       /**< samples of the open segment in closed blocks */
     uint32_t records;       /**< complete records */
     uint64_t n_nonfinite;   /**< NaN/Inf samples dropped */
 } dv_chan_t;
