@@ -488,12 +488,89 @@ static dv_real_t stickslip_g(const dv_contact_desc_t *c, dv_real_t xp, dv_real_t
     return g > f ? f : (g < -f ? -f : g);
 }
 
+/* One side of the bilinear gap law (dv_priv_contact_g1()) without branches, kh = kb / (2 delta)
+ * given: kh min(max(s, 0), delta)^2 + kb max(s - delta, 0). Continuous, like the law. */
+static inline dv_real_t gap_g1(dv_real_t s, dv_real_t delta, dv_real_t kb, dv_real_t kh)
+{
+    const dv_real_t pos = s > DV_R(0.0) ? s : DV_R(0.0);
+    const dv_real_t sc = pos < delta ? pos : delta;
+    const dv_real_t over = s - delta > DV_R(0.0) ? s - delta : DV_R(0.0);
+    return kh * sc * sc + kb * over;
+}
+
+/* contact_forces() for one element (the common case), in the same order of operations: the
+ * force-free part of X at every sub-node first (independent of the forces, so it leaves the
+ * sequential chain through the nodes), then node by node the earlier forces and the implicit
+ * force. */
+static void contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
+{
+    const dv_model_t *m = o->m;
+    const size_t nf = m->n_f;
+    const bool cubic = m->n_in == 4u;
+    const dv_real_t *win = sv + ns;
+    dv_real_t *g = sv + ns + (cubic ? 4u : 2u);
+    const dv_contact_desc_t *c = &m->contact[0];
+    dv_real_t xl[DV_MAX_SUB + 1u];
+    for (size_t f = 0; f < nf; f++) {
+        const dv_real_t *rx = m->rx + f * ns;
+        dv_real_t s;
+        if (cubic) {
+            const dv_real_t *ru = m->rxu + f * 4u;
+            s = ru[0] * win[0] + ru[1] * win[1] + ru[2] * win[2] + ru[3] * win[3];
+        } else {
+            s = m->rxa[f] * win[0] + m->rxb[f] * win[1];
+        }
+        for (size_t j = 0; j < ns; j++) {
+            s += rx[j] * sv[j];
+        }
+        xl[f] = s;
+    }
+    const int law = (int)c->law;
+    const bool gap = law == DV_ELEM_CONTACT;
+    const bool pos = ((int)c->side & 1) != 0;
+    const bool neg = ((int)c->side & 2) != 0;
+    const dv_real_t kh = gap ? c->kb_n_per_m / (DV_R(2.0) * c->delta_m) : DV_R(0.0);
+    dv_real_t xp = o->elem_x[0];
+    dv_real_t gp = o->elem_g[0];
+    for (size_t f = 0; f < nf; f++) {
+        const dv_real_t *srow = m->smat + f * nf;
+        dv_real_t lin = xl[f];
+        for (size_t j = 0; j < f; j++) {
+            lin += srow[j] * g[j];
+        }
+        /* implicit in the node's own force: fixed-point iterations, a fixed number */
+        const uint32_t iters = f > 0u ? DV_MODEL_FP_ITERS : 1u;
+        dv_real_t cur = f > 0u ? g[f - 1u] : DV_R(0.0);
+        dv_real_t xr = lin;
+        for (uint32_t it = 0; it < iters; it++) {
+            xr = lin + srow[f] * cur;
+            if (gap) {
+                cur = (pos ? gap_g1(xr - c->gap_m, c->delta_m, c->kb_n_per_m, kh) : DV_R(0.0)) -
+                      (neg ? gap_g1(-xr - c->gap_m, c->delta_m, c->kb_n_per_m, kh) : DV_R(0.0));
+            } else if (law == DV_ELEM_STICKSLIP) {
+                cur = stickslip_g(c, xp, gp, xr);
+            } else {
+                cur = dv_priv_elem_g(law, (int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, xr);
+            }
+        }
+        g[f] = cur;
+        xp = xr;
+        gp = cur;
+    }
+    o->elem_x[0] = xp;
+    o->elem_g[0] = gp;
+}
+
 /* Sub-node contact forces g into sv[ns + nin ..], from x = sv[0..ns) and the input window
  * sv[ns .. ns + nin). Stick-slip elements read and advance the observer's element history. */
 static void contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
 {
     const dv_model_t *m = o->m;
     const size_t nc = m->n_contact;
+    if (nc == 1u) {
+        contact_forces_1(o, sv, ns);
+        return;
+    }
     const size_t nf = m->n_f;
     const size_t nsub = m->n_sub;
     const bool cubic = m->n_in == 4u;
