@@ -61,12 +61,17 @@ static uint32_t open_len(const dv_chan_t *s)
     return block_len(s, s->seg_pos) - s->left;
 }
 
-static void clear_block(dv_chan_t *s)
+/* Power sums p[k] = sum (x - shift)^(k+1) and extremes {min, max} of the block being closed. */
+typedef struct {
+    dv_real_t p[4];
+    dv_real_t mm[2];
+} blk_acc_t;
+
+static void acc_clear(blk_acc_t *a)
 {
-    s->p[0] = s->p[1] = s->p[2] = s->p[3] = DV_R(0.0);
-    s->pmin = DV_REAL_MAX;
-    s->pmax = -DV_REAL_MAX;
-    s->left = block_len(s, s->seg_pos);
+    a->p[0] = a->p[1] = a->p[2] = a->p[3] = DV_R(0.0);
+    a->mm[0] = DV_REAL_MAX;
+    a->mm[1] = -DV_REAL_MAX;
 }
 
 void dv_chan_reset(dv_chan_t *s)
@@ -81,7 +86,7 @@ void dv_chan_reset(dv_chan_t *s)
     s->last_tm_st = DV_ENOTREADY;
     s->shift = s->seg1 = s->seg2 = DV_R(0.0);
     s->seg_pos = 0u;
-    clear_block(s);
+    s->left = block_len(s, 0u);
 }
 
 static void close_record(dv_chan_t *s)
@@ -93,89 +98,62 @@ static void close_record(dv_chan_t *s)
     s->records++;
 }
 
-/* Hand the n-sample open block to the record moments; at a segment end also to the segmented
- * STD. */
-static dv_status_t close_block(dv_chan_t *s, uint32_t n)
+/* Hand the n-sample block to the record moments; at a segment end also to the segmented STD. */
+static dv_status_t close_block(dv_chan_t *s, uint32_t n, const blk_acc_t *a)
 {
-    dv_priv_moments_push_block(&s->rec, s->shift, n, s->p, s->pmin, s->pmax);
-    s->seg1 += s->p[0];
-    s->seg2 += s->p[1];
+    dv_priv_moments_push_block(&s->rec, s->shift, n, a->p, a->mm[0], a->mm[1]);
+    s->seg1 += a->p[0];
+    s->seg2 += a->p[1];
     s->seg_pos += n;
     if (s->seg_pos < s->cfg.seg_len) {
-        clear_block(s);
+        s->left = block_len(s, s->seg_pos);
         return DV_OK;
     }
     const dv_status_t st = dv_priv_segstd_push(&s->seg, s->seg1, s->seg2);
     s->seg1 = s->seg2 = DV_R(0.0);
     s->seg_pos = 0u;
-    clear_block(s);
+    s->left = block_len(s, 0u);
     if (st == DV_RECORD) {
         close_record(s);
     }
     return st;
 }
 
-/* The common case, a whole block that is also a whole block of the temporal moments: one pass
- * for the power sums, the extremes and the time-weighted energy sums (one load per sample). */
-static void add_aligned_block(dv_chan_t *s, const dv_real_t *restrict x)
-{
-    dv_real_t p[4], w[5];
-    dv_real_t mm[2] = {s->pmin, s->pmax};
-    dv_priv_feat_block(x, s->shift, p, mm, w);
-    s->p[0] += p[0];
-    s->p[1] += p[1];
-    s->p[2] += p[2];
-    s->p[3] += p[3];
-    s->pmin = mm[0];
-    s->pmax = mm[1];
-    dv_priv_temporal_push_block(&s->tm, w);
-}
-
-/* Power sums, extremes and temporal moments of n consecutive finite samples of the block. */
-static void add_span(dv_chan_t *s, const dv_real_t *restrict x, size_t n, bool starts_segment)
+/* Power sums, extremes and temporal moments of n consecutive finite samples of the block. The
+ * common case, a whole block that is also a whole block of the temporal moments, is one fused
+ * kernel pass (src/dv_featkern.c); other spans (a short segment end, a block that wraps around
+ * the ring) are rare and take the plain loops. */
+static void add_span(dv_chan_t *s, blk_acc_t *acc, const dv_real_t *restrict x, size_t n,
+                     bool starts_segment)
 {
     if (starts_segment) {
         s->shift = x[0]; /* power sums about the segment's first sample */
     }
+    const dv_real_t k = s->shift;
     if (n == DV_BLOCK_LEN && s->tm.blk == 0u) {
-        add_aligned_block(s, x);
+        dv_real_t w[5];
+        dv_priv_feat_block(x, k, acc->p, acc->mm, w); /* acc is clear here */
+        dv_priv_temporal_push_block(&s->tm, w);
         return;
     }
     (void)dv_temporal_update_block(&s->tm, x, n);
-    const dv_real_t k = s->shift;
-    dv_real_t a[4] = {0}, b[4] = {0};
-    dv_real_t mn = s->pmin, mx = s->pmax;
-    size_t i = 0u;
-    for (; i + 1u < n; i += 2u) {
-        const dv_real_t u = x[i] - k, v = x[i + 1u] - k;
-        const dv_real_t u2 = u * u, v2 = v * v;
-        a[0] += u;
-        b[0] += v;
-        a[1] += u2;
-        b[1] += v2;
-        a[2] += u2 * u;
-        b[2] += v2 * v;
-        a[3] += u2 * u2;
-        b[3] += v2 * v2;
-        mn = x[i] < mn ? x[i] : mn;
-        mx = x[i] > mx ? x[i] : mx;
-        mn = x[i + 1u] < mn ? x[i + 1u] : mn;
-        mx = x[i + 1u] > mx ? x[i + 1u] : mx;
-    }
-    for (; i < n; i++) {
+    dv_real_t p1 = DV_R(0.0), p2 = DV_R(0.0), p3 = DV_R(0.0), p4 = DV_R(0.0);
+    dv_real_t mn = acc->mm[0], mx = acc->mm[1];
+    for (size_t i = 0u; i < n; i++) {
         const dv_real_t u = x[i] - k, u2 = u * u;
-        a[0] += u;
-        a[1] += u2;
-        a[2] += u2 * u;
-        a[3] += u2 * u2;
+        p1 += u;
+        p2 += u2;
+        p3 += u2 * u;
+        p4 += u2 * u2;
         mn = x[i] < mn ? x[i] : mn;
         mx = x[i] > mx ? x[i] : mx;
     }
-    for (int q = 0; q < 4; q++) {
-        s->p[q] += a[q] + b[q];
-    }
-    s->pmin = mn;
-    s->pmax = mx;
+    acc->p[0] += p1;
+    acc->p[1] += p2;
+    acc->p[2] += p3;
+    acc->p[3] += p4;
+    acc->mm[0] = mn;
+    acc->mm[1] = mx;
 }
 
 /* The open block's samples sit in the sliding ring, ending just before its head. */
@@ -184,13 +162,15 @@ DV_COLD static dv_status_t close_ring_block(dv_chan_t *s)
     const uint32_t len = s->win.len, n = block_len(s, s->seg_pos);
     const uint32_t end = s->win.head == 0u ? len : s->win.head;
     const bool starts = s->seg_pos == 0u;
+    blk_acc_t acc;
+    acc_clear(&acc);
     if (end >= n) {
-        add_span(s, s->win.ring + (end - n), n, starts);
+        add_span(s, &acc, s->win.ring + (end - n), n, starts);
     } else { /* the block wraps around the ring's end */
-        add_span(s, s->win.ring + (len - (n - end)), n - end, starts);
-        add_span(s, s->win.ring, end, false);
+        add_span(s, &acc, s->win.ring + (len - (n - end)), n - end, starts);
+        add_span(s, &acc, s->win.ring, end, false);
     }
-    return close_block(s, n);
+    return close_block(s, n, &acc);
 }
 
 dv_status_t dv_chan_update(dv_chan_t *s, dv_real_t x)
@@ -250,8 +230,10 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
         dv_status_t st = DV_OK;
         for (size_t off = 0u; off < whole;) {
             const uint32_t m = block_len(s, s->seg_pos);
-            add_span(s, p + off, m, s->seg_pos == 0u);
-            st = close_block(s, m);
+            blk_acc_t acc;
+            acc_clear(&acc);
+            add_span(s, &acc, p + off, m, s->seg_pos == 0u);
+            st = close_block(s, m, &acc);
             off += m;
         }
         used += whole;

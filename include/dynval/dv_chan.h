@@ -43,8 +43,6 @@ typedef struct {
     dv_temporal_out_t last_tm; /**< temporal moments of the last complete record */
     dv_status_t last_tm_st; /**< status of last_tm (DV_ENUMERIC for an all-zero record) */
     dv_real_t shift;        /**< first sample of the open segment */
-    dv_real_t p[4];         /**< power sums of (x - shift) over the open block */
-    dv_real_t pmin, pmax;   /**< extremes of the open block */
     dv_real_t seg1, seg2;   /**< sums of (x - shift), (x - shift)^2 of earlier blocks of the segment */
     uint32_t left;          /**< samples until the open block closes */
     uint32_t blk_max;       /**< block length: min(DV_BLOCK_LEN, win_len), so a block is in the ring */
