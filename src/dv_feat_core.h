@@ -43,15 +43,11 @@ void dv_priv_moments_push_block(dv_moments_t *m, dv_real_t shift, uint32_t n, co
  * Returns DV_DONE, or DV_RECORD when it was the record's last segment. */
 dv_status_t dv_priv_segstd_push(dv_segstd_t *s, dv_real_t s1, dv_real_t s2);
 
-/* Push while the window is still filling (out of line: only the first len samples). */
-void dv_priv_sliding_fill(dv_sliding_t *s, dv_real_t x);
-
+/* One sample in, the oldest out. No warm-up branch: while the window fills, the slot left is
+ * one the reset cleared and the sums are throw-away (dv_sliding_get() reports DV_ENOTREADY);
+ * the first turn-over recomputes them from the full ring. */
 static inline void dv_priv_sliding_push(dv_sliding_t *s, dv_real_t x)
 {
-    if (s->fill != s->len) {
-        dv_priv_sliding_fill(s, x);
-        return;
-    }
     const uint32_t h = s->head;
     dv_real_t *slot = s->ring + h;
     const dv_real_t k = s->shift;

@@ -25,6 +25,9 @@ void dv_sliding_reset(dv_sliding_t *s)
 {
     DV_ASSERT(s != NULL);
     s->head = s->fill = 0u;
+    for (uint32_t i = 0u; i < s->len; i++) {
+        s->ring[i] = DV_R(0.0); /* finite slots for the per-sample path's first turn */
+    }
     s->premax = -DV_REAL_MAX;
     s->premin = DV_REAL_MAX;
     s->shift = DV_R(0.0);
@@ -41,8 +44,10 @@ void dv_sliding_reset(dv_sliding_t *s)
  * small deviations. */
 void dv_priv_sliding_turn_over(dv_sliding_t *s)
 {
-    const dv_real_t k = s->shift;
     const uint32_t n = s->len;
+    /* the first turn's sums were about an arbitrary shift: centre on a sample of the window */
+    const dv_real_t k = s->fill == n ? s->shift : s->ring[0];
+    s->fill = n;
     dv_priv_feat_turn(s->ring, n, k, s->sufmax, s->sufmin, s->s);
     const dv_real_t delta = s->s[0] / (dv_real_t)n; /* window mean - shift */
     dv_priv_sums_shift(s->s, (dv_real_t)n, -delta);
@@ -50,25 +55,6 @@ void dv_priv_sliding_turn_over(dv_sliding_t *s)
     s->premax = -DV_REAL_MAX;
     s->premin = DV_REAL_MAX;
     s->head = 0u;
-}
-
-void dv_priv_sliding_fill(dv_sliding_t *s, dv_real_t x)
-{
-    if (s->fill == 0u) {
-        s->shift = x; /* first sample since reset: centre the sums on it */
-    }
-    const dv_real_t d = x - s->shift, d2 = d * d;
-    s->s[0] += d;
-    s->s[1] += d2;
-    s->s[2] += d2 * d;
-    s->s[3] += d2 * d2;
-    s->fill++;
-    s->premax = x > s->premax ? x : s->premax;
-    s->premin = x < s->premin ? x : s->premin;
-    s->ring[s->head] = x;
-    if (++s->head == s->len) {
-        dv_priv_sliding_turn_over(s);
-    }
 }
 
 dv_status_t dv_sliding_update(dv_sliding_t *s, dv_real_t x)

@@ -28,7 +28,7 @@ typedef struct {
     dv_real_t *sufmin;    /**< min of ring[i..len-1] over the previous turn, length @c len */
     uint32_t len;         /**< window length in samples */
     uint32_t head;        /**< next ring slot to write */
-    uint32_t fill;        /**< samples in the window, saturates at @c len */
+    uint32_t fill;        /**< @c len once the ring has turned over (window full), else 0 */
     dv_real_t premax;     /**< max of ring[0..head-1] in the current turn */
     dv_real_t premin;     /**< min of ring[0..head-1] in the current turn */
     dv_real_t shift;      /**< shift of the power sums */
