@@ -61,7 +61,7 @@ struct sim_ar {
     uint32_t n;            /* samples in rec */
     dv_ar_model_t model;   /* fitted model */
     dv_ar_resid_t res;     /* streaming residual */
-    dv_real_t hist[DV_AR_RESID_BUF_LEN(DV_AR_MAX_ORDER)]; /* residual filter history */
+    dv_real_t hist[DV_AR_RESID_BUF_LEN(DV_AR_MAX_ORDER)]; /* residual coefficients + history */
     dv_moments_t mom;      /* residuals of the open record */
     uint32_t outliers;     /* |e| > k sigma in the open record */
     uint32_t last_outliers; /* in the last complete record */

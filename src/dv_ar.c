@@ -315,7 +315,16 @@ dv_status_t dv_ar_autocorr(const dv_real_t *x, size_t n, size_t maxlag, dv_real_
 
 /* ---- streaming residual ------------------------------------------------------------------ */
 
-DV_STATIC_ASSERT(DV_AR_RESID_NEW == 4u, ar_resid_keeps_four_newest); /* a power of 2 */
+/* Buffer layout (DV_AR_RESID_BUF_LEN): float [c: p][hist: 2p]; double [c part: p + 16][slack:
+ * 8][hist: 2p], the coefficients a_p..a_1 after off zeros from a 64-byte boundary in the c
+ * part, the slack zero (read by the vector kernels before hist[0]). The vector kernels
+ * multiply the L = 8 nb + 4 coefficients ending at a_1 with the L samples ending at the newest:
+ * the off = L - p extra taps are zero coefficients over older history or the slack. */
+
+size_t dv_ar_resid_buf_len(uint32_t p)
+{
+    return p == 0u || p > DV_AR_MAX_ORDER ? 0u : DV_AR_RESID_BUF_LEN(p);
+}
 
 dv_status_t dv_ar_resid_init(dv_ar_resid_t *r, const dv_ar_model_t *m, dv_real_t *buf,
                              size_t buf_len)
@@ -337,14 +346,29 @@ dv_status_t dv_ar_resid_init(dv_ar_resid_t *r, const dv_ar_model_t *m, dv_real_t
     if (!dv_priv_finite(m->mean)) {
         return DV_ENUMERIC;
     }
-    for (uint32_t j = 0u; j < DV_AR_MAX_ORDER; j++) {
-        r->a[j] = j < p ? m->a[j] : DV_R(0.0);
-        r->c[j] = j < p ? m->a[p - 1u - j] : DV_R(0.0);
+    uint32_t nb = 0u, off = 0u, c_at = 0u;
+    dv_real_t *hist = buf + p;
+#if DV_AR_RESID_PAD > 0
+    /* [c part: p + 16][slack: 8][hist: 2p]; c starts on a 64-byte boundary when buf allows */
+    nb = p > 4u ? (p - 4u + 7u) / 8u : 0u;
+    off = 8u * nb + 4u - p; /* 0..7 */
+    c_at = (uint32_t)((64u - (uintptr_t)buf % 64u) % 64u / sizeof(dv_real_t)) % 8u;
+    hist = buf + p + 24u;
+#endif
+    for (dv_real_t *z = buf; z < hist; z++) {
+        *z = DV_R(0.0);
     }
+    dv_real_t *c = buf + c_at; /* c[off + j] = a_{p-j}, j < p */
+    for (uint32_t j = 0u; j < p; j++) {
+        c[off + j] = m->a[p - 1u - j];
+    }
+    r->c = c;
+    r->hist = hist;
     r->mean = m->mean;
     r->c0 = m->mean * (DV_R(1.0) - suma);
     r->p = p;
-    r->hist = buf;
+    r->nb = nb;
+    r->off = off;
     r->kern = dv_priv_ar_kern();
     dv_ar_resid_reset(r);
     return DV_OK;
@@ -356,12 +380,31 @@ void dv_ar_resid_reset(dv_ar_resid_t *r)
     for (uint32_t j = 0u; j < 2u * r->p; j++) {
         r->hist[j] = DV_R(0.0);
     }
-    for (uint32_t j = 0u; j < DV_AR_RESID_NEW; j++) {
-        r->nw[j] = DV_R(0.0);
-    }
     r->head = 0u;
     r->count = 0u;
     r->n_nonfinite = 0u;
+}
+
+/* The portable step (x finite); dv_priv_ar_rstep_* do the same around their vector kernels.
+ * Kept out of line on x86 so that the dispatch below stays a few instructions + a tail jump. */
+#if DV_AR_X86
+__attribute__((noinline))
+#endif
+static dv_status_t rstep_c(dv_ar_resid_t *r, dv_real_t x, dv_real_t *e)
+{
+    const uint32_t p = r->p, head = r->head;
+    dv_real_t *h = r->hist + head; /* h[0..p): the last p centred samples, oldest first */
+    const dv_real_t y = x - r->mean;
+    dv_status_t st = DV_ENOTREADY;
+    if (r->count >= p) {
+        *e = y - dv_priv_ar_dot(r->c + r->off, h, p, 0u);
+        st = DV_OK;
+    }
+    h[0] = y;
+    h[p] = y;
+    r->head = head + 1u == p ? 0u : head + 1u;
+    r->count++;
+    return st;
 }
 
 dv_status_t dv_ar_resid_update(dv_ar_resid_t *r, dv_real_t x, dv_real_t *e)
@@ -371,25 +414,15 @@ dv_status_t dv_ar_resid_update(dv_ar_resid_t *r, dv_real_t x, dv_real_t *e)
         r->n_nonfinite++;
         return DV_ENUMERIC;
     }
-    const uint32_t p = r->p;
-    const dv_real_t y = x - r->mean;
-    const uint32_t c4 = (uint32_t)r->count;
-    dv_status_t st = DV_ENOTREADY;
-    if (r->count >= p) {
-        /* hist[head .. head+p-1] holds the last p centred samples, oldest first. The newest
-         * DV_AR_RESID_NEW of them are read from nw[] instead: their stores may still be in
-         * flight, and a wide load spanning them would wait for the stores to drain. */
-        *e = y - dv_priv_ar_resid_dot(r->c, r->hist + r->head, p, r->nw, c4, r->kern);
-        st = DV_OK;
+#if DV_AR_X86
+    if (r->kern == 2u) {
+        return dv_priv_ar_rstep_avx512(r, x, e);
     }
-    /* a ring indexed by the sample count: one scalar store, no shifting (a compiler merging
-     * the shifts into wide moves would bring the store-forwarding stall back) */
-    r->nw[c4 & (DV_AR_RESID_NEW - 1u)] = y;
-    r->hist[r->head] = y;
-    r->hist[r->head + p] = y;
-    r->head = r->head + 1u == p ? 0u : r->head + 1u;
-    r->count++;
-    return st;
+    if (r->kern == 1u) {
+        return dv_priv_ar_rstep_avx2(r, x, e);
+    }
+#endif
+    return rstep_c(r, x, e);
 }
 
 dv_status_t dv_ar_resid_update_block(dv_ar_resid_t *r, const dv_real_t *x, size_t n,
@@ -433,17 +466,13 @@ dv_status_t dv_ar_resid_update_block(dv_ar_resid_t *r, const dv_real_t *x, size_
         }
     }
     if (i < n) {
-        dv_priv_ar_fir(r->a, p, r->c0, x + i, n - i, e + out, r->kern);
+        dv_priv_ar_fir(r->c + r->off, p, r->c0, x + i, n - i, e + out, r->kern);
         out += n - i;
         r->count += n - i;
         for (uint32_t j = 0u; j < p; j++) {
             const dv_real_t y = x[n - p + j] - r->mean;
             r->hist[j] = y;
             r->hist[j + p] = y;
-        }
-        const uint32_t c4 = (uint32_t)r->count; /* nw[(c4 - 1 - j) % 4] = x_{-j} */
-        for (uint32_t j = 0u; j < DV_AR_RESID_NEW; j++) {
-            r->nw[(c4 - 1u - j) & (DV_AR_RESID_NEW - 1u)] = j < p ? r->hist[p - 1u - j] : DV_R(0.0);
         }
         r->head = 0u;
     }

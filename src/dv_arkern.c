@@ -7,12 +7,8 @@
  * AR(60) residuals at a few ns per sample. The arm-none-eabi and float builds see only C. */
 #include "dv_priv.h"
 
-#if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) &&   \
-    !defined(DV_NO_SIMD)
-#define DV_AR_X86 1
+#if DV_AR_X86 /* dv_priv.h */
 #include <immintrin.h>
-#else
-#define DV_AR_X86 0
 #endif
 
 /* ------------------------------------------------------------------------------------------ */
@@ -57,7 +53,7 @@ static void acf_c(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r)
     }
 }
 
-static void fir_c(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
+static void fir_c(const dv_real_t *c, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
                   dv_real_t *e)
 {
     size_t i = 0u;
@@ -66,7 +62,7 @@ static void fir_c(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t *x
         dv_real_t s0 = DV_R(0.0), s1 = DV_R(0.0), s2 = DV_R(0.0), s3 = DV_R(0.0);
         const dv_real_t *xi = x + i - 1; /* x_{i-j} for j = 1 */
         for (size_t j = 1u; j <= p; j++) {
-            const dv_real_t aj = a[j - 1u];
+            const dv_real_t aj = c[p - j];
             s0 += aj * xi[0];
             s1 += aj * xi[1];
             s2 += aj * xi[2];
@@ -81,7 +77,7 @@ static void fir_c(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t *x
     for (; i < n; i++) {
         dv_real_t s = DV_R(0.0);
         for (size_t j = 1u; j <= p; j++) {
-            s += a[j - 1u] * x[i - j];
+            s += c[p - j] * x[i - j];
         }
         e[i] = x[i] - c0 - s;
     }
@@ -126,6 +122,7 @@ static void burg2_c(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_rea
 
 #define DV_TGT_AVX2 __attribute__((target("avx2,fma")))
 #define DV_TGT_AVX512 __attribute__((target("avx512f,avx2,fma")))
+#define DV_FALLTHROUGH __attribute__((fallthrough))
 
 DV_TGT_AVX2 static double hsum256(__m256d v)
 {
@@ -212,7 +209,7 @@ DV_TGT_AVX2 static void acf_avx2(const double *x, size_t n, size_t maxlag, doubl
 /* 32 outputs at a time in 8 x 4 accumulators. Taps are taken 4 apart (j0, j0+4, ...): the 8
  * windows x[i+4t-j .. +3] of tap j+4 are those of tap j shifted by one, so each tap costs one
  * load, one broadcast and 8 FMAs. */
-DV_TGT_AVX2 static void fir_avx2(const double *a, size_t p, double c0, const double *x, size_t n,
+DV_TGT_AVX2 static void fir_avx2(const double *c, size_t p, double c0, const double *x, size_t n,
                                  double *e)
 {
     const __m256d vc0 = _mm256_set1_pd(c0);
@@ -234,7 +231,7 @@ DV_TGT_AVX2 static void fir_avx2(const double *a, size_t p, double c0, const dou
                     w5 = _mm256_loadu_pd(w + 20), w6 = _mm256_loadu_pd(w + 24),
                     w7 = _mm256_loadu_pd(w + 28);
             for (size_t j = j0;;) {
-                const __m256d aj = _mm256_broadcast_sd(a + j - 1u);
+                const __m256d aj = _mm256_broadcast_sd(c + p - j);
                 s0 = _mm256_fnmadd_pd(aj, w0, s0);
                 s1 = _mm256_fnmadd_pd(aj, w1, s1);
                 s2 = _mm256_fnmadd_pd(aj, w2, s2);
@@ -264,12 +261,12 @@ DV_TGT_AVX2 static void fir_avx2(const double *a, size_t p, double c0, const dou
     for (; i + 4u <= n; i += 4u) {
         __m256d s = _mm256_sub_pd(_mm256_loadu_pd(x + i), vc0);
         for (size_t j = 1u; j <= p; j++) {
-            s = _mm256_fnmadd_pd(_mm256_broadcast_sd(a + j - 1u), _mm256_loadu_pd(x + i - j), s);
+            s = _mm256_fnmadd_pd(_mm256_broadcast_sd(c + p - j), _mm256_loadu_pd(x + i - j), s);
         }
         _mm256_storeu_pd(e + i, s);
     }
     if (i < n) {
-        fir_c(a, p, c0, x + i, n - i, e + i);
+        fir_c(c, p, c0, x + i, n - i, e + i);
     }
 }
 
@@ -359,6 +356,48 @@ DV_TGT_AVX2 static bool finite_avx2(const double *x, size_t n)
         s += x[i] - x[i];
     }
     return s == 0.0;
+}
+
+/* Streaming residual: one 128-bit pair of the newest samples from two scalar loads (a wide load
+ * over them would wait for their stores to drain: store forwarding takes one store per load).
+ * The high half goes through asm: compilers merge _mm_load_sd + _mm_loadh_pd into one load. */
+DV_TGT_AVX2 static inline __m128d pair_ld(const double *w)
+{
+    __m128d v = _mm_load_sd(w);
+    __asm__("vmovhpd %1, %0, %0" : "+x"(v) : "m"(w[1]));
+    return v;
+}
+
+/* Streaming residual's prediction sum_{k<L} c[k] w[k], L = 8 nb + 4, nb <= 8: c the zero-padded
+ * reversed coefficients, w the L samples ending with the newest, wn = w + 8 nb the newest four
+ * (layout: dv_ar.c). The blocks
+ * straight-line (a jump into the unrolled tail),
+ * four accumulators, the newest four folded into the last 128-bit step. */
+DV_TGT_AVX2 static inline double rpred_avx2(const double *c, const double *w, const double *wn,
+                                         uint32_t nb)
+{
+    __m256d s0 = _mm256_setzero_pd(), s1 = s0, s2 = s0, s3 = s0;
+#define DV_RB(A, B, K)                                                                             \
+    A = _mm256_fmadd_pd(_mm256_loadu_pd(c + (K)), _mm256_loadu_pd(w + (K)), A);                    \
+    B = _mm256_fmadd_pd(_mm256_loadu_pd(c + (K) + 4), _mm256_loadu_pd(w + (K) + 4), B)
+    switch (nb) {
+    case 8: DV_RB(s0, s1, 56); DV_FALLTHROUGH;
+    case 7: DV_RB(s2, s3, 48); DV_FALLTHROUGH;
+    case 6: DV_RB(s0, s1, 40); DV_FALLTHROUGH;
+    case 5: DV_RB(s2, s3, 32); DV_FALLTHROUGH;
+    case 4: DV_RB(s0, s1, 24); DV_FALLTHROUGH;
+    case 3: DV_RB(s2, s3, 16); DV_FALLTHROUGH;
+    case 2: DV_RB(s0, s1, 8); DV_FALLTHROUGH;
+    case 1: DV_RB(s2, s3, 0); DV_FALLTHROUGH;
+    default: break;
+    }
+#undef DV_RB
+    const __m256d t = _mm256_add_pd(_mm256_add_pd(s0, s1), _mm256_add_pd(s2, s3));
+    __m128d u = _mm_add_pd(_mm256_castpd256_pd128(t), _mm256_extractf128_pd(t, 1));
+    const double *cn = c + 8u * nb;
+    u = _mm_fmadd_pd(_mm_loadu_pd(cn), pair_ld(wn), u);
+    u = _mm_fmadd_pd(_mm_loadu_pd(cn + 2), pair_ld(wn + 2), u);
+    return _mm_cvtsd_f64(_mm_add_sd(u, _mm_unpackhi_pd(u, u)));
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -491,36 +530,61 @@ DV_TGT_AVX512 static void sub_avx512(const double *x, size_t n, double c, double
     }
 }
 
-/* The streaming residual's history dot product: 8-wide, then one 4-wide step and scalars. No
- * masked load: one covering the slots of the newest samples (masked out or not) would wait for
- * their stores to drain (measured: ~20 % slower per sample). */
-DV_TGT_AVX512 static double rdot_avx512(const double *c, const double *h, uint32_t v)
+/* As rpred_avx2, 8 wide. */
+DV_TGT_AVX512 static inline double rpred_avx512(const double *c, const double *w, const double *wn,
+                                         uint32_t nb)
 {
-    __m512d s0 = _mm512_setzero_pd(), s1 = _mm512_setzero_pd();
-    uint32_t j = 0u;
-    for (; j + 16u <= v; j += 16u) {
-        s0 = _mm512_fmadd_pd(_mm512_loadu_pd(c + j), _mm512_loadu_pd(h + j), s0);
-        s1 = _mm512_fmadd_pd(_mm512_loadu_pd(c + j + 8u), _mm512_loadu_pd(h + j + 8u), s1);
+    __m512d s0 = _mm512_setzero_pd(), s1 = s0;
+#define DV_RB(A, K) A = _mm512_fmadd_pd(_mm512_loadu_pd(c + (K)), _mm512_loadu_pd(w + (K)), A)
+    switch (nb) {
+    case 8: DV_RB(s1, 56); DV_FALLTHROUGH;
+    case 7: DV_RB(s0, 48); DV_FALLTHROUGH;
+    case 6: DV_RB(s1, 40); DV_FALLTHROUGH;
+    case 5: DV_RB(s0, 32); DV_FALLTHROUGH;
+    case 4: DV_RB(s1, 24); DV_FALLTHROUGH;
+    case 3: DV_RB(s0, 16); DV_FALLTHROUGH;
+    case 2: DV_RB(s1, 8); DV_FALLTHROUGH;
+    case 1: DV_RB(s0, 0); DV_FALLTHROUGH;
+    default: break;
     }
-    if (j + 8u <= v) {
-        s0 = _mm512_fmadd_pd(_mm512_loadu_pd(c + j), _mm512_loadu_pd(h + j), s0);
-        j += 8u;
-    }
+#undef DV_RB
     s0 = _mm512_add_pd(s0, s1);
-    __m256d t = _mm256_add_pd(_mm512_castpd512_pd256(s0), _mm512_extractf64x4_pd(s0, 1));
-    if (j + 4u <= v) {
-        t = _mm256_fmadd_pd(_mm256_loadu_pd(c + j), _mm256_loadu_pd(h + j), t);
-        j += 4u;
-    }
-    double s = hsum256(t);
-    for (; j < v; j++) {
-        s += c[j] * h[j];
-    }
-    return s;
+    const __m256d t = _mm256_add_pd(_mm512_castpd512_pd256(s0), _mm512_extractf64x4_pd(s0, 1));
+    __m128d u = _mm_add_pd(_mm256_castpd256_pd128(t), _mm256_extractf128_pd(t, 1));
+    const double *cn = c + 8u * nb;
+    u = _mm_fmadd_pd(_mm_loadu_pd(cn), pair_ld(wn), u);
+    u = _mm_fmadd_pd(_mm_loadu_pd(cn + 2), pair_ld(wn + 2), u);
+    return _mm_cvtsd_f64(_mm_add_sd(u, _mm_unpackhi_pd(u, u)));
+}
+
+/* One dv_ar_resid_update() step (x finite) around a prediction kernel. */
+#define DV_AR_RSTEP(PRED)                                                                          \
+    const uint32_t p = r->p, head = r->head;                                                       \
+    double *h = r->hist + head; /* the last p centred samples, oldest first */                     \
+    const double y = x - r->mean;                                                                  \
+    dv_status_t st = DV_ENOTREADY;                                                                 \
+    if (r->count >= p) {                                                                           \
+        *e = y - PRED(r->c, h - r->off, h + p - 4u, r->nb);                                        \
+        st = DV_OK;                                                                                \
+    }                                                                                              \
+    h[0] = y;                                                                                      \
+    h[p] = y;                                                                                      \
+    r->head = head + 1u == p ? 0u : head + 1u;                                                     \
+    r->count++;                                                                                    \
+    return st
+
+DV_TGT_AVX2 dv_status_t dv_priv_ar_rstep_avx2(dv_ar_resid_t *r, double x, double *e)
+{
+    DV_AR_RSTEP(rpred_avx2);
+}
+
+DV_TGT_AVX512 dv_status_t dv_priv_ar_rstep_avx512(dv_ar_resid_t *r, double x, double *e)
+{
+    DV_AR_RSTEP(rpred_avx512);
 }
 
 /* As fir_avx2 with 8 x 8 outputs and taps 8 apart. */
-DV_TGT_AVX512 static void fir_avx512(const double *a, size_t p, double c0, const double *x,
+DV_TGT_AVX512 static void fir_avx512(const double *c, size_t p, double c0, const double *x,
                                      size_t n, double *e)
 {
     const __m512d vc0 = _mm512_set1_pd(c0);
@@ -542,7 +606,7 @@ DV_TGT_AVX512 static void fir_avx512(const double *a, size_t p, double c0, const
                     w5 = _mm512_loadu_pd(w + 40), w6 = _mm512_loadu_pd(w + 48),
                     w7 = _mm512_loadu_pd(w + 56);
             for (size_t j = j0;;) {
-                const __m512d aj = _mm512_set1_pd(a[j - 1u]);
+                const __m512d aj = _mm512_set1_pd(c[p - j]);
                 s0 = _mm512_fnmadd_pd(aj, w0, s0);
                 s1 = _mm512_fnmadd_pd(aj, w1, s1);
                 s2 = _mm512_fnmadd_pd(aj, w2, s2);
@@ -572,12 +636,12 @@ DV_TGT_AVX512 static void fir_avx512(const double *a, size_t p, double c0, const
     for (; i + 8u <= n; i += 8u) {
         __m512d s = _mm512_sub_pd(_mm512_loadu_pd(x + i), vc0);
         for (size_t j = 1u; j <= p; j++) {
-            s = _mm512_fnmadd_pd(_mm512_set1_pd(a[j - 1u]), _mm512_loadu_pd(x + i - j), s);
+            s = _mm512_fnmadd_pd(_mm512_set1_pd(c[p - j]), _mm512_loadu_pd(x + i - j), s);
         }
         _mm512_storeu_pd(e + i, s);
     }
     if (i < n) {
-        fir_c(a, p, c0, x + i, n - i, e + i);
+        fir_c(c, p, c0, x + i, n - i, e + i);
     }
 }
 
@@ -700,21 +764,21 @@ dv_real_t dv_priv_ar_dot(const dv_real_t *a, const dv_real_t *b, size_t n, uint3
     return dot_c(a, b, n);
 }
 
-void dv_priv_ar_fir(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
+void dv_priv_ar_fir(const dv_real_t *c, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
                     dv_real_t *e, uint32_t kern)
 {
 #if DV_AR_X86
     if (kern == 2u) {
-        fir_avx512(a, p, c0, x, n, e);
+        fir_avx512(c, p, c0, x, n, e);
         return;
     }
     if (kern == 1u) {
-        fir_avx2(a, p, c0, x, n, e);
+        fir_avx2(c, p, c0, x, n, e);
         return;
     }
 #endif
     (void)kern;
-    fir_c(a, p, c0, x, n, e);
+    fir_c(c, p, c0, x, n, e);
 }
 
 void dv_priv_ar_burg2(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_real_t k2,
@@ -768,34 +832,4 @@ void dv_priv_ar_sub(const dv_real_t *x, size_t n, dv_real_t c, dv_real_t *y, uin
     for (size_t i = 0u; i < n; i++) {
         y[i] = x[i] - c;
     }
-}
-
-dv_real_t dv_priv_ar_resid_dot(const dv_real_t *c, const dv_real_t *h, uint32_t p,
-                               const dv_real_t *nw, uint32_t cnt, uint32_t kern)
-{
-    if (p < 4u) {
-        dv_real_t s = DV_R(0.0);
-        for (uint32_t t = 0u; t < p; t++) {
-            s += c[p - 1u - t] * nw[(cnt - 1u - t) & 3u];
-        }
-        return s;
-    }
-    const uint32_t v = p - 4u;
-    const dv_real_t *cn = c + v; /* a_4 .. a_1 */
-    const dv_real_t sn = (cn[3] * nw[(cnt - 1u) & 3u] + cn[2] * nw[(cnt - 2u) & 3u]) +
-                         (cn[1] * nw[(cnt - 3u) & 3u] + cn[0] * nw[cnt & 3u]);
-    dv_real_t sh;
-#if DV_AR_X86
-    if (kern == 2u) {
-        sh = rdot_avx512(c, h, v);
-    } else if (kern == 1u) {
-        sh = dot_avx2(c, h, v);
-    } else {
-        sh = dot_c(c, h, v);
-    }
-#else
-    (void)kern;
-    sh = dot_c(c, h, v);
-#endif
-    return sh + sn;
 }

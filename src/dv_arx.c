@@ -219,11 +219,12 @@ dv_status_t dv_ararx_fit(dv_arx_model_t *m, dv_ar_model_t *ar, const dv_arx_cfg_
     }
     /* e[i] (i >= p) from the raw record with the mean folded into c0; xc = centred record. */
     dv_real_t *e = work, *xc = work + n;
-    dv_real_t suma = DV_R(0.0);
+    dv_real_t suma = DV_R(0.0), crev[DV_AR_MAX_ORDER];
     for (uint32_t j = 0u; j < p; j++) {
         suma += a1.a[j];
+        crev[p - 1u - j] = a1.a[j];
     }
-    dv_priv_ar_fir(a1.a, p, a1.mean * (DV_R(1.0) - suma), x + p, n - p, e + p,
+    dv_priv_ar_fir(crev, p, a1.mean * (DV_R(1.0) - suma), x + p, n - p, e + p,
                    dv_priv_ar_kern());
     for (size_t i = 0u; i < n; i++) {
         xc[i] = x[i] - a1.mean;

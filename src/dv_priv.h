@@ -82,7 +82,22 @@ void dv_priv_stats_fill(dv_stats_t *out, const dv_priv_cm_t *cm, uint64_t count,
 
 /* ---- AR kernels (src/dv_arkern.c): portable C, and on x86-64 double builds AVX2/FMA and
  * AVX-512F versions picked at run time. kern: 0 portable, 1 AVX2+FMA, 2 AVX-512F. ---- */
+#if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
+    !defined(DV_NO_SIMD)
+#define DV_AR_X86 1
+#else
+#define DV_AR_X86 0
+#endif
+
 uint32_t dv_priv_ar_kern(void);
+
+#if DV_AR_X86
+#include "dynval/dv_ar.h"
+/* dv_ar_resid_update() after the finite check, x finite, for r->kern == 2 / 1: the whole step
+ * in one leaf function (prediction, history stores, counters). */
+dv_status_t dv_priv_ar_rstep_avx512(dv_ar_resid_t *r, double x, double *e);
+dv_status_t dv_priv_ar_rstep_avx2(dv_ar_resid_t *r, double x, double *e);
+#endif
 
 /* r[k] = sum_{i=0}^{n-1-k} x_i x_{i+k}, k = 0..maxlag, maxlag < n (no 1/n). */
 void dv_priv_ar_acf(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r, uint32_t kern);
@@ -90,9 +105,9 @@ void dv_priv_ar_acf(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r, u
 /* sum_{i<n} a_i b_i with independent partial sums. */
 dv_real_t dv_priv_ar_dot(const dv_real_t *a, const dv_real_t *b, size_t n, uint32_t kern);
 
-/* e[i] = x[i] - c0 - sum_{j=1..p} a[j-1] x[i-j], i = 0..n-1; x[-p..-1] must be readable.
- * @p e must not overlap @p x. */
-void dv_priv_ar_fir(const dv_real_t *a, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
+/* e[i] = x[i] - c0 - sum_{j=1..p} c[p-j] x[i-j], i = 0..n-1 (c = a_p..a_1, reversed);
+ * x[-p..-1] must be readable. @p e must not overlap @p x. */
+void dv_priv_ar_fir(const dv_real_t *c, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
                     dv_real_t *e, uint32_t kern);
 
 /* Contact force law of dv_model.h, one side: s = X - gap; 0, then kB s^2 / (2 delta) on the
@@ -167,11 +182,5 @@ dv_real_t dv_priv_ar_sum(const dv_real_t *x, size_t n, uint32_t kern);
 
 /* y[i] = x[i] - c, i < n (y may equal x). */
 void dv_priv_ar_sub(const dv_real_t *x, size_t n, dv_real_t c, dv_real_t *y, uint32_t kern);
-
-/* Streaming AR residual's prediction sum_{j<p} c[j] w[j] over the last p centred samples w,
- * oldest first, 1 <= p: w[j] = h[j] for j < p - q, and the newest q = min(p, 4) come from the
- * ring nw (w[p-1-t] = nw[(cnt-1-t) & 3]), not from h (their stores may still be in flight). */
-dv_real_t dv_priv_ar_resid_dot(const dv_real_t *c, const dv_real_t *h, uint32_t p,
-                               const dv_real_t *nw, uint32_t cnt, uint32_t kern);
 
 #endif /* DV_PRIV_H */

@@ -29,8 +29,19 @@ extern "C" {
 /** Workspace for dv_ar_fit() / dv_ar_order(), in elements, for @p n samples and order @p p. */
 #define DV_AR_WORK_LEN(n, p) (2u * (size_t)(n) + 4u * ((size_t)(p) + 1u))
 
-/** Storage for dv_ar_resid_init(), in elements, for order @p p (double-length history). */
-#define DV_AR_RESID_BUF_LEN(p) (2u * (size_t)(p))
+/** Extra elements of the streaming residual's storage: zero padding around the coefficients
+ *  (aligned to 64 bytes) and before the history, for the x86-64 double kernels, which read
+ *  whole vectors of 8. 0 in float builds. */
+#ifdef DV_REAL_DOUBLE
+#define DV_AR_RESID_PAD 24u
+#else
+#define DV_AR_RESID_PAD 0u
+#endif
+
+/** Storage for dv_ar_resid_init(), in elements, for order @p p: the p coefficients and the
+ *  double-length history of 2p samples (+ DV_AR_RESID_PAD). Sized by the order, so an AR(32)
+ *  float instance needs 96 elements here; see also dv_ar_resid_buf_len(). */
+#define DV_AR_RESID_BUF_LEN(p) (3u * (size_t)(p) + (size_t)DV_AR_RESID_PAD)
 
 /** Estimator for dv_ar_fit() and dv_ar_order(). */
 typedef enum {
@@ -122,31 +133,33 @@ dv_status_t dv_ar_order(dv_ar_order_t *o, dv_ar_method_t method, uint32_t pmax,
  */
 dv_status_t dv_ar_autocorr(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r);
 
-/** Newest samples the streaming residual keeps in the instance, outside the vector-read
- *  history (a vector load of a sample stored by the previous call would stall on store
- *  forwarding). */
-#define DV_AR_RESID_NEW 4u
-
-/** @brief Streaming AR residual (eq. 31), O(p) per sample. Fields are private. */
+/** @brief Streaming AR residual (eq. 31), O(p) per sample. Fields are private; the coefficients
+ *  and the history live in the caller's buffer (DV_AR_RESID_BUF_LEN). */
 typedef struct {
-    dv_real_t c[DV_AR_MAX_ORDER]; /**< a_p..a_1 (reversed, for the history dot product) */
-    dv_real_t a[DV_AR_MAX_ORDER]; /**< a_1..a_p (for the block kernel) */
-    dv_real_t c0;                 /**< mean (1 - sum a_j): the mean folded out of the block kernel */
-    dv_real_t *hist;              /**< double-length history, 2p: hist[j] == hist[j + p] */
-    dv_real_t mean;               /**< subtracted from every input */
-    dv_real_t nw[DV_AR_RESID_NEW]; /**< newest centred samples, a ring indexed by count */
-    uint32_t p;                   /**< order */
-    uint32_t head;                /**< oldest history slot, 0..p-1 */
-    uint32_t kern;                /**< kernel chosen at init (0 portable, 1 AVX2, 2 AVX-512) */
-    uint64_t count;               /**< samples accepted since init/reset */
-    uint64_t n_nonfinite;         /**< NaN/Inf samples dropped */
+    const dv_real_t *c;  /**< a_p..a_1 (reversed) after `off` zeros, in the caller buffer */
+    dv_real_t *hist;     /**< double-length history, 2p: hist[j] == hist[j + p] */
+    dv_real_t mean;      /**< subtracted from every input */
+    dv_real_t c0;        /**< mean (1 - sum a_j): the mean folded out of the block kernel */
+    uint32_t p;          /**< order */
+    uint32_t head;       /**< oldest history slot, 0..p-1 */
+    uint32_t kern;       /**< kernel chosen at init (0 portable, 1 AVX2, 2 AVX-512) */
+    uint32_t nb;         /**< vector kernels: blocks of 8 taps before the newest 4 */
+    uint32_t off;        /**< vector kernels: zero taps in front, 8 nb + 4 - p */
+    uint64_t count;      /**< samples accepted since init/reset */
+    uint64_t n_nonfinite; /**< NaN/Inf samples dropped */
 } dv_ar_resid_t;
 
+/** @brief DV_AR_RESID_BUF_LEN(p) as a function (for bindings); 0 for p == 0 or
+ *  p > DV_AR_MAX_ORDER. */
+size_t dv_ar_resid_buf_len(uint32_t p);
+
 /**
- * @brief Bind a model and history storage, clear the history.
+ * @brief Copy the model's coefficients into @p buf, bind its history part, clear the history.
  * @param[out] r       instance
- * @param[in]  m       fitted model (copied; need not outlive @p r); order 1..DV_AR_MAX_ORDER
- * @param[in]  buf     history storage, DV_AR_RESID_BUF_LEN(m->order) elements; outlives @p r
+ * @param[in]  m       fitted model (copied into @p buf; need not outlive @p r); order
+ *                     1..DV_AR_MAX_ORDER
+ * @param[in]  buf     storage for the coefficients and the history,
+ *                     DV_AR_RESID_BUF_LEN(m->order) elements; outlives @p r, not shared
  * @param[in]  buf_len elements in @p buf
  * @retval DV_OK       ready
  * @retval DV_EINVAL   NULL pointer, or order 0 / > DV_AR_MAX_ORDER

@@ -265,9 +265,14 @@ static void test_ar_resid_nan_is_dropped_and_counted(void **state)
     m.a[0] = DV_R(0.5);
     m.a[1] = DV_R(-0.25);
     dv_ar_resid_t r;
-    dv_real_t h[4];
-    assert_int_equal(dv_ar_resid_init(&r, &m, h, 3), DV_ESIZE);
-    assert_int_equal(dv_ar_resid_init(&r, &m, h, 4), DV_OK);
+    dv_real_t h[DV_AR_RESID_BUF_LEN(2)];
+    assert_int_equal(dv_ar_resid_buf_len(2), DV_AR_RESID_BUF_LEN(2));
+    assert_int_equal(dv_ar_resid_buf_len(0), 0);
+    assert_int_equal(dv_ar_resid_buf_len(DV_AR_MAX_ORDER + 1u), 0);
+    assert_int_equal(dv_ar_resid_init(&r, &m, h, DV_AR_RESID_BUF_LEN(2) - 1u), DV_ESIZE);
+    assert_int_equal(dv_ar_resid_init(&r, &m, h, DV_AR_RESID_BUF_LEN(2)), DV_OK);
+    m.a[0] = DV_R(9.0); // the instance holds its own copy of the coefficients
+    m.a[1] = DV_R(9.0);
     dv_real_t e = DV_R(-7.0);
     assert_int_equal(dv_ar_resid_update(&r, DV_R(1.0), &e), DV_ENOTREADY);
     assert_int_equal(dv_ar_resid_update(&r, (dv_real_t)NAN, &e), DV_ENUMERIC);
@@ -340,24 +345,26 @@ static void test_ar_bad_input(void **state)
     assert_true(dv_test_close(m.a[0], 2 * cos(0.3), 1e-3, 1));
     assert_true(dv_test_close(m.a[1], -1.0, 1e-3, 1));
     dv_ar_resid_t r;
-    dv_real_t h[8];
+    dv_real_t h[DV_AR_RESID_BUF_LEN(2)];
     m.a[0] = (dv_real_t)NAN;
-    assert_int_equal(dv_ar_resid_init(&r, &m, h, 8), DV_ENUMERIC);
+    assert_int_equal(dv_ar_resid_init(&r, &m, h, DV_AR_RESID_BUF_LEN(2)), DV_ENUMERIC);
     m.order = 0;
-    assert_int_equal(dv_ar_resid_init(&r, &m, h, 8), DV_EINVAL);
+    assert_int_equal(dv_ar_resid_init(&r, &m, h, DV_AR_RESID_BUF_LEN(2)), DV_EINVAL);
 }
 
 // Every kernel tail: block lengths p .. p+140 (all residues of the 4/32/64-output tiles) and
-// orders 1..13 (small p, p below the newest-sample cache) against a direct double sum. Model mean
-// 0 so that float builds take the block kernel too (fir_c).
+// orders 1..13 (small p, p below the four newest samples the vector kernels read as scalars), and
+// every count of 8-tap blocks of the per-sample vector kernels (nb = ceil((p - 4) / 8) = 0..8, the
+// edges p = 12, 13 and 64 included) against a direct double sum. Model mean 0 so that float
+// builds take the block kernel too (fir_c).
 static void test_ar_resid_block_tails_match_direct_sum(void **state)
 {
     (void)state;
     size_t n = load("ar4");
     assert_true(n >= 400);
     dv_real_t h[DV_AR_RESID_BUF_LEN(PMAX)];
-    const uint32_t orders[] = {1, 2, 3, 4, 5, 8, 13, 60};
-    for (int o = 0; o < 8; o++) {
+    const uint32_t orders[] = {1, 2, 3, 4, 5, 8, 12, 13, 21, 28, 37, 44, 53, 60, 64};
+    for (size_t o = 0; o < sizeof orders / sizeof orders[0]; o++) {
         const uint32_t p = orders[o];
         dv_ar_model_t m;
         memset(&m, 0, sizeof m);

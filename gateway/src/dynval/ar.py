@@ -199,10 +199,10 @@ class ARResidual:
 
     def __init__(self, model: ARModel) -> None:
         self._m = model._c()
-        self._buf = _new("double[]", 2 * model.order)
+        n_buf = int(lib.dv_ar_resid_buf_len(model.order))  # coefficients + history
+        self._buf = _new("double[]", max(n_buf, 1))
         self._s = _new("dv_ar_resid_t *")
-        check(lib.dv_ar_resid_init(self._s, self._m, self._buf, 2 * model.order),
-              "dv_ar_resid_init")
+        check(lib.dv_ar_resid_init(self._s, self._m, self._buf, n_buf), "dv_ar_resid_init")
 
     def update(self, x: Any) -> np.ndarray:
         """Block API (dv_ar_resid_update_block): a multi-output kernel over the whole array."""
