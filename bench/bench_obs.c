@@ -96,14 +96,13 @@ int main(int argc, char **argv)
     }
     if (argc == 2 && strcmp(argv[1], "--sizes") == 0) {
         /* bytes per instance: the structs, the storage the step touches (state vector,
-         * prediction, residual, both folded matrices) and the whole init-time buffers */
+         * prediction, residual, the folded matrix) and the whole init-time buffers */
         for (int c = 0; c < 2; c++) {
             dv_model_t m;
             dv_obs_t o;
             if (setup(&m, &o, c, 8, 1) != 0) return 1;
             const size_t nr = sizeof(dv_real_t);
             const size_t step = (size_t)o.ncol_gain + o.nrows + o.no +
-                                (size_t)o.nrows * o.ncol_open +
                                 (size_t)o.ns * o.ncol_gain + (size_t)o.no * o.ncol_open;
             printf("size name=obs_state_%s bytes=%zu\n", c ? "contact" : "linear",
                    sizeof(dv_obs_t) + step * nr);

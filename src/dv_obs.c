@@ -35,8 +35,8 @@ size_t dv_obs_scratch_len(const dv_model_t *m)
     return obs_len(m, 1);
 }
 
-/* Fill the folded matrices from the model and the gain (o->gain, used when has_gain).
- * Layout of each: the state rows first, column-major (ns rows, one column per entry of sv:
+/* Fill the folded step matrix from the model and the gain (o->gain, used when has_gain).
+ * Layout: the state rows first, column-major (ns rows, one column per entry of sv:
  * [x, u window, g, y]), then the output rows, column-major (no rows, columns
  * [x, u window, g] only: the prediction never depends on y). The u window is [u[k-1], u[k]]
  * (first-order hold) or [u[k-2], u[k-1], u[k], u[k+1]] (cubic) for the step to t_k. Keeping the two row sets
@@ -53,9 +53,8 @@ static void fold(dv_obs_t *o)
     const size_t nin = o->nin;
     const bool cubic = nin == 4u;
     dv_real_t col[2u * DV_MAX_DOF + DV_MAX_OUT];
-    dv_real_t *fyo = o->f_open + ns * nco;
-    dv_real_t *fxg = o->f_gain;
-    dv_real_t *fyg = o->f_gain + ns * (size_t)o->ncol_gain;
+    dv_real_t *fxg = o->f;
+    dv_real_t *fyg = o->f + ns * (size_t)o->ncol_gain;
     /* open loop: column j of [x+; yhat] for input column j of [x, u[k-1], u[k], g] */
     for (size_t j = 0; j < nco; j++) {
         for (size_t r = 0; r < ns; r++) {
@@ -92,11 +91,7 @@ static void fold(dv_obs_t *o)
             }
             col[ns + q] = s;
         }
-        for (size_t r = 0; r < ns; r++) {
-            o->f_open[j * ns + r] = col[r];
-        }
         for (size_t q = 0; q < no; q++) {
-            fyo[j * no + q] = col[ns + q];
             fyg[j * no + q] = col[ns + q];
         }
         /* x+ = x- + L (y - yhat): rows of x- minus L times rows of yhat */
@@ -110,7 +105,7 @@ static void fold(dv_obs_t *o)
             fxg[j * ns + r] = s;
         }
     }
-    /* y columns of the gain rows carry L */
+    /* y columns of the gain rows carry L (zeros in open loop) */
     for (size_t q0 = 0; q0 < no; q0++) {
         for (size_t r = 0; r < ns; r++) {
             fxg[(nco + q0) * ns + r] = o->gain[r * no + q0];
@@ -376,10 +371,8 @@ dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_
     p += o->nrows;
     o->resid = p;
     p += no;
-    o->f_open = p;
-    p += (size_t)o->nrows * o->ncol_open;
-    o->f_gain = p;
-    p += (size_t)o->nrows * o->ncol_gain;
+    o->f = p;
+    p += ns * (size_t)o->ncol_gain + no * (size_t)o->ncol_open;
     o->gain = p;
     p += ns * no;
     if (nin == 4u) {
@@ -911,6 +904,21 @@ static void step_first_cubic(dv_obs_t *o, const dv_real_t *y, bool correct)
     finish_first(o, y, correct);
 }
 
+/* Prediction only: yhat = sum over the first ncol columns of sv of fy[:, j] sv[j] (the output
+ * rows, column-major, no rows). */
+static void outputs(size_t ncol, size_t no, const dv_real_t *fy, const dv_real_t *sv,
+                    dv_real_t *yhat)
+{
+    for (size_t q = 0; q < no; q++) {
+        yhat[q] = DV_R(0.0);
+    }
+    for (size_t j = 0; j < ncol; j++) {
+        for (size_t q = 0; q < no; q++) {
+            yhat[q] += fy[j * no + q] * sv[j];
+        }
+    }
+}
+
 /* Complete one sample from the state and input window in sv: predict, residual against y
  * (NULL: none; flags: its DV_OBS_FLAG_*), correct. first: the first sample of a record. */
 static void produce(dv_obs_t *o, const dv_real_t *y, uint32_t flags, bool use_gain, bool first)
@@ -922,64 +930,52 @@ static void produce(dv_obs_t *o, const dv_real_t *y, uint32_t flags, bool use_ga
     dv_real_t *sv = o->sv;
     const bool correct = use_gain && o->has_gain && flags == 0u;
     dv_real_t *yhat = o->z + ns;
-    if (ns == 8u && no == 4u && !first) {
-        /* the 4-DOF, 4-channel case: constant sizes, one call */
-        if (nf > 0u) {
-            contact_forces(o, sv, 8u);
-        }
-        if (flags == 0u) {
-            if (correct) {
-                kernel_8x4(o, nin + nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
-                           yhat, o->resid);
-            } else {
-                kernel_8x4(o, nin + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, y,
-                           yhat, o->resid);
-            }
-        } else {
-            kernel_8x4(o, nin + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, NULL,
-                       yhat, o->resid);
-            for (size_t q = 0; q < 4u; q++) {
-                const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
-                o->resid[q] = yq - yhat[q];
-            }
-        }
-    } else if (first) {
+    const dv_real_t *fx = o->f;
+    const dv_real_t *fy = o->f + ns * (size_t)o->ncol_gain;
+    if (first) {
         if (nin == 4u) {
             step_first_cubic(o, y, correct);
         } else {
             step_first(o, sv[ns + 1u], y, correct);
         }
-    } else {
-        if (nf > 0u) {
-            contact_forces(o, sv, ns);
-        }
-        const dv_real_t *fx = o->f_open;
-        const dv_real_t *fy = o->f_open + ns * (size_t)o->ncol_open;
-        size_t ny = 0u;
-        if (correct) {
-            dv_real_t *ys = sv + ns + nin + nf;
-            for (size_t q = 0; q < no; q++) {
-                ys[q] = y[q];
-            }
-            fx = o->f_gain;
-            fy = o->f_gain + ns * (size_t)o->ncol_gain;
+        o->n_pred++;
+        return;
+    }
+    if (nf > 0u) {
+        contact_forces(o, sv, ns);
+    }
+    /* the measurements the state rows see: y (correction), nothing (no gain folded), or the
+     * prediction itself when a gain is folded but this step is open loop (x+ = x- + L (yhat -
+     * yhat): the folded rows give back the open-loop ones) */
+    const dv_real_t *ys = y;
+    size_t ny = no;
+    dv_real_t ypre[DV_MAX_OUT];
+    if (!correct) {
+        ys = NULL;
+        ny = 0u;
+        if (o->has_gain) {
+            outputs(ns + nin + nf, no, fy, sv, ypre);
+            ys = ypre;
             ny = no;
+        }
+    }
+    if (ns == 8u && no == 4u) {
+        /* the 4-DOF, 4-channel case: constant sizes, one call */
+        kernel_8x4(o, nin + nf, ny, fx, fy, sv, ys, yhat, o->resid);
+    } else {
+        dv_real_t *yc = sv + ns + nin + nf;
+        for (size_t q = 0; q < ny; q++) {
+            yc[q] = ys[q];
         }
         dv_real_t xn[2u * DV_MAX_DOF];
         kernel(ns, no, nin + nf, ny, fx, fy, sv, xn, yhat);
         for (size_t j = 0; j < ns; j++) {
             sv[j] = xn[j];
         }
-        if (flags == 0u) {
-            for (size_t q = 0; q < no; q++) {
-                o->resid[q] = y[q] - yhat[q];
-            }
-        } else {
-            for (size_t q = 0; q < no; q++) {
-                const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
-                o->resid[q] = yq - yhat[q];
-            }
-        }
+    }
+    for (size_t q = 0; q < no; q++) {
+        const dv_real_t yq = (y != NULL && (flags == 0u || dv_priv_finite(y[q]))) ? y[q] : yhat[q];
+        o->resid[q] = yq - yhat[q];
     }
     o->n_pred++;
 }
@@ -1001,34 +997,8 @@ static dv_status_t step(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool use_g
         flags = DV_OBS_FLAG_BAD_MEAS;
     }
     if (o->nin == 2u) {
-        /* first-order hold: produce() written out for the 8 x 4 case (fewer instructions
-         * than the call) */
         sv[ns + 1u] = u;
-        if (ns == 8u && no == 4u && o->started) {
-            const size_t nf = o->nf;
-            const bool correct = use_gain && o->has_gain && flags == 0u;
-            dv_real_t *yhat = o->z + 8u;
-            if (nf > 0u) {
-                contact_forces(o, sv, 8u);
-            }
-            if (correct) {
-                kernel_8x4(o, 2u + nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
-                           yhat, o->resid);
-            } else if (flags == 0u) {
-                kernel_8x4(o, 2u + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, y,
-                           yhat, o->resid);
-            } else {
-                kernel_8x4(o, 2u + nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv,
-                           NULL, yhat, o->resid);
-                for (size_t q = 0; q < 4u; q++) {
-                    const dv_real_t yq = (y != NULL && dv_priv_finite(y[q])) ? y[q] : yhat[q];
-                    o->resid[q] = yq - yhat[q];
-                }
-            }
-            o->n_pred++;
-        } else {
-            produce(o, y, flags, use_gain, !o->started);
-        }
+        produce(o, y, flags, use_gain, !o->started);
         sv[ns] = u;
         o->flags = flags;
     } else {
@@ -1084,13 +1054,8 @@ static inline bool fast_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y)
     if (o->nf > 0u) {
         contact_forces(o, sv, 8u);
     }
-    if (o->has_gain) {
-        kernel_8x4(o, 2u + o->nf, 4u, o->f_gain, o->f_gain + 8u * (size_t)o->ncol_gain, sv, y,
-                   o->z + 8, o->resid);
-    } else {
-        kernel_8x4(o, 2u + o->nf, 0u, o->f_open, o->f_open + 8u * (size_t)o->ncol_open, sv, y,
-                   o->z + 8, o->resid);
-    }
+    kernel_8x4(o, 2u + o->nf, o->has_gain ? 4u : 0u, o->f, o->f + 8u * (size_t)o->ncol_gain,
+               sv, y, o->z + 8, o->resid);
     sv[8] = u;
     o->flags = 0u;
     o->n_pred++;

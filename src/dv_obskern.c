@@ -112,8 +112,8 @@ DV_TGT_AVX512 bool dv_priv_obs_step8x4_avx512(dv_obs_t *o, double u, const doubl
     }
     double *sv = o->sv;
     const bool gain = o->has_gain;
-    const double *fx = gain ? o->f_gain : o->f_open;
-    const double *fy = fx + 8u * (size_t)(gain ? o->ncol_gain : o->ncol_open);
+    const double *fx = o->f;
+    const double *fy = fx + 8u * (size_t)o->ncol_gain;
     /* inputs: u[k-1] (sv[8]) and u[k] */
     const __m512d up = _mm512_set1_pd(sv[8]);
     const __m512d uk = _mm512_set1_pd(u);

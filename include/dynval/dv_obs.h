@@ -52,12 +52,12 @@ typedef struct {
 } dv_obs_noise_t;
 
 /** Persistent storage of an observer with @p nin input samples per step
- *  (DV_MODEL_HOLD_NIN()), in elements: state vector, prediction, residual, both folded step
- *  matrices, the gain and (cubic) the kept measurement. Only this much of the caller's storage
+ *  (DV_MODEL_HOLD_NIN()), in elements: state vector, prediction, residual, the folded step
+ *  matrix, the gain and (cubic) the kept measurement. Only this much of the caller's storage
  *  is used after dv_obs_init()/dv_obs_init_ex() returns. */
 #define DV_OBS_PERSIST_LEN_HOLD(n, nc, nsub, nout, nin)                                         \
     ((DV_MODEL_NS(n) + (nout)) *                                                              \
-         (2u * (DV_MODEL_NS(n) + (nin) + DV_MODEL_NF(nc, nsub)) + (nout) + 1u) +              \
+         ((DV_MODEL_NS(n) + (nin) + DV_MODEL_NF(nc, nsub)) + (nout) + 1u) +                   \
      DV_MODEL_NS(n) + (nin) + DV_MODEL_NF(nc, nsub) + 2u * (nout) +                           \
      DV_MODEL_NS(n) * (nout) + ((nin) - 2u) / 2u * (nout))
 
@@ -87,7 +87,7 @@ typedef struct {
     uint16_t ns;         /**< states */
     uint16_t no;         /**< outputs */
     uint16_t nf;         /**< sub-node contact forces */
-    uint16_t nrows;      /**< ns + no: rows of the folded matrices */
+    uint16_t nrows;      /**< ns + no: rows of the folded matrix */
     uint16_t nin;        /**< input samples in the state vector: 2 (FOH) or 4 (cubic) */
     uint16_t ncol_open;  /**< ns + nin + nf */
     uint16_t ncol_gain;  /**< ns + nin + nf + no */
@@ -105,8 +105,9 @@ typedef struct {
     dv_real_t *ypend;    /**< cubic: the kept measurement (no), else NULL */
     dv_real_t *z;        /**< [x (ns), yhat (no)] product */
     dv_real_t *resid;    /**< no residuals of the last step */
-    dv_real_t *f_open;   /**< L = 0: ns x ncol_open state rows, then no x ncol_open output rows, each column-major */
-    dv_real_t *f_gain;   /**< with L: ns x ncol_gain state rows, then no x ncol_open output rows, each column-major */
+    dv_real_t *f;        /**< folded step: ns x ncol_gain state rows (gain folded in, y columns
+                              L; zeros in open loop), then no x ncol_open output rows, each
+                              column-major */
     dv_real_t *gain;     /**< L, ns x no row-major */
     dv_real_t elem_x[DV_MAX_CONTACT]; /**< stick-slip elements: X at the last sub-node, m */
     dv_real_t elem_g[DV_MAX_CONTACT]; /**< stick-slip elements: force at the last sub-node, N */
