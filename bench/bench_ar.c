@@ -3,7 +3,9 @@
  *     case=CASE units=U unit=sample|fit ns=X
  * with X the median over the reps of ns per unit (CLOCK_MONOTONIC per rep). Small REPS runs
  * under valgrind --tool=callgrind (instructions per unit from two REPS values). */
+#ifndef _POSIX_C_SOURCE
 #define _POSIX_C_SOURCE 199309L
+#endif
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>

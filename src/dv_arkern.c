@@ -46,10 +46,46 @@ static dv_real_t sum_c(const dv_real_t *x, size_t n)
     return (s0 + s1) + (s2 + s3);
 }
 
+/* Pairwise dot product: blocks of 64 products (four chains of 16, as dot_c), the block sums
+ * merged like a binary counter, lvl[k] holding the sum of 2^k blocks. The round-off bound
+ * grows like 16 + log2(n / 64) roundings instead of n / 4. This matters for float Yule-Walker
+ * fits of long records: the Toeplitz solve multiplies the autocorrelation's relative error by
+ * its condition number (~2.5e4 for the lightly damped structure at AR(30)), and 4 plain chains
+ * over 8192 samples left r_k off by ~4e-7 r_0 (AR(30) coefficients ~1e-3 off) against ~6e-8. */
+static dv_real_t dot_pw_c(const dv_real_t *a, const dv_real_t *b, size_t n)
+{
+    enum { BLK = 64 };
+    dv_real_t lvl[sizeof(size_t) * 8u];
+    size_t nblk = 0u, i = 0u;
+    for (; i + BLK <= n; i += BLK) {
+        dv_real_t s0 = DV_R(0.0), s1 = DV_R(0.0), s2 = DV_R(0.0), s3 = DV_R(0.0);
+        for (size_t j = i; j < i + BLK; j += 4u) {
+            s0 += a[j] * b[j];
+            s1 += a[j + 1u] * b[j + 1u];
+            s2 += a[j + 2u] * b[j + 2u];
+            s3 += a[j + 3u] * b[j + 3u];
+        }
+        dv_real_t s = (s0 + s1) + (s2 + s3);
+        uint32_t k = 0u;
+        for (size_t c = nblk; (c & 1u) != 0u; c >>= 1u, k++) {
+            s = lvl[k] + s;
+        }
+        lvl[k] = s;
+        nblk++;
+    }
+    dv_real_t s = dot_c(a + i, b + i, n - i);
+    for (uint32_t k = 0u; (nblk >> k) != 0u; k++) {
+        if (((nblk >> k) & 1u) != 0u) {
+            s += lvl[k];
+        }
+    }
+    return s;
+}
+
 static void acf_c(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r)
 {
     for (size_t k = 0u; k <= maxlag; k++) {
-        r[k] = dot_c(x, x + k, n - k);
+        r[k] = dot_pw_c(x, x + k, n - k);
     }
 }
 

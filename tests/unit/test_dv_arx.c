@@ -75,21 +75,37 @@ static void test_arx_ararx_matches_two_stage_lstsq(void **state)
         snprintf(feat, sizeof feat, "theta_%d", j);
         scale = fmax(scale, fabs(dv_test_expected("ar_expected.csv", "ararx", feat)));
     }
+    double err = 0;
     for (int j = 0; j < 10; j++) {
         char feat[32];
         snprintf(feat, sizeof feat, "theta_%d", j);
         double w = dv_test_expected("ar_expected.csv", "ararx", feat);
+        assert_false(isnan(w));
         double got = j < 5 ? m.alpha[j] : m.beta[j - 5];
-#ifdef DV_REAL_DOUBLE
-        assert_true(dv_test_close(got, w, 1e-7, scale));
-#else
-        // float: stage 1 is AR(30) of a lightly damped structure, already ~10 % off in float
-        // (test_dv_ar RTOL_FIT_HARD) and stage 2 amplifies it (coefficients off by up to 90 %):
-        // AR-ARX on such data needs a double build. Here only: finite coefficients.
-        (void)w;
-        assert_true(isfinite(got));
-#endif
+        err = fmax(err, fabs(got - w) / scale);
     }
+    double s2 = dv_test_expected("ar_expected.csv", "ararx", "sigma2");
+    double s2err = fabs(m.sigma2 - s2) / s2;
+#ifdef DV_REAL_DOUBLE
+    const double tol = 1e-7, s2tol = 1e-7;
+#else
+    // Float: stage 1 is a Yule-Walker AR(30) of a lightly damped structure, whose Toeplitz
+    // matrix has condition number ~2.5e4 (ararx,toeplitz_cond): an autocorrelation known to
+    // u = 2^-24 of r_0 gives AR(30) coefficients to ~kappa u ~ 1.5e-3, and stage 2 passes that
+    // on. The floor no float build can beat is storing r_k in float: gen_ar.py rounds the exact
+    // r_0..r_30 to float32, reruns both stages in double, and records the change
+    // (ararx,f32_acf_theta_err ~2.9e-4 of max |theta|, f32_acf_sigma2_err ~1.8e-4). The
+    // tolerance is 4x that floor; the library's own round-off (pairwise autocorrelation sums,
+    // float Levinson, float Givens QR) must stay within 3x more. (With the autocorrelation
+    // summed in 4 plain chains the error was 2.3e-3: this test failed.)
+    const double tol = 4 * dv_test_expected("ar_expected.csv", "ararx", "f32_acf_theta_err");
+    const double s2tol = 4 * dv_test_expected("ar_expected.csv", "ararx", "f32_acf_sigma2_err");
+    assert_false(isnan(tol) || isnan(s2tol));
+#endif
+    printf("  ararx: max |theta - ref| = %.3g of max |theta| (tol %.3g), sigma2 rel err %.3g "
+           "(tol %.3g)\n", err, tol, s2err, s2tol);
+    assert_true(err <= tol);
+    assert_true(s2err <= s2tol);
     cfg.na = 20; cfg.nb = 20; // p >= na + nb violated
     assert_int_equal(dv_ararx_fit(&m, NULL, &cfg, 30, xr, n, work, WL), DV_EINVAL);
 }
