@@ -370,6 +370,7 @@ dv_status_t dv_ar_resid_init(dv_ar_resid_t *r, const dv_ar_model_t *m, dv_real_t
     r->nb = nb;
     r->off = off;
     r->kern = dv_priv_ar_kern();
+    r->step = r->kern != 0u ? 9u * (r->kern - 1u) + nb : 0u;
     dv_ar_resid_reset(r);
     return DV_OK;
 }
@@ -415,11 +416,8 @@ dv_status_t dv_ar_resid_update(dv_ar_resid_t *r, dv_real_t x, dv_real_t *e)
         return DV_ENUMERIC;
     }
 #if DV_AR_X86
-    if (r->kern == 2u) {
-        return dv_priv_ar_rstep_avx512(r, x, e);
-    }
-    if (r->kern == 1u) {
-        return dv_priv_ar_rstep_avx2(r, x, e);
+    if (r->kern != 0u) {
+        return dv_priv_ar_rstep(r, x, e);
     }
 #endif
     return rstep_c(r, x, e);

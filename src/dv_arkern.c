@@ -593,31 +593,77 @@ DV_TGT_AVX512 static inline double rpred_avx512(const double *c, const double *w
     return _mm_cvtsd_f64(_mm_add_sd(u, _mm_unpackhi_pd(u, u)));
 }
 
-/* One dv_ar_resid_update() step (x finite) around a prediction kernel. */
-#define DV_AR_RSTEP(PRED)                                                                          \
-    const uint32_t p = r->p, head = r->head;                                                       \
-    double *h = r->hist + head; /* the last p centred samples, oldest first */                     \
-    const double y = x - r->mean;                                                                  \
-    dv_status_t st = DV_ENOTREADY;                                                                 \
-    if (r->count >= p) {                                                                           \
-        *e = y - PRED(r->c, h - r->off, h + p - 4u, r->nb);                                        \
-        st = DV_OK;                                                                                \
-    }                                                                                              \
-    h[0] = y;                                                                                      \
-    h[p] = y;                                                                                      \
-    r->head = head + 1u == p ? 0u : head + 1u;                                                     \
-    r->count++;                                                                                    \
-    return st
+/* One dv_ar_resid_update() step (x finite) around a prediction kernel, one function per ISA
+ * and block count NB (a compile-time constant: no jump into the unrolled blocks, and few
+ * enough live values that the leaf saves no callee-saved register). The counters are updated
+ * before the prediction so that only h, y and p stay live across it. */
+#define DV_AR_RSTEP(TGT, PRED, NB)                                                                 \
+    TGT static dv_status_t rstep_##PRED##_##NB(dv_ar_resid_t *r, double x, double *e)             \
+    {                                                                                              \
+        const uint32_t p = r->p, head = r->head;                                                   \
+        const uint64_t cnt = r->count;                                                             \
+        double *h = r->hist + head; /* the last p centred samples, oldest first */                 \
+        const double y = x - r->mean;                                                              \
+        r->head = head + 1u == p ? 0u : head + 1u;                                                 \
+        r->count = cnt + 1u;                                                                       \
+        dv_status_t st = DV_ENOTREADY;                                                             \
+        if (cnt >= p) {                                                                            \
+            *e = y - PRED(r->c, h - r->off, h + p - 4u, NB);                                       \
+            st = DV_OK;                                                                            \
+        }                                                                                          \
+        h[0] = y;                                                                                  \
+        h[p] = y;                                                                                  \
+        return st;                                                                                 \
+    }
 
-DV_TGT_AVX2 dv_status_t dv_priv_ar_rstep_avx2(dv_ar_resid_t *r, double x, double *e)
+#define DV_AR_RSTEPS(TGT, PRED)                                                                    \
+    DV_AR_RSTEP(TGT, PRED, 0)                                                                      \
+    DV_AR_RSTEP(TGT, PRED, 1)                                                                      \
+    DV_AR_RSTEP(TGT, PRED, 2)                                                                      \
+    DV_AR_RSTEP(TGT, PRED, 3)                                                                      \
+    DV_AR_RSTEP(TGT, PRED, 4)                                                                      \
+    DV_AR_RSTEP(TGT, PRED, 5)                                                                      \
+    DV_AR_RSTEP(TGT, PRED, 6)                                                                      \
+    DV_AR_RSTEP(TGT, PRED, 7)                                                                      \
+    DV_AR_RSTEP(TGT, PRED, 8)
+
+DV_AR_RSTEPS(DV_TGT_AVX2, rpred_avx2)
+DV_AR_RSTEPS(DV_TGT_AVX512, rpred_avx512)
+
+/* A switch (a jump table of offsets in .rodata), not a table of function pointers: that
+ * would be relocated data (.data.rel.ro), which the fixed-memory check rejects. */
+#define DV_AR_RSTEP_CASE(K, PRED, NB)                                                              \
+    case K:                                                                                        \
+        return rstep_##PRED##_##NB(r, x, e)
+
+dv_status_t dv_priv_ar_rstep(dv_ar_resid_t *r, double x, double *e)
 {
-    DV_AR_RSTEP(rpred_avx2);
+    switch (r->step) {
+        DV_AR_RSTEP_CASE(0u, rpred_avx2, 0);
+        DV_AR_RSTEP_CASE(1u, rpred_avx2, 1);
+        DV_AR_RSTEP_CASE(2u, rpred_avx2, 2);
+        DV_AR_RSTEP_CASE(3u, rpred_avx2, 3);
+        DV_AR_RSTEP_CASE(4u, rpred_avx2, 4);
+        DV_AR_RSTEP_CASE(5u, rpred_avx2, 5);
+        DV_AR_RSTEP_CASE(6u, rpred_avx2, 6);
+        DV_AR_RSTEP_CASE(7u, rpred_avx2, 7);
+        DV_AR_RSTEP_CASE(8u, rpred_avx2, 8);
+        DV_AR_RSTEP_CASE(9u, rpred_avx512, 0);
+        DV_AR_RSTEP_CASE(10u, rpred_avx512, 1);
+        DV_AR_RSTEP_CASE(11u, rpred_avx512, 2);
+        DV_AR_RSTEP_CASE(12u, rpred_avx512, 3);
+        DV_AR_RSTEP_CASE(13u, rpred_avx512, 4);
+        DV_AR_RSTEP_CASE(14u, rpred_avx512, 5);
+        DV_AR_RSTEP_CASE(15u, rpred_avx512, 6);
+        DV_AR_RSTEP_CASE(16u, rpred_avx512, 7);
+    default:
+        return rstep_rpred_avx512_8(r, x, e); /* step 17 */
+    }
 }
 
-DV_TGT_AVX512 dv_status_t dv_priv_ar_rstep_avx512(dv_ar_resid_t *r, double x, double *e)
-{
-    DV_AR_RSTEP(rpred_avx512);
-}
+#undef DV_AR_RSTEP_CASE
+#undef DV_AR_RSTEPS
+#undef DV_AR_RSTEP
 
 /* As fir_avx2 with 8 x 8 outputs and taps 8 apart. */
 DV_TGT_AVX512 static void fir_avx512(const double *c, size_t p, double c0, const double *x,

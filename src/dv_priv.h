@@ -93,10 +93,10 @@ uint32_t dv_priv_ar_kern(void);
 
 #if DV_AR_X86
 #include "dynval/dv_ar.h"
-/* dv_ar_resid_update() after the finite check, x finite, for r->kern == 2 / 1: the whole step
- * in one leaf function (prediction, history stores, counters). */
-dv_status_t dv_priv_ar_rstep_avx512(dv_ar_resid_t *r, double x, double *e);
-dv_status_t dv_priv_ar_rstep_avx2(dv_ar_resid_t *r, double x, double *e);
+/* dv_ar_resid_update() after the finite check, x finite, for r->kern != 0: a tail jump to the
+ * whole step in one leaf function (prediction, history stores, counters) specialised for the
+ * ISA and block count, r->step = 9 (kern - 1) + nb. */
+dv_status_t dv_priv_ar_rstep(dv_ar_resid_t *r, double x, double *e);
 #endif
 
 /* r[k] = sum_{i=0}^{n-1-k} x_i x_{i+k}, k = 0..maxlag, maxlag < n (no 1/n). */

@@ -145,6 +145,7 @@ typedef struct {
     uint32_t kern;       /**< kernel chosen at init (0 portable, 1 AVX2, 2 AVX-512) */
     uint32_t nb;         /**< vector kernels: blocks of 8 taps before the newest 4 */
     uint32_t off;        /**< vector kernels: zero taps in front, 8 nb + 4 - p */
+    uint32_t step;       /**< vector kernels: per-sample step for (kern, nb), 9 (kern - 1) + nb */
     uint64_t count;      /**< samples accepted since init/reset */
     uint64_t n_nonfinite; /**< NaN/Inf samples dropped */
 } dv_ar_resid_t;
