@@ -97,6 +97,185 @@ dv_status_t dv_mat_solve(dv_mat_t *a, dv_mat_t *b)
     return DV_OK;
 }
 
+/* ---- eigenvalues of a general matrix ------------------------------------------------- */
+
+/* Householder vector of x[0..m): P = I - beta v v^T with P x = alpha e1, v written over x.
+ * Returns beta (0 when x is 0: P = I). */
+static dv_real_t house(dv_real_t *x, size_t m)
+{
+    dv_real_t sc = DV_R(0.0);
+    for (size_t i = 0; i < m; i++) {
+        sc += DV_FABS(x[i]);
+    }
+    if (sc == DV_R(0.0)) {
+        return DV_R(0.0);
+    }
+    dv_real_t nrm2 = DV_R(0.0);
+    for (size_t i = 0; i < m; i++) {
+        x[i] /= sc; /* scaled: no overflow or underflow in the squares */
+        nrm2 += x[i] * x[i];
+    }
+    const dv_real_t nrm = DV_SQRT(nrm2);
+    const dv_real_t alpha = x[0] >= DV_R(0.0) ? -nrm : nrm;
+    const dv_real_t vv = nrm2 - alpha * x[0]; /* |x - alpha e1|^2 / 2, alpha^2 = |x|^2 */
+    x[0] -= alpha;
+    return vv > DV_R(0.0) ? DV_R(1.0) / vv : DV_R(0.0);
+}
+
+/* H = P H on rows r0..r0+m-1, columns c0..c1 (inclusive); H = H P on columns r0..r0+m-1,
+ * rows q0..q1. P = I - beta v v^T. h is n x n row-major. */
+static void reflect_rows(dv_real_t *h, size_t n, const dv_real_t *v, size_t m, dv_real_t beta,
+                         size_t r0, size_t c0, size_t c1)
+{
+    for (size_t j = c0; j <= c1; j++) {
+        dv_real_t d = DV_R(0.0);
+        for (size_t i = 0; i < m; i++) {
+            d += v[i] * h[(r0 + i) * n + j];
+        }
+        d *= beta;
+        for (size_t i = 0; i < m; i++) {
+            h[(r0 + i) * n + j] -= d * v[i];
+        }
+    }
+}
+
+static void reflect_cols(dv_real_t *h, size_t n, const dv_real_t *v, size_t m, dv_real_t beta,
+                         size_t r0, size_t q0, size_t q1)
+{
+    for (size_t i = q0; i <= q1; i++) {
+        dv_real_t d = DV_R(0.0);
+        for (size_t k = 0; k < m; k++) {
+            d += h[i * n + r0 + k] * v[k];
+        }
+        d *= beta;
+        for (size_t k = 0; k < m; k++) {
+            h[i * n + r0 + k] -= d * v[k];
+        }
+    }
+}
+
+/* Eigenvalues of [[a, b], [c, d]]. */
+static void eig2(dv_real_t a, dv_real_t b, dv_real_t c, dv_real_t d, dv_real_t *wr, dv_real_t *wi)
+{
+    const dv_real_t mid = DV_R(0.5) * (a + d);
+    const dv_real_t p = DV_R(0.5) * (a - d);
+    const dv_real_t disc = p * p + b * c;
+    if (disc >= DV_R(0.0)) {
+        const dv_real_t sq = DV_SQRT(disc);
+        wr[0] = mid + sq;
+        wr[1] = mid - sq;
+        wi[0] = wi[1] = DV_R(0.0);
+    } else {
+        wr[0] = wr[1] = mid;
+        wi[0] = DV_SQRT(-disc);
+        wi[1] = -wi[0];
+    }
+}
+
+/* One Francis double-shift step on the unreduced window [l, hi] of the Hessenberg h
+ * (hi >= l + 2); only the window is updated (all the eigenvalues need). its: iterations on
+ * this window so far (an exceptional shift at 10 and 20). */
+static void francis(dv_real_t *h, size_t n, size_t l, size_t hi, uint32_t its)
+{
+#define H(i, j) h[(size_t)(i) * n + (size_t)(j)]
+    const size_t m = hi - 1u;
+    dv_real_t s = H(m, m) + H(hi, hi);
+    dv_real_t t = H(m, m) * H(hi, hi) - H(m, hi) * H(hi, m);
+    if (its == 10u || its == 20u) {
+        const dv_real_t e = DV_FABS(H(hi, m)) + DV_FABS(H(m, m - 1u));
+        s = DV_R(1.5) * e;
+        t = e * e;
+    }
+    dv_real_t v[3];
+    v[0] = H(l, l) * H(l, l) + H(l, l + 1u) * H(l + 1u, l) - s * H(l, l) + t;
+    v[1] = H(l + 1u, l) * (H(l, l) + H(l + 1u, l + 1u) - s);
+    v[2] = H(l + 1u, l) * H(l + 2u, l + 1u);
+    for (size_t k = l; k + 2u <= hi; k++) {
+        const dv_real_t beta = house(v, 3u);
+        const size_t q = k > l ? k - 1u : l;
+        reflect_rows(h, n, v, 3u, beta, k, q, hi);
+        reflect_cols(h, n, v, 3u, beta, k, l, k + 3u < hi ? k + 3u : hi);
+        v[0] = H(k + 1u, k);
+        v[1] = H(k + 2u, k);
+        v[2] = k + 3u <= hi ? H(k + 3u, k) : DV_R(0.0);
+    }
+    const dv_real_t beta = house(v, 2u);
+    reflect_rows(h, n, v, 2u, beta, m, m - 1u, hi);
+    reflect_cols(h, n, v, 2u, beta, m, l, hi);
+#undef H
+}
+
+dv_status_t dv_mat_eig_real(const dv_mat_t *a, dv_real_t *wr, dv_real_t *wi, dv_real_t *work,
+                            size_t len)
+{
+    if (!mat_ok(a) || a->rows != a->cols || wr == NULL || wi == NULL || work == NULL) {
+        return DV_EINVAL;
+    }
+    const size_t n = a->rows;
+    if (len < DV_MAT_EIGR_WORK_LEN(n)) {
+        return DV_ESIZE;
+    }
+    dv_real_t *h = work;
+    dv_real_t *v = work + n * n;
+    dv_real_t norm = DV_R(0.0);
+    for (size_t i = 0; i < n * n; i++) {
+        if (!dv_priv_finite(a->data[i])) {
+            return DV_ENUMERIC;
+        }
+        h[i] = a->data[i];
+        norm += DV_FABS(h[i]);
+    }
+    /* upper Hessenberg form: zeros below the first subdiagonal, column by column */
+    for (size_t k = 0; k + 2u < n; k++) {
+        const size_t m = n - k - 1u;
+        for (size_t i = 0; i < m; i++) {
+            v[i] = h[(k + 1u + i) * n + k];
+        }
+        const dv_real_t beta = house(v, m);
+        if (beta != DV_R(0.0)) {
+            reflect_rows(h, n, v, m, beta, k + 1u, k, n - 1u);
+            reflect_cols(h, n, v, m, beta, k + 1u, 0u, n - 1u);
+        }
+        for (size_t i = k + 2u; i < n; i++) {
+            h[i * n + k] = DV_R(0.0);
+        }
+    }
+    /* QR iteration on the trailing unreduced window, deflating 1 x 1 and 2 x 2 blocks */
+    size_t hi = n - 1u;
+    uint32_t its = 0u;
+    for (;;) {
+        size_t l = hi;
+        while (l > 0u) {
+            dv_real_t sd = DV_FABS(h[(l - 1u) * n + l - 1u]) + DV_FABS(h[l * n + l]);
+            if (sd == DV_R(0.0)) {
+                sd = norm;
+            }
+            if (DV_FABS(h[l * n + l - 1u]) <= DV_REAL_EPS * sd) {
+                h[l * n + l - 1u] = DV_R(0.0);
+                break;
+            }
+            l--;
+        }
+        if (l == hi) {
+            wr[hi] = h[hi * n + hi];
+            wi[hi] = DV_R(0.0);
+        } else if (l + 1u == hi) {
+            eig2(h[l * n + l], h[l * n + hi], h[hi * n + l], h[hi * n + hi], wr + l, wi + l);
+        } else {
+            if (++its > DV_MAT_QR_MAX_ITER) {
+                return DV_EUNSTABLE;
+            }
+            francis(h, n, l, hi, its);
+            continue;
+        }
+        its = 0u;
+        if (l == 0u) {
+            return DV_OK;
+        }
+        hi = l - 1u;
+    }
+}
+
 dv_status_t dv_mat_eig_sym(const dv_mat_t *s, dv_real_t *w, dv_mat_t *v, dv_real_t *work,
                            size_t len)
 {

@@ -35,6 +35,10 @@ size_t dv_obs_scratch_len(const dv_model_t *m)
     return obs_len(m, 1);
 }
 
+#if DV_OBS_X86
+static bool make_modal(dv_obs_t *o, dv_real_t *x);
+#endif
+
 /* Fill the folded step matrix from the model and the gain (o->gain, used when has_gain).
  * Layout: the state rows first, column-major (ns rows, one column per entry of sv:
  * [x, u window, g, y]), then the output rows, column-major (no rows, columns
@@ -111,6 +115,260 @@ static void fold(dv_obs_t *o)
             fxg[(nco + q0) * ns + r] = o->gain[r * no + q0];
         }
     }
+    o->modal = false;
+#if DV_OBS_X86
+    if (o->tq != NULL) { /* storage for the modal form: it may apply (see make_modal()) */
+        o->modal = make_modal(o, o->sv);
+    }
+#endif
+}
+
+/* ---- modal coordinates (x86-64 double, AVX-512: the linear 4-DOF step) -----------------
+ * The state block F of the folded state rows (x+ = F x + ...) of the 8-state linear observer is
+ * brought to real block-diagonal form, F = T Lam T^-1 with 2 x 2 blocks (a complex pair of
+ * eigenvalues or two real ones), and the observer runs on q = T^-1 x: the state rows become
+ * [Lam | T^-1 (input and y columns)], the output rows' state columns C T. Every kernel works
+ * unchanged on these dense rows; the AVX-512 step also uses the blocks directly (two fused
+ * multiply-adds for the state instead of eight), which halves the step. x = T q is formed only
+ * when asked for (dv_obs_get_state()). The eigenvalues come from dv_mat_eig_real(), each pair's
+ * vectors from inverse iteration; F keeps the dense form when T is ill-conditioned (a repeated
+ * or defective eigenvalue) or the blocks do not reproduce F to 1e-9 relative. */
+
+/* x (ns) of the current state, whichever coordinates it is kept in. */
+static void state_x(const dv_obs_t *o, dv_real_t *x)
+{
+    const size_t ns = o->ns;
+    if (o->modal) {
+        for (size_t i = 0; i < ns; i++) {
+            dv_real_t s = DV_R(0.0);
+            for (size_t j = 0; j < ns; j++) {
+                s += o->tq[i * ns + j] * o->sv[j];
+            }
+            x[i] = s;
+        }
+    } else {
+        for (size_t i = 0; i < ns; i++) {
+            x[i] = o->sv[i];
+        }
+    }
+}
+
+#if DV_OBS_X86
+/* Inverse iteration: the real invariant subspace of the eigenvalue (re, im) of f (8 x 8
+ * row-major) into columns c, c + 1 of t (8 x 8 row-major); im == 0: the real eigenvector into
+ * column c only. The shift is moved by 1e-9 so the solve is not singular. */
+static bool inv_iter(const double *f, double re, double im, double *t, size_t c)
+{
+    const size_t n = 8u;
+    const size_t m = im != 0.0 ? 2u * n : n;
+    double a[256];
+    double z[16];
+    for (size_t i = 0; i < m; i++) {
+        z[i] = 1.0 + 0.1 * (double)i; /* not orthogonal to any eigenvector in practice */
+    }
+    const double sh = re + 1e-9 * (fabs(re) + fabs(im) + 1e-3);
+    for (int it = 0; it < 3; it++) {
+        for (size_t i = 0; i < m; i++) {
+            for (size_t j = 0; j < m; j++) {
+                const size_t bi = i / n, bj = j / n, ii = i % n, jj = j % n;
+                double v = bi == bj ? f[ii * n + jj] - (ii == jj ? sh : 0.0) : 0.0;
+                if (bi != bj && ii == jj) {
+                    v = bi == 0u ? im : -im; /* [[F - re, im], [-im, F - re]] */
+                }
+                a[i * m + j] = v;
+            }
+        }
+        dv_mat_t am = {(uint16_t)m, (uint16_t)m, a};
+        dv_mat_t zm = {(uint16_t)m, 1u, z};
+        if (dv_mat_solve(&am, &zm) != DV_OK) {
+            return false;
+        }
+        double nrm = 0.0;
+        for (size_t i = 0; i < m; i++) {
+            nrm += z[i] * z[i];
+        }
+        nrm = sqrt(nrm);
+        if (!(nrm > 0.0) || !dv_priv_finite(nrm)) {
+            return false;
+        }
+        for (size_t i = 0; i < m; i++) {
+            z[i] /= nrm;
+        }
+    }
+    for (size_t i = 0; i < n; i++) {
+        t[i * n + c] = z[i];
+        if (im != 0.0) {
+            t[i * n + c + 1u] = z[n + i];
+        }
+    }
+    return true;
+}
+
+/* F (the folded state rows' state block, column-major in o->f) to modal form: fills o->tq and
+ * o->fm and rewrites o->f in q coordinates; x: the current state in x coordinates, rewritten
+ * as q. Returns false, with nothing changed, when F keeps the dense form. */
+static bool make_modal(dv_obs_t *o, dv_real_t *x)
+{
+    const size_t n = 8u;
+    const size_t no = 4u;
+    const size_t ncg = o->ncol_gain;
+    const size_t nco = o->ncol_open;
+    double *f = o->f;
+    double *fy = o->f + n * ncg;
+    double fr[64], t[64], ti[64], lam[64], wr[8], wi[8], work[DV_MAT_EIGR_WORK_LEN(8)];
+    double fmax = 0.0;
+    for (size_t r = 0; r < n; r++) {
+        for (size_t j = 0; j < n; j++) {
+            fr[r * n + j] = f[j * n + r];
+            fmax = fmax > fabs(fr[r * n + j]) ? fmax : fabs(fr[r * n + j]);
+        }
+    }
+    dv_mat_t fm = {8u, 8u, fr};
+    if (dv_mat_eig_real(&fm, wr, wi, work, sizeof work / sizeof *work) != DV_OK) {
+        return false;
+    }
+    /* blocks: complex pairs as they come (positive imaginary part first), real ones paired */
+    size_t col = 0u;
+    size_t pend = 8u; /* a real eigenvalue waiting for its partner */
+    for (size_t i = 0; i < n; i++) {
+        if (wi[i] > 0.0) {
+            if (!inv_iter(fr, wr[i], wi[i], t, col)) {
+                return false;
+            }
+            col += 2u;
+            i++; /* its conjugate */
+        } else if (wi[i] == 0.0) {
+            if (!inv_iter(fr, wr[i], 0.0, t, pend == 8u ? col : col + 1u)) {
+                return false;
+            }
+            if (pend == 8u) {
+                pend = i;
+            } else {
+                pend = 8u;
+                col += 2u;
+            }
+        } else {
+            return false; /* a conjugate without its pair: not from dv_mat_eig_real() */
+        }
+    }
+    if (col != n || pend != 8u) {
+        return false;
+    }
+    /* T^-1, its condition number and the blocks Lam = T^-1 F T */
+    double tc[64];
+    for (size_t i = 0; i < 64u; i++) {
+        tc[i] = t[i];
+        ti[i] = (i / n) == (i % n) ? 1.0 : 0.0;
+    }
+    dv_mat_t tm = {8u, 8u, tc};
+    dv_mat_t im = {8u, 8u, ti};
+    if (dv_mat_solve(&tm, &im) != DV_OK) {
+        return false;
+    }
+    double n1 = 0.0, n2 = 0.0;
+    for (size_t j = 0; j < n; j++) {
+        double s1 = 0.0, s2 = 0.0;
+        for (size_t i = 0; i < n; i++) {
+            s1 += fabs(t[i * n + j]);
+            s2 += fabs(ti[i * n + j]);
+        }
+        n1 = n1 > s1 ? n1 : s1;
+        n2 = n2 > s2 ? n2 : s2;
+    }
+    if (!(n1 * n2 < 1e6)) {
+        return false;
+    }
+    for (size_t i = 0; i < n; i++) {
+        for (size_t j = 0; j < n; j++) {
+            double s = 0.0;
+            for (size_t k = 0; k < n; k++) {
+                double ft = 0.0;
+                for (size_t l = 0; l < n; l++) {
+                    ft += fr[k * n + l] * t[l * n + j];
+                }
+                s += ti[i * n + k] * ft;
+            }
+            lam[i * n + j] = s;
+        }
+    }
+    for (size_t i = 0; i < n; i++) {
+        for (size_t j = 0; j < n; j++) {
+            if (i / 2u != j / 2u && !(fabs(lam[i * n + j]) <= 1e-9 * fmax)) {
+                return false;
+            }
+        }
+    }
+    /* rewrite the folded rows: state rows' state columns Lam, their other columns T^-1 col,
+     * output rows' state columns (C T); then the step kernel's copy */
+    for (size_t j = 0; j < n; j++) {
+        for (size_t r = 0; r < n; r++) {
+            f[j * n + r] = r / 2u == j / 2u ? lam[r * n + j] : 0.0;
+        }
+    }
+    for (size_t j = n; j < ncg; j++) {
+        double tc8[8];
+        for (size_t r = 0; r < n; r++) {
+            double s = 0.0;
+            for (size_t k = 0; k < n; k++) {
+                s += ti[r * n + k] * f[j * n + k];
+            }
+            tc8[r] = s;
+        }
+        for (size_t r = 0; r < n; r++) {
+            f[j * n + r] = tc8[r];
+        }
+    }
+    double ct[32];
+    for (size_t q = 0; q < no; q++) {
+        for (size_t j = 0; j < n; j++) {
+            double s = 0.0;
+            for (size_t k = 0; k < n; k++) {
+                s += fy[k * no + q] * t[k * n + j];
+            }
+            ct[q * n + j] = s;
+        }
+    }
+    for (size_t q = 0; q < no; q++) {
+        for (size_t j = 0; j < n; j++) {
+            fy[j * no + q] = ct[q * n + j];
+            o->fm[16u + q * n + j] = ct[q * n + j];
+        }
+    }
+    for (size_t b = 0; b < n; b += 2u) {
+        o->fm[b] = lam[b * n + b];                         /* Lam diagonal */
+        o->fm[b + 1u] = lam[(b + 1u) * n + b + 1u];
+        o->fm[8u + b] = lam[b * n + b + 1u];               /* Lam off-diagonal of the block */
+        o->fm[8u + b + 1u] = lam[(b + 1u) * n + b];
+    }
+    for (size_t i = 0; i < 64u; i++) {
+        o->tq[i] = t[i];
+    }
+    double q[8];
+    for (size_t i = 0; i < n; i++) {
+        double s = 0.0;
+        for (size_t k = 0; k < n; k++) {
+            s += ti[i * n + k] * x[k];
+        }
+        q[i] = s;
+    }
+    for (size_t i = 0; i < n; i++) {
+        x[i] = q[i];
+    }
+    (void)nco;
+    return true;
+}
+#endif
+
+/* Fold again (a new gain) keeping the state: back to x coordinates, fold, then to modal
+ * coordinates again if they apply. */
+static void refold(dv_obs_t *o)
+{
+    dv_real_t x[2u * DV_MAX_DOF];
+    state_x(o, x);
+    for (size_t i = 0; i < o->ns; i++) {
+        o->sv[i] = x[i];
+    }
+    fold(o);
 }
 
 /* ---- DARE by the structure-preserving doubling algorithm (Chu, Fan, Lin 2005) ---------- */
@@ -379,6 +637,17 @@ dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_
         o->ypend = p;
         p += no;
     }
+    o->fast = ns == 8u && no == 4u && nin == 2u;
+    o->simd = (uint8_t)dv_priv_ar_kern();
+    if (o->simd == 2u && (!o->fast || nf > 0u)) {
+        o->simd = 1u; /* the AVX-512 step is the linear 8 x 4 one; AVX2 kernel otherwise */
+    }
+    if (o->simd == 2u && DV_OBS_MODAL_LEN(m->n_dof, m->n_contact, no, nin) > 0u) {
+        o->tq = p;
+        p += ns * ns;
+        o->fm = p;
+        p += 6u * ns;
+    }
     DV_ASSERT((size_t)(p - buf) <= len);
     for (size_t i = 0; i < ns * no; i++) {
         o->gain[i] = DV_R(0.0);
@@ -389,11 +658,6 @@ dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_
             return st;
         }
         o->has_gain = true;
-    }
-    o->fast = ns == 8u && no == 4u && nin == 2u;
-    o->simd = (uint8_t)dv_priv_ar_kern();
-    if (o->simd == 2u && (!o->fast || nf > 0u)) {
-        o->simd = 1u; /* the AVX-512 step is the linear 8 x 4 one; AVX2 kernel otherwise */
     }
     fold(o);
     dv_obs_reset(o);
@@ -411,6 +675,7 @@ dv_status_t dv_obs_set_gain(dv_obs_t *o, const dv_real_t *gain, size_t len)
         for (size_t i = 0; i < nl; i++) {
             o->gain[i] = DV_R(0.0);
         }
+        refold(o);
         return DV_OK;
     }
     if (len < nl) {
@@ -425,7 +690,7 @@ dv_status_t dv_obs_set_gain(dv_obs_t *o, const dv_real_t *gain, size_t len)
         o->gain[i] = gain[i];
     }
     o->has_gain = true;
-    fold(o);
+    refold(o);
     return DV_OK;
 }
 
@@ -827,10 +1092,12 @@ static void finish_first(dv_obs_t *o, const dv_real_t *y, bool correct)
         o->resid[q] = yq - yhat[q];
     }
     if (correct) {
+        /* the y columns of the folded state rows: L (T^-1 L in modal coordinates) */
+        const dv_real_t *ly = o->f + (size_t)o->ncol_open * ns;
         for (size_t j = 0; j < ns; j++) {
             dv_real_t s = DV_R(0.0);
             for (size_t q = 0; q < no; q++) {
-                s += o->gain[j * no + q] * o->resid[q];
+                s += ly[q * ns + j] * o->resid[q];
             }
             sv[j] += s;
         }
@@ -1041,7 +1308,8 @@ static inline bool fast_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y)
     }
 #if DV_OBS_X86
     if (o->simd == 2u) {
-        return dv_priv_obs_step8x4_avx512(o, u, y);
+        return o->modal ? dv_priv_obs_step8x4_modal_avx512(o, u, y)
+                        : dv_priv_obs_step8x4_avx512(o, u, y);
     }
 #endif
     const dv_real_t bad =
@@ -1156,9 +1424,7 @@ dv_status_t dv_obs_get_state(const dv_obs_t *o, dv_real_t *x, size_t len)
     if (len < o->ns) {
         return DV_ESIZE;
     }
-    for (size_t j = 0; j < o->ns; j++) {
-        x[j] = o->sv[j];
-    }
+    state_x(o, x);
     return DV_OK;
 }
 

@@ -154,6 +154,58 @@ DV_TGT_AVX512 bool dv_priv_obs_step8x4_avx512(dv_obs_t *o, double u, const doubl
     return true;
 }
 
+DV_TGT_AVX512 bool dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u, const double *y)
+{
+    const __m256d ym = _mm256_loadu_pd(y);
+    const __m256d fin = _mm256_add_pd(_mm256_sub_pd(ym, ym), _mm256_set1_pd(u - u));
+    if (_mm256_movemask_pd(_mm256_cmp_pd(fin, _mm256_setzero_pd(), _CMP_NEQ_UQ)) != 0) {
+        return false;
+    }
+    double *sv = o->sv;
+    const double *fx = o->f;
+    const double *fy = fx + 8u * (size_t)o->ncol_gain;
+    const double *fm = o->fm;
+    const __m512d q = _mm512_loadu_pd(sv);
+    const __m512d up = _mm512_set1_pd(sv[8]);
+    const __m512d uk = _mm512_set1_pd(u);
+    /* inputs and (with the gain) measurements, off the state chain */
+    __m512d a = _mm512_mul_pd(_mm512_loadu_pd(fx + 64), up);
+    a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 72), uk, a);
+    if (o->has_gain) {
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 80), _mm512_set1_pd(y[0]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 88), _mm512_set1_pd(y[1]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 96), _mm512_set1_pd(y[2]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 104), _mm512_set1_pd(y[3]), a);
+    }
+    /* q+ = diag * q + off * (q with each pair swapped) + inputs */
+    const __m512d qs = _mm512_permute_pd(q, 0x55);
+    __m512d qn = _mm512_fmadd_pd(_mm512_loadu_pd(fm), q, a);
+    qn = _mm512_fmadd_pd(_mm512_loadu_pd(fm + 8), qs, qn);
+    /* prediction: the four rows of C T times q, summed across lanes */
+    const __m512d r0 = _mm512_mul_pd(_mm512_loadu_pd(fm + 16), q);
+    const __m512d r1 = _mm512_mul_pd(_mm512_loadu_pd(fm + 24), q);
+    const __m512d r2 = _mm512_mul_pd(_mm512_loadu_pd(fm + 32), q);
+    const __m512d r3 = _mm512_mul_pd(_mm512_loadu_pd(fm + 40), q);
+    /* pairwise: [r0 r1] and [r2 r3] in each 128-bit lane, then the lanes */
+    const __m512d s01 = _mm512_add_pd(_mm512_unpacklo_pd(r0, r1), _mm512_unpackhi_pd(r0, r1));
+    const __m512d s23 = _mm512_add_pd(_mm512_unpacklo_pd(r2, r3), _mm512_unpackhi_pd(r2, r3));
+    const __m512d h = _mm512_add_pd(_mm512_shuffle_f64x2(s01, s23, 0x44),
+                                    _mm512_shuffle_f64x2(s01, s23, 0xEE));
+    const __m512d g = _mm512_add_pd(_mm512_shuffle_f64x2(h, h, 0x88),
+                                    _mm512_shuffle_f64x2(h, h, 0xDD));
+    __m256d yh = _mm512_castpd512_pd256(g);
+    yh = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 32), _mm512_castpd512_pd256(up), yh);
+    yh = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 36), _mm512_castpd512_pd256(uk), yh);
+    _mm512_storeu_pd(sv, qn);
+    _mm256_storeu_pd(o->z + 8, yh);
+    _mm256_storeu_pd(o->resid, _mm256_sub_pd(ym, yh));
+    sv[8] = u;
+    o->flags = 0u;
+    o->n_pred++;
+    o->n_steps++;
+    return true;
+}
+
 #else
 /* ISO C wants at least one declaration in a translation unit. */
 typedef int dv_obskern_unused_t;

@@ -26,6 +26,10 @@ void dv_priv_obs_kern8x4_avx2(size_t nin, size_t ny, const dv_real_t *fx, const 
  * contact, past the first sample, with AVX-512 (dv_priv_ar_kern() == 2): false, with nothing
  * touched, when u or a y[q] is not finite. */
 bool dv_priv_obs_step8x4_avx512(dv_obs_t *o, double u, const double *y);
+
+/* The same step in modal coordinates (o->modal): q+ = Lam q + inputs, with Lam's 2 x 2 blocks
+ * from o->fm, and the prediction from the C T rows in o->fm. */
+bool dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u, const double *y);
 #endif
 
 #endif /* DV_OBSKERN_H */

@@ -1,7 +1,8 @@
 /**
  * @file dv_mat.h
  * @brief Small dense matrices for the model and the observer: product, linear solve,
- *        symmetric eigen-decomposition (cyclic Jacobi) and the matrix exponential
+ *        symmetric eigen-decomposition (cyclic Jacobi), eigenvalues of a general matrix
+ *        (Hessenberg QR) and the matrix exponential
  *        (scaling and squaring with a (6,6) Pade approximant).
  *
  * All matrices are row-major, element (i, j) at data[i * cols + j] (CMSIS
@@ -32,6 +33,10 @@ typedef struct {
 /** Scratch for dv_mat_eig_sym() of an n x n matrix, in elements. */
 #define DV_MAT_EIG_WORK_LEN(n) ((n) * (n))
 
+/** Scratch for dv_mat_eig_real() of an n x n matrix, in elements. */
+#define DV_MAT_EIGR_WORK_LEN(n) ((n) * (n) + (n))
+/** QR iterations per eigenvalue before dv_mat_eig_real() gives up (2-4 is typical). */
+#define DV_MAT_QR_MAX_ITER 30u
 /** Largest number of Jacobi sweeps before dv_mat_eig_sym() gives up (converges in < 10). */
 #define DV_MAT_JACOBI_MAX_SWEEPS 60u
 
@@ -75,6 +80,25 @@ dv_status_t dv_mat_solve(dv_mat_t *a, dv_mat_t *b);
  */
 dv_status_t dv_mat_eig_sym(const dv_mat_t *s, dv_real_t *w, dv_mat_t *v, dv_real_t *work,
                            size_t len);
+
+/**
+ * @brief Eigenvalues of a general real matrix: reduction to upper Hessenberg form by
+ *        Householder reflections, then the Francis double-shift QR iteration with deflation
+ *        (Golub and Van Loan, Alg. 7.4.2 and 7.5.1). A complex conjugate pair comes out as two
+ *        consecutive entries, the one with the positive imaginary part first.
+ * @param[in]  a     n x n
+ * @param[out] wr    n real parts
+ * @param[out] wi    n imaginary parts
+ * @param[in]  work  scratch of DV_MAT_EIGR_WORK_LEN(n) elements
+ * @param[in]  len   elements in @p work
+ * @retval DV_OK        done
+ * @retval DV_EINVAL    NULL argument, non-square, n == 0
+ * @retval DV_ESIZE     @p len too small
+ * @retval DV_ENUMERIC  @p a has a NaN/Inf element
+ * @retval DV_EUNSTABLE no convergence in DV_MAT_QR_MAX_ITER iterations for an eigenvalue
+ */
+dv_status_t dv_mat_eig_real(const dv_mat_t *a, dv_real_t *wr, dv_real_t *wi, dv_real_t *work,
+                            size_t len);
 
 /**
  * @brief Matrix exponential e = exp(a).

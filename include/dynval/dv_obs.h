@@ -51,6 +51,17 @@ typedef struct {
     dv_real_t r_meas[DV_MAX_OUT];     /**< measurement noise variance per output, > 0 */
 } dv_obs_noise_t;
 
+/** Storage of the modal form of the linear 4-DOF, 4-output step (dv_obs.c), in elements:
+ *  T (64) and the kernel's blocks and output rows (48); x86-64 double builds only, where the
+ *  AVX-512 step uses it. */
+#if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
+    !defined(DV_NO_SIMD)
+#define DV_OBS_MODAL_LEN(n, nc, nout, nin)                                                      \
+    (((n) == 4u && (nc) == 0u && (nout) == 4u && (nin) == 2u) ? 112u : 0u)
+#else
+#define DV_OBS_MODAL_LEN(n, nc, nout, nin) 0u
+#endif
+
 /** Persistent storage of an observer with @p nin input samples per step
  *  (DV_MODEL_HOLD_NIN()), in elements: state vector, prediction, residual, the folded step
  *  matrix, the gain and (cubic) the kept measurement. Only this much of the caller's storage
@@ -59,7 +70,7 @@ typedef struct {
     ((DV_MODEL_NS(n) + (nout)) *                                                              \
          ((DV_MODEL_NS(n) + (nin) + DV_MODEL_NF(nc, nsub)) + (nout) + 1u) +                   \
      DV_MODEL_NS(n) + (nin) + DV_MODEL_NF(nc, nsub) + 2u * (nout) +                           \
-     DV_MODEL_NS(n) * (nout) + ((nin) - 2u) / 2u * (nout))
+     DV_MODEL_NS(n) * (nout) + ((nin) - 2u) / 2u * (nout) + DV_OBS_MODAL_LEN(n, nc, nout, nin))
 
 /** Init-time scratch of dv_obs_init_ex() with a noise model (the exponential for the process
  *  noise and the DARE), in elements; dead once init returns (see DV_MODEL_SCRATCH_LEN_HOLD()).
@@ -95,6 +106,7 @@ typedef struct {
     bool started;        /**< the first sample has been seen */
     uint8_t simd;        /**< 8 x 4 step kernel: 0 portable, 1 AVX2 + FMA, 2 AVX-512 (linear step) */
     bool fast;           /**< 8 states, 4 outputs, first-order hold: the direct step path */
+    bool modal;          /**< the state is kept as q = T^-1 x, the folded rows in that basis */
     uint32_t flags;      /**< DV_OBS_FLAG_* of the last step */
     uint64_t n_steps;    /**< accepted steps */
     uint64_t n_bad_input; /**< steps refused for a NaN/Inf input */
@@ -109,6 +121,8 @@ typedef struct {
                               L; zeros in open loop), then no x ncol_open output rows, each
                               column-major */
     dv_real_t *gain;     /**< L, ns x no row-major */
+    dv_real_t *tq;       /**< modal: T, ns x ns row-major (x = T q); NULL where it never applies */
+    dv_real_t *fm;       /**< modal: the block diagonal, the blocks' off-diagonal, C T rows */
     dv_real_t elem_x[DV_MAX_CONTACT]; /**< stick-slip elements: X at the last sub-node, m */
     dv_real_t elem_g[DV_MAX_CONTACT]; /**< stick-slip elements: force at the last sub-node, N */
 } dv_obs_t;

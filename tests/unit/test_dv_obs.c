@@ -201,6 +201,91 @@ static void test_obs_two_half_bumpers_equal_one(void **state)
     assert_true(e <= (sizeof(dv_real_t) == 8 ? 1e-9 : 1e-3) * y);
 }
 
+// The state estimate through dv_obs_get_state() is the same whichever form the step runs in:
+// a 4-output observer (on x86-64 double builds with AVX-512 it keeps modal coordinates
+// q = T^-1 x) against the same model with a fifth output (always the dense form), with the
+// same gain (a zero column for the fifth output), on a perturbed truth.
+static void test_obs_state_same_in_modal_and_dense_form(void **state)
+{
+    (void)state;
+    load_force();
+    dv_model_desc_t d;
+    dv_model_t mt, m4, m5;
+    dv_obs_t ot, o4, o5;
+    dv_obs_noise_t nz;
+    noise_model(&nz);
+    mt_lanl_desc(&d);
+    for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
+    assert_int_equal(dv_model_init(&mt, &d, DT, mbuf2, NBUF), DV_OK);
+    assert_int_equal(dv_obs_init(&ot, &mt, NULL, obuf2, NBUF), DV_OK);
+    assert_int_equal(dv_obs_simulate(&ot, force_r, NS, ytrue), DV_OK);
+    static dv_real_t mbuf5[NBUF], obuf5[NBUF], y5[NS * 5];
+    mt_lanl_desc(&d);
+    assert_int_equal(dv_model_init(&m4, &d, DT, mbuf, NBUF), DV_OK);
+    assert_int_equal(dv_obs_init(&o4, &m4, &nz, obuf, NBUF), DV_OK);
+    d.n_out = 5;
+    d.out[4].kind = DV_OUT_VEL;
+    d.out[4].index = 0;
+    assert_int_equal(dv_model_init(&m5, &d, DT, mbuf5, NBUF), DV_OK);
+    assert_int_equal(dv_obs_init(&o5, &m5, NULL, obuf5, NBUF), DV_OK);
+    dv_real_t l4[32], l5[40];
+    assert_int_equal(dv_obs_get_gain(&o4, l4, 32), DV_OK);
+    for (int r = 0; r < 8; r++) {
+        for (int q = 0; q < 5; q++) l5[r * 5 + q] = q < 4 ? l4[r * 4 + q] : 0;
+    }
+    assert_int_equal(dv_obs_set_gain(&o5, l5, 40), DV_OK);
+    for (size_t k = 0; k < NS; k++) {
+        for (int q = 0; q < 5; q++) y5[k * 5 + q] = q < 4 ? ytrue[k * 4 + q] : 0;
+    }
+    fprintf(stderr, "modal form: 4-output observer %s\n", o4.modal ? "modal" : "dense");
+    double e = 0, xs = 0, er = 0, rr = 0;
+    for (size_t k = 0; k < NS; k++) {
+        dv_real_t x4[8], x5[8], r4[4], r5[5];
+        assert_int_equal(dv_obs_step(&o4, force_r[k], ytrue + 4 * k), DV_OK);
+        assert_int_equal(dv_obs_step(&o5, force_r[k], y5 + 5 * k), DV_OK);
+        assert_int_equal(dv_obs_get_state(&o4, x4, 8), DV_OK);
+        assert_int_equal(dv_obs_get_state(&o5, x5, 8), DV_OK);
+        assert_int_equal(dv_obs_get(&o4, NULL, r4, 4), DV_OK);
+        assert_int_equal(dv_obs_get(&o5, NULL, r5, 5), DV_OK);
+        for (int i = 0; i < 8; i++) {
+            e = fmax(e, fabs((double)x4[i] - x5[i]) / (i < 4 ? 1e-5 : 1e-3));
+            xs = fmax(xs, fabs((double)x5[i]) / (i < 4 ? 1e-5 : 1e-3));
+        }
+        for (int q = 0; q < 4; q++) {
+            er = fmax(er, fabs((double)r4[q] - r5[q]));
+            rr = fmax(rr, fabs((double)r5[q]));
+        }
+    }
+    fprintf(stderr, "state: max |dx| / max |x| = %.3g; residual: %.3g\n", e / xs, er / rr);
+    assert_true(xs > 0 && rr > 0);
+    assert_true(e <= (sizeof(dv_real_t) == 8 ? 1e-9 : 1e-3) * xs);
+    assert_true(er <= (sizeof(dv_real_t) == 8 ? 1e-9 : 1e-3) * rr);
+}
+
+// Removing the gain gives exactly the open-loop observer (the step matrix is folded again).
+static void test_obs_gain_removed_is_open_loop(void **state)
+{
+    (void)state;
+    load_force();
+    dv_model_desc_t d;
+    dv_model_t m;
+    dv_obs_t o1, o2;
+    dv_obs_noise_t nz;
+    noise_model(&nz);
+    mt_lanl_desc(&d);
+    assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
+    assert_int_equal(dv_obs_init(&o2, &m, NULL, obuf2, NBUF), DV_OK);
+    assert_int_equal(dv_obs_simulate(&o2, force_r, NS, ytrue), DV_OK);
+    for (size_t i = 0; i < NS * 4; i++) ytrue[i] = (dv_real_t)(ytrue[i] * 1.1);
+    assert_int_equal(dv_obs_init(&o1, &m, &nz, obuf, NBUF), DV_OK);
+    assert_int_equal(dv_obs_set_gain(&o1, NULL, 0), DV_OK);
+    dv_obs_reset(&o2);
+    assert_int_equal(dv_obs_update_block(&o1, force_r, ytrue, NS, ypred, res), DV_OK);
+    assert_int_equal(dv_obs_update_block(&o2, force_r, ytrue, NS, NULL, res2), DV_OK);
+    assert_memory_equal(res, res2, sizeof(dv_real_t) * NS * 4);
+    assert_true(rms(res, NS * 4) > 0.05 * rms(ytrue, NS * 4)); // uncorrected: 10 % off
+}
+
 static void test_obs_nan_measurement_predicts_without_correction(void **state)
 {
     (void)state;
@@ -547,6 +632,8 @@ int main(void)
         cmocka_unit_test(test_obs_gain_tracks_perturbed_model),
         cmocka_unit_test(test_obs_vector_kernels_match_portable),
         cmocka_unit_test(test_obs_two_half_bumpers_equal_one),
+        cmocka_unit_test(test_obs_state_same_in_modal_and_dense_form),
+        cmocka_unit_test(test_obs_gain_removed_is_open_loop),
         cmocka_unit_test(test_obs_nan_measurement_predicts_without_correction),
         cmocka_unit_test(test_obs_nan_input_holds_state),
         cmocka_unit_test(test_obs_simulate_equals_steps),
