@@ -1307,9 +1307,8 @@ static inline bool fast_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y)
         return false;
     }
 #if DV_OBS_X86
-    if (o->simd == 2u) {
-        return o->modal ? dv_priv_obs_step8x4_modal_avx512(o, u, y)
-                        : dv_priv_obs_step8x4_avx512(o, u, y);
+    if (o->simd == 2u && !o->modal) { /* (the modal step is taken before, by the callers) */
+        return dv_priv_obs_step8x4_avx512(o, u, y);
     }
 #endif
     const dv_real_t bad =
@@ -1331,13 +1330,28 @@ static inline bool fast_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y)
     return true;
 }
 
-dv_status_t dv_obs_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas)
+/* kept out of line: dv_obs_step() then needs no saved registers on its modal path */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+dv_status_t dv_priv_obs_step_slow(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas)
 {
-    DV_ASSERT(o != NULL && o->m != NULL);
     if (fast_step(o, u, y_meas)) {
         return DV_OK;
     }
     return step(o, u, y_meas, true);
+}
+
+dv_status_t dv_obs_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas)
+{
+    DV_ASSERT(o != NULL && o->m != NULL);
+#if DV_OBS_X86
+    /* the modal step, a tail call (it hands anything but a regular step to the slow path) */
+    if (o->modal && o->started && y_meas != NULL) {
+        return dv_priv_obs_step8x4_modal_avx512(o, u, y_meas);
+    }
+#endif
+    return dv_priv_obs_step_slow(o, u, y_meas);
 }
 
 uint32_t dv_obs_latency(const dv_obs_t *o)
@@ -1435,8 +1449,15 @@ static dv_status_t run_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y
     dv_status_t worst = DV_OK;
     for (size_t k = 0; k < n; k++) {
         const dv_real_t *yk = y_meas != NULL ? y_meas + k * no : NULL;
-        const dv_status_t st =
-            (use_gain && fast_step(o, u[k], yk)) ? DV_OK : step(o, u[k], yk, use_gain);
+        dv_status_t st;
+#if DV_OBS_X86
+        if (use_gain && o->modal && o->started && yk != NULL) {
+            st = dv_priv_obs_step8x4_modal_avx512(o, u[k], yk);
+        } else
+#endif
+        {
+            st = (use_gain && fast_step(o, u[k], yk)) ? DV_OK : step(o, u[k], yk, use_gain);
+        }
         if (st != DV_OK) {
             worst = st;
         }

@@ -154,12 +154,13 @@ DV_TGT_AVX512 bool dv_priv_obs_step8x4_avx512(dv_obs_t *o, double u, const doubl
     return true;
 }
 
-DV_TGT_AVX512 bool dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u, const double *y)
+DV_TGT_AVX512 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u,
+                                                          const double *y)
 {
     const __m256d ym = _mm256_loadu_pd(y);
     const __m256d fin = _mm256_add_pd(_mm256_sub_pd(ym, ym), _mm256_set1_pd(u - u));
     if (_mm256_movemask_pd(_mm256_cmp_pd(fin, _mm256_setzero_pd(), _CMP_NEQ_UQ)) != 0) {
-        return false;
+        return dv_priv_obs_step_slow(o, u, y); /* flags and counts the bad sample */
     }
     double *sv = o->sv;
     const double *fx = o->f;
@@ -203,7 +204,7 @@ DV_TGT_AVX512 bool dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u, const
     o->flags = 0u;
     o->n_pred++;
     o->n_steps++;
-    return true;
+    return DV_OK;
 }
 
 #else

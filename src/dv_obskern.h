@@ -13,6 +13,10 @@
 #define DV_OBS_X86 0
 #endif
 
+/* dv_obs_step() without the modal step: the direct path when it applies, else the general
+ * one (dv_obs.c). */
+dv_status_t dv_priv_obs_step_slow(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas);
+
 #if DV_OBS_X86
 /* The 8-state, 4-output step product with AVX2 + FMA: the same contract as kernel_8x4() in
  * dv_obs.c (fx: 8-row column-major state rows over [x, inputs (nin), y (ny)], fy: 4-row
@@ -27,9 +31,10 @@ void dv_priv_obs_kern8x4_avx2(size_t nin, size_t ny, const dv_real_t *fx, const 
  * touched, when u or a y[q] is not finite. */
 bool dv_priv_obs_step8x4_avx512(dv_obs_t *o, double u, const double *y);
 
-/* The same step in modal coordinates (o->modal): q+ = Lam q + inputs, with Lam's 2 x 2 blocks
- * from o->fm, and the prediction from the C T rows in o->fm. */
-bool dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u, const double *y);
+/* The same step in modal coordinates (o->modal, past the first sample, y given): q+ = Lam q +
+ * inputs, with Lam's 2 x 2 blocks from o->fm, and the prediction from the C T rows in o->fm.
+ * A non-finite u or y goes to dv_priv_obs_step_slow(); returns dv_obs_step()'s status. */
+dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u, const double *y);
 #endif
 
 #endif /* DV_OBSKERN_H */
