@@ -153,8 +153,9 @@ def main() -> int:
            f"Effective clock seen by one thread (bench/bench_clock.c: a chain of dependent "
            f"integer multiplies, 3 cycles each): {clock[0]:.2f} GHz before the benchmarks, "
            f"{clock[-1]:.2f} GHz after them (about 2.9 GHz when the host is quiet). A lower "
-           f"figure means other processes shared the cores during the run, and the times are "
-           f"inflated by about that ratio.", ""]
+           f"figure means other processes shared the cores during the run. It does not catch "
+           f"every slow period: the same binary has also run 1.4-1.6x slower at a normal "
+           f"figure (a busy sibling thread or memory system), which the min-max ranges show.", ""]
     for prog, rs in rows.items():
         out += [f"## {prog}", "", "| case | real | ns/unit [min-max] | instr/unit | target | met |",
                 "|---|---|---|---|---|---|"]

@@ -16,6 +16,11 @@
  * noise of variance r per channel, from the filter DARE solved by the structure-preserving
  * doubling algorithm at init, or set by the caller.
  *
+ * On x86-64 double builds the step uses AVX2/AVX-512 kernels picked at init; with AVX-512 the
+ * linear 4-DOF, 4-output first-order-hold step keeps its state in modal coordinates q = T^-1 x
+ * (the folded state block in real 2 x 2 block-diagonal form, dv_obs.c), which halves it.
+ * dv_obs_get_state() returns x in every case; results agree with the portable code to rounding.
+ *
  * Cubic input hold (model built with DV_HOLD_CUBIC, dv_model.h): the step from t_k-1 to t_k
  * needs u[k-2..k+1], so the observer runs ONE SAMPLE LATE (dv_obs_latency() = 1). The call
  * with u[j], y[j] keeps y[j] and completes sample k = j - 1: x-[k], yhat[k], the residual
