@@ -746,6 +746,25 @@ static dv_real_t stickslip_g(const dv_contact_desc_t *c, dv_real_t xp, dv_real_t
     return g > f ? f : (g < -f ? -f : g);
 }
 
+/* The force-free part of X at sub-node force f (rx x + the input window's share): what X would
+ * be with no contact force at this or any earlier node of the step. */
+static inline dv_real_t node_x_free(const dv_model_t *m, size_t f, size_t ns, bool cubic,
+                                    const dv_real_t *win, const dv_real_t *sv)
+{
+    const dv_real_t *rx = m->rx + f * ns;
+    dv_real_t s;
+    if (cubic) {
+        const dv_real_t *ru = m->rxu + f * 4u;
+        s = ru[0] * win[0] + ru[1] * win[1] + ru[2] * win[2] + ru[3] * win[3];
+    } else {
+        s = m->rxa[f] * win[0] + m->rxb[f] * win[1];
+    }
+    for (size_t j = 0; j < ns; j++) {
+        s += rx[j] * sv[j];
+    }
+    return s;
+}
+
 /* One side of the bilinear gap law (dv_priv_contact_g1()) without branches, kh = kb / (2 delta)
  * given: kh min(max(s, 0), delta)^2 + kb max(s - delta, 0). Continuous, like the law. */
 static inline dv_real_t gap_g1(dv_real_t s, dv_real_t delta, dv_real_t kb, dv_real_t kh)
@@ -770,18 +789,7 @@ static void contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
     const dv_contact_desc_t *c = &m->contact[0];
     dv_real_t xl[DV_MAX_SUB + 1u];
     for (size_t f = 0; f < nf; f++) {
-        const dv_real_t *rx = m->rx + f * ns;
-        dv_real_t s;
-        if (cubic) {
-            const dv_real_t *ru = m->rxu + f * 4u;
-            s = ru[0] * win[0] + ru[1] * win[1] + ru[2] * win[2] + ru[3] * win[3];
-        } else {
-            s = m->rxa[f] * win[0] + m->rxb[f] * win[1];
-        }
-        for (size_t j = 0; j < ns; j++) {
-            s += rx[j] * sv[j];
-        }
-        xl[f] = s;
+        xl[f] = node_x_free(m, f, ns, cubic, win, sv);
     }
     const int law = (int)c->law;
     const bool gap = law == DV_ELEM_CONTACT;
@@ -848,18 +856,8 @@ static void contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
         const size_t f0 = i * nc;
         for (size_t e = 0; e < nc; e++) {
             const size_t f = f0 + e;
-            const dv_real_t *rx = m->rx + f * ns;
             const dv_real_t *srow = m->smat + f * nf;
-            dv_real_t s;
-            if (cubic) {
-                const dv_real_t *ru = m->rxu + f * 4u;
-                s = ru[0] * win[0] + ru[1] * win[1] + ru[2] * win[2] + ru[3] * win[3];
-            } else {
-                s = m->rxa[f] * win[0] + m->rxb[f] * win[1];
-            }
-            for (size_t j = 0; j < ns; j++) {
-                s += rx[j] * sv[j];
-            }
+            dv_real_t s = node_x_free(m, f, ns, cubic, win, sv);
             for (size_t j = 0; j < f0; j++) {
                 s += srow[j] * g[j];
             }

@@ -100,6 +100,21 @@ DV_TGT_AVX2 void dv_priv_obs_kern8x4_avx2(size_t nin, size_t ny, const double *f
 }
 
 
+/* The end of a regular step: the new state (x or q), the prediction, the residual, the input
+ * kept as the next step's u[k-1], the counters. */
+DV_TGT_AVX512 static inline void finish8x4(dv_obs_t *o, __m512d xn, __m256d yh, __m256d ym,
+                                           double u)
+{
+    double *sv = o->sv;
+    _mm512_storeu_pd(sv, xn);
+    _mm256_storeu_pd(o->z + 8, yh);
+    _mm256_storeu_pd(o->resid, _mm256_sub_pd(ym, yh));
+    sv[8] = u;
+    o->flags = 0u;
+    o->n_pred++;
+    o->n_steps++;
+}
+
 /* The whole regular linear step of the 4-DOF, 4-channel observer with AVX-512: the 8 state
  * rows of a column fill one register. Returns false, touching nothing, when u or a measured
  * channel is not finite (the caller's general path flags it). */
@@ -144,13 +159,7 @@ DV_TGT_AVX512 bool dv_priv_obs_step8x4_avx512(dv_obs_t *o, double u, const doubl
     }
     const __m512d xn = _mm512_add_pd(_mm512_add_pd(p[0], p[1]), _mm512_add_pd(p[2], p[3]));
     const __m256d yh = _mm256_add_pd(_mm256_add_pd(py[0], py[1]), _mm256_add_pd(py[2], py[3]));
-    _mm512_storeu_pd(sv, xn);
-    _mm256_storeu_pd(o->z + 8, yh);
-    _mm256_storeu_pd(o->resid, _mm256_sub_pd(ym, yh));
-    sv[8] = u;
-    o->flags = 0u;
-    o->n_pred++;
-    o->n_steps++;
+    finish8x4(o, xn, yh, ym, u);
     return true;
 }
 
@@ -197,13 +206,7 @@ DV_TGT_AVX512 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u
     __m256d yh = _mm512_castpd512_pd256(g);
     yh = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 32), _mm512_castpd512_pd256(up), yh);
     yh = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 36), _mm512_castpd512_pd256(uk), yh);
-    _mm512_storeu_pd(sv, qn);
-    _mm256_storeu_pd(o->z + 8, yh);
-    _mm256_storeu_pd(o->resid, _mm256_sub_pd(ym, yh));
-    sv[8] = u;
-    o->flags = 0u;
-    o->n_pred++;
-    o->n_steps++;
+    finish8x4(o, qn, yh, ym, u);
     return DV_OK;
 }
 
