@@ -123,8 +123,8 @@ static dv_status_t close_block(dv_chan_t *s, uint32_t n, const blk_acc_t *a)
  * common case, a whole block that is also a whole block of the temporal moments, is one fused
  * kernel pass (src/dv_featkern.c); other spans (a short segment end, a block that wraps around
  * the ring) are rare and take the plain loops. */
-static void add_span(dv_chan_t *s, blk_acc_t *acc, const dv_real_t *restrict x, size_t n,
-                     bool starts_segment)
+static void add_span(dv_chan_t *s, uint32_t kern, blk_acc_t *acc, const dv_real_t *restrict x,
+                     size_t n, bool starts_segment)
 {
     if (starts_segment) {
         s->shift = x[0]; /* power sums about the segment's first sample */
@@ -132,7 +132,7 @@ static void add_span(dv_chan_t *s, blk_acc_t *acc, const dv_real_t *restrict x, 
     const dv_real_t k = s->shift;
     if (n == DV_BLOCK_LEN && s->tm.blk == 0u) {
         dv_real_t w[5];
-        dv_priv_feat_block(x, k, acc->p, acc->mm, w); /* acc is clear here */
+        dv_priv_feat_block(kern, x, k, acc->p, acc->mm, w); /* acc is clear here */
         dv_priv_temporal_push_block(&s->tm, w);
         return;
     }
@@ -156,6 +156,31 @@ static void add_span(dv_chan_t *s, blk_acc_t *acc, const dv_real_t *restrict x, 
     acc->mm[1] = mx;
 }
 
+/* A whole block of m samples straight from the caller's array, when they are all finite:
+ * the fused kernel runs first and its energy sum tells (NaN/Inf make it non-finite), so a
+ * bad block changes no state and returns false. */
+static bool caller_block(dv_chan_t *s, uint32_t kern, blk_acc_t *acc, const dv_real_t *x,
+                         uint32_t m)
+{
+    acc_clear(acc);
+    if (m == DV_BLOCK_LEN && s->tm.blk == 0u) {
+        const dv_real_t k = s->seg_pos == 0u ? x[0] : s->shift;
+        dv_real_t w[5];
+        dv_priv_feat_block(kern, x, k, acc->p, acc->mm, w);
+        if (!dv_priv_finite(w[0])) {
+            return false;
+        }
+        s->shift = k;
+        dv_priv_temporal_push_block(&s->tm, w);
+        return true;
+    }
+    if (!dv_priv_all_finite(x, m)) {
+        return false;
+    }
+    add_span(s, kern, acc, x, m, s->seg_pos == 0u);
+    return true;
+}
+
 /* The open block's samples sit in the sliding ring, ending just before its head. */
 DV_COLD static dv_status_t close_ring_block(dv_chan_t *s)
 {
@@ -164,11 +189,12 @@ DV_COLD static dv_status_t close_ring_block(dv_chan_t *s)
     const bool starts = s->seg_pos == 0u;
     blk_acc_t acc;
     acc_clear(&acc);
+    const uint32_t kern = dv_priv_feat_kern();
     if (end >= n) {
-        add_span(s, &acc, s->win.ring + (end - n), n, starts);
+        add_span(s, kern, &acc, s->win.ring + (end - n), n, starts);
     } else { /* the block wraps around the ring's end */
-        add_span(s, &acc, s->win.ring + (len - (n - end)), n - end, starts);
-        add_span(s, &acc, s->win.ring, end, false);
+        add_span(s, kern, &acc, s->win.ring + (len - (n - end)), n - end, starts);
+        add_span(s, kern, &acc, s->win.ring, end, false);
     }
     return close_block(s, n, &acc);
 }
@@ -194,10 +220,12 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
         return DV_EINVAL;
     }
     size_t used = 0u;
+    uint32_t kern = UINT32_MAX; /* asked once per call */
     while (used < n) {
         /* Whole blocks from here to the record's end (or the input's end) go straight from the
-         * caller's array; an open block, a short tail or a block with NaN/Inf goes through the
-         * per-sample path, which keeps its pending samples in the ring. */
+         * caller's array, up to the first block with a NaN/Inf; an open block, a short tail or
+         * a block with NaN/Inf goes through the per-sample path, which keeps its pending
+         * samples in the ring. */
         size_t whole = 0u;
         if (open_len(s) == 0u) {
             const size_t rec_left = (size_t)(s->cfg.n_seg - s->seg.seg) * s->cfg.seg_len -
@@ -212,12 +240,24 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
                 whole += m;
                 sp = sp + m == s->cfg.seg_len ? 0u : sp + m;
             }
-            if (!dv_priv_all_finite(x + used, whole)) {
-                whole = 0u;
-            }
         }
-        if (whole == 0u) {
-            const dv_status_t st = dv_chan_update(s, x[used]);
+        const dv_real_t *p = x + used;
+        size_t done = 0u;
+        dv_status_t st = DV_OK;
+        if (whole > 0u && kern == UINT32_MAX) {
+            kern = dv_priv_feat_kern();
+        }
+        while (done < whole) {
+            const uint32_t m = block_len(s, s->seg_pos);
+            blk_acc_t acc;
+            if (!caller_block(s, kern, &acc, p + done, m)) {
+                break;
+            }
+            st = close_block(s, m, &acc);
+            done += m;
+        }
+        if (done == 0u) {
+            st = dv_chan_update(s, x[used]);
             used++;
             if (st == DV_RECORD) {
                 *n_used = used;
@@ -225,18 +265,8 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
             }
             continue;
         }
-        const dv_real_t *p = x + used;
-        dv_priv_sliding_push_finite(&s->win, p, whole);
-        dv_status_t st = DV_OK;
-        for (size_t off = 0u; off < whole;) {
-            const uint32_t m = block_len(s, s->seg_pos);
-            blk_acc_t acc;
-            acc_clear(&acc);
-            add_span(s, &acc, p + off, m, s->seg_pos == 0u);
-            st = close_block(s, m, &acc);
-            off += m;
-        }
-        used += whole;
+        dv_priv_sliding_push_finite(&s->win, p, done);
+        used += done;
         if (st == DV_RECORD) { /* only at the stretch's end: it stops at the record's end */
             *n_used = used;
             return DV_RECORD;

@@ -9,7 +9,9 @@
 #include "dynval/dv_sliding.h"
 #include "dynval/dv_temporal.h"
 
-void dv_priv_sliding_turn_over(dv_sliding_t *s);
+/* The ring has turned over: recompute its sums. src is the ring itself, or the window's
+ * len samples to copy into the ring (one pass: the copy rides on the turn-over's loads). */
+void dv_priv_sliding_turn_over(dv_sliding_t *s, const dv_real_t *src);
 
 /* ---- block kernels (src/dv_featkern.c): portable C, and on x86-64 double builds AVX2/FMA and
  * AVX-512F versions picked at run time. ---- */
@@ -17,14 +19,17 @@ void dv_priv_sliding_turn_over(dv_sliding_t *s);
 /* 0 portable, 1 AVX2+FMA, 2 AVX-512F */
 uint32_t dv_priv_feat_kern(void);
 
-/* One block of DV_BLOCK_LEN finite samples: p[k] = sum (x - k0)^(k+1), mm = {min, max} folded
- * into the given {min, max}, w[k] = sum x^2 tau^k with tau = 0, 1, ... */
-void dv_priv_feat_block(const dv_real_t *x, dv_real_t k0, dv_real_t p[4], dv_real_t mm[2],
-                        dv_real_t w[5]);
+/* One block of DV_BLOCK_LEN samples: p[k] = sum (x - k0)^(k+1), mm = {min, max} folded
+ * into the given {min, max}, w[k] = sum x^2 tau^k with tau = 0, 1, ... kern is
+ * dv_priv_feat_kern(), asked once by the caller. A NaN/Inf sample makes w[0] non-finite (so
+ * does a finite |x| > ~1e154: callers treat both as "take the per-sample path"). */
+void dv_priv_feat_block(uint32_t kern, const dv_real_t *x, dv_real_t k0, dv_real_t p[4],
+                        dv_real_t mm[2], dv_real_t w[5]);
 
-/* s[k] = sum (r - k0)^(k+1) over r[0..n), smax[i] / smin[i] = max / min of r[i..n). */
-void dv_priv_feat_turn(const dv_real_t *r, uint32_t n, dv_real_t k0, dv_real_t *smax,
-                       dv_real_t *smin, dv_real_t s[4]);
+/* ring[0..n) = src[0..n) (src may be ring), s[k] = sum (ring - k0)^(k+1),
+ * smax[i] / smin[i] = max / min of ring[i..n). */
+void dv_priv_feat_turn(const dv_real_t *src, dv_real_t *ring, uint32_t n, dv_real_t k0,
+                       dv_real_t *smax, dv_real_t *smin, dv_real_t s[4]);
 
 /* dv_sliding_update_block() for samples known to be finite (the caller checked). */
 void dv_priv_sliding_push_finite(dv_sliding_t *s, const dv_real_t *x, size_t n);
@@ -62,7 +67,7 @@ static inline void dv_priv_sliding_push(dv_sliding_t *s, dv_real_t x)
     *slot = x;
     s->head = h + 1u;
     if (h + 1u == s->len) {
-        dv_priv_sliding_turn_over(s);
+        dv_priv_sliding_turn_over(s, s->ring);
     }
 }
 

@@ -127,6 +127,13 @@ DV_TGT_AVX2 static double hmax4(__m256d v)
     return _mm_cvtsd_f64(_mm_max_sd(s, _mm_unpackhi_pd(s, s)));
 }
 
+/* {sum a, sum b, sum c, sum d} in one vector */
+DV_TGT_AVX2 static __m256d hsum4x4(__m256d a, __m256d b, __m256d c, __m256d d)
+{
+    const __m256d ab = _mm256_hadd_pd(a, b), cd = _mm256_hadd_pd(c, d);
+    return _mm256_add_pd(_mm256_permute2f128_pd(ab, cd, 0x20), _mm256_permute2f128_pd(ab, cd, 0x31));
+}
+
 DV_TGT_AVX2 static void block_avx2(const double *x, double k, double p[4], double mm[2],
                                    double w[5])
 {
@@ -153,29 +160,24 @@ DV_TGT_AVX2 static void block_avx2(const double *x, double k, double p[4], doubl
         mn = _mm256_min_pd(v, mn);
         mx = _mm256_max_pd(v, mx);
     }
-    p[0] = hsum4(p1);
-    p[1] = hsum4(p2);
-    p[2] = hsum4(p3);
-    p[3] = hsum4(p4);
+    _mm256_storeu_pd(p, hsum4x4(p1, p2, p3, p4));
+    _mm256_storeu_pd(w, hsum4x4(w0, w1, w2, w3));
+    w[4] = hsum4(w4);
     mm[0] = hmin4(mn);
     mm[1] = hmax4(mx);
-    w[0] = hsum4(w0);
-    w[1] = hsum4(w1);
-    w[2] = hsum4(w2);
-    w[3] = hsum4(w3);
-    w[4] = hsum4(w4);
 }
 
 /* Suffix extremes four at a time, from the ring's end backwards: within a vector by two
  * shift-and-compare steps, then against the carry from the samples to its right. */
-DV_TGT_AVX2 static void turn_avx2(const double *r, uint32_t n, double k, double *smax, double *smin,
-                                  double s[4])
+DV_TGT_AVX2 static void turn_avx2(const double *r, double *dst, uint32_t n, double k, double *smax,
+                                  double *smin, double s[4])
 {
     double mxs = -DV_REAL_MAX, mns = DV_REAL_MAX;
     double a[4] = {0.0, 0.0, 0.0, 0.0};
     uint32_t i = n;
     for (; (i & 3u) != 0u; i--) { /* the n % 4 last samples */
         const double v = r[i - 1u], u = v - k, u2 = u * u;
+        dst[i - 1u] = v;
         a[0] += u;
         a[1] += u2;
         a[2] += u2 * u;
@@ -190,6 +192,7 @@ DV_TGT_AVX2 static void turn_avx2(const double *r, uint32_t n, double k, double 
     __m256d cmx = _mm256_set1_pd(mxs), cmn = _mm256_set1_pd(mns);
     for (; i >= 4u; i -= 4u) {
         const __m256d v = _mm256_loadu_pd(r + i - 4u);
+        _mm256_storeu_pd(dst + i - 4u, v);
         const __m256d u = _mm256_sub_pd(v, kv), u2 = _mm256_mul_pd(u, u);
         p1 = _mm256_add_pd(p1, u);
         p2 = _mm256_add_pd(p2, u2);
@@ -211,6 +214,25 @@ DV_TGT_AVX2 static void turn_avx2(const double *r, uint32_t n, double k, double 
     s[1] = hsum4(p2) + a[1];
     s[2] = hsum4(p3) + a[2];
     s[3] = hsum4(p4) + a[3];
+}
+
+/* Lane j of the result: sum of vector j (a, b, c, d, e, f, g, h) */
+DV_TGT_AVX512 static __m512d pairsum8(__m512d a, __m512d b)
+{
+    return _mm512_add_pd(_mm512_unpacklo_pd(a, b), _mm512_unpackhi_pd(a, b));
+}
+
+DV_TGT_AVX512 static __m512d lanesum8(__m512d a, __m512d b)
+{
+    return _mm512_add_pd(_mm512_shuffle_f64x2(a, b, 0x88), _mm512_shuffle_f64x2(a, b, 0xDD));
+}
+
+DV_TGT_AVX512 static __m512d hsum8x8(__m512d a, __m512d b, __m512d c, __m512d d, __m512d e,
+                                     __m512d f, __m512d g, __m512d h)
+{
+    const __m512d abcd = lanesum8(pairsum8(a, b), pairsum8(c, d));
+    const __m512d efgh = lanesum8(pairsum8(e, f), pairsum8(g, h));
+    return lanesum8(abcd, efgh);
 }
 
 DV_TGT_AVX512 static void block_avx512(const double *x, double k, double p[4], double mm[2],
@@ -239,27 +261,23 @@ DV_TGT_AVX512 static void block_avx512(const double *x, double k, double p[4], d
         mn = _mm512_min_pd(v, mn);
         mx = _mm512_max_pd(v, mx);
     }
-    p[0] = _mm512_reduce_add_pd(p1);
-    p[1] = _mm512_reduce_add_pd(p2);
-    p[2] = _mm512_reduce_add_pd(p3);
-    p[3] = _mm512_reduce_add_pd(p4);
+    const __m512d sums = hsum8x8(p1, p2, p3, p4, w0, w1, w2, w3);
+    _mm256_storeu_pd(p, _mm512_castpd512_pd256(sums));
+    _mm256_storeu_pd(w, _mm512_extractf64x4_pd(sums, 1));
+    w[4] = _mm512_reduce_add_pd(w4);
     mm[0] = _mm512_reduce_min_pd(mn);
     mm[1] = _mm512_reduce_max_pd(mx);
-    w[0] = _mm512_reduce_add_pd(w0);
-    w[1] = _mm512_reduce_add_pd(w1);
-    w[2] = _mm512_reduce_add_pd(w2);
-    w[3] = _mm512_reduce_add_pd(w3);
-    w[4] = _mm512_reduce_add_pd(w4);
 }
 
-DV_TGT_AVX512 static void turn_avx512(const double *r, uint32_t n, double k, double *smax,
-                                      double *smin, double s[4])
+DV_TGT_AVX512 static void turn_avx512(const double *r, double *dst, uint32_t n, double k,
+                                      double *smax, double *smin, double s[4])
 {
     double mxs = -DV_REAL_MAX, mns = DV_REAL_MAX;
     double a[4] = {0.0, 0.0, 0.0, 0.0};
     uint32_t i = n;
     for (; (i & 7u) != 0u; i--) { /* the n % 8 last samples */
         const double v = r[i - 1u], u = v - k, u2 = u * u;
+        dst[i - 1u] = v;
         a[0] += u;
         a[1] += u2;
         a[2] += u2 * u;
@@ -278,6 +296,7 @@ DV_TGT_AVX512 static void turn_avx512(const double *r, uint32_t n, double k, dou
     __m512d cmx = _mm512_set1_pd(mxs), cmn = _mm512_set1_pd(mns);
     for (; i >= 8u; i -= 8u) {
         const __m512d v = _mm512_loadu_pd(r + i - 8u);
+        _mm512_storeu_pd(dst + i - 8u, v);
         const __m512d u = _mm512_sub_pd(v, kv), u2 = _mm512_mul_pd(u, u);
         p1 = _mm512_add_pd(p1, u);
         p2 = _mm512_add_pd(p2, u2);
@@ -322,11 +341,11 @@ uint32_t dv_priv_feat_kern(void)
     return 0u;
 }
 
-void dv_priv_feat_block(const dv_real_t *x, dv_real_t k, dv_real_t p[4], dv_real_t mm[2],
-                        dv_real_t w[5])
+void dv_priv_feat_block(uint32_t kern, const dv_real_t *x, dv_real_t k, dv_real_t p[4],
+                        dv_real_t mm[2], dv_real_t w[5])
 {
+    (void)kern;
 #if DV_FEAT_X86 && (DV_BLOCK_LEN % 8u == 0u)
-    const uint32_t kern = dv_priv_feat_kern();
     if (kern == 2u) {
         block_avx512(x, k, p, mm, w);
         return;
@@ -339,19 +358,24 @@ void dv_priv_feat_block(const dv_real_t *x, dv_real_t k, dv_real_t p[4], dv_real
     block_c(x, k, p, mm, w);
 }
 
-void dv_priv_feat_turn(const dv_real_t *r, uint32_t n, dv_real_t k, dv_real_t *smax,
-                       dv_real_t *smin, dv_real_t s[4])
+void dv_priv_feat_turn(const dv_real_t *src, dv_real_t *ring, uint32_t n, dv_real_t k,
+                       dv_real_t *smax, dv_real_t *smin, dv_real_t s[4])
 {
 #if DV_FEAT_X86
     const uint32_t kern = dv_priv_feat_kern();
     if (kern == 2u) {
-        turn_avx512(r, n, k, smax, smin, s);
+        turn_avx512(src, ring, n, k, smax, smin, s);
         return;
     }
     if (kern == 1u) {
-        turn_avx2(r, n, k, smax, smin, s);
+        turn_avx2(src, ring, n, k, smax, smin, s);
         return;
     }
 #endif
-    turn_c(r, n, k, smax, smin, s);
+    if (src != ring) {
+        for (uint32_t i = 0u; i < n; i++) {
+            ring[i] = src[i];
+        }
+    }
+    turn_c(ring, n, k, smax, smin, s);
 }

@@ -42,13 +42,13 @@ void dv_sliding_reset(dv_sliding_t *s)
  * extremes for the next turn, then re-centre them on the window mean (exact algebra; the old
  * shift is within a few STDs of it, so this is well conditioned) so a drifting signal keeps
  * small deviations. */
-void dv_priv_sliding_turn_over(dv_sliding_t *s)
+void dv_priv_sliding_turn_over(dv_sliding_t *s, const dv_real_t *src)
 {
     const uint32_t n = s->len;
     /* the first turn's sums were about an arbitrary shift: centre on a sample of the window */
-    const dv_real_t k = s->fill == n ? s->shift : s->ring[0];
+    const dv_real_t k = s->fill == n ? s->shift : src[0];
     s->fill = n;
-    dv_priv_feat_turn(s->ring, n, k, s->sufmax, s->sufmin, s->s);
+    dv_priv_feat_turn(src, s->ring, n, k, s->sufmax, s->sufmin, s->s);
     const dv_real_t delta = s->s[0] / (dv_real_t)n; /* window mean - shift */
     dv_priv_sums_shift(s->s, (dv_real_t)n, -delta);
     s->shift = k + delta;
@@ -99,10 +99,7 @@ void dv_priv_sliding_push_finite(dv_sliding_t *s, const dv_real_t *x, size_t n)
         }
         if (m == s->len) {
             /* A whole turn replaces the window: the turn-over recomputes everything from it. */
-            for (size_t j = 0u; j < m; j++) {
-                s->ring[j] = p[j];
-            }
-            dv_priv_sliding_turn_over(s);
+            dv_priv_sliding_turn_over(s, p);
             i += m;
             continue;
         }
@@ -161,7 +158,7 @@ void dv_priv_sliding_push_finite(dv_sliding_t *s, const dv_real_t *x, size_t n)
         s->premin = mn;
         s->head += (uint32_t)m;
         if (s->head == s->len) {
-            dv_priv_sliding_turn_over(s);
+            dv_priv_sliding_turn_over(s, s->ring);
         }
         i += m;
     }

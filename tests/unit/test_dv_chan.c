@@ -112,6 +112,52 @@ static void test_chan_nan_is_dropped_everywhere(void **state)
     assert_true(dv_test_close(st.mean, 4.5, 1e-6, 0));
 }
 
+// NaN/Inf inside whole 64-sample blocks of the block API (the fused kernel finds them after
+// the fact): the block falls back to the per-sample path, nothing of it is half-applied, and
+// the result equals the per-sample API's with the same samples dropped.
+static void test_chan_block_nan_in_whole_blocks(void **state)
+{
+    (void)state;
+    load();
+    static dv_real_t xn[2 * NMAX];
+    for (size_t i = 0; i < 2 * NMAX; i++) xn[i] = xr[i];
+    const size_t bad[] = {0, 700, 701, 1000, 2047, 4096 + 63, 4096 + 64, 6000};
+    for (size_t j = 0; j < sizeof bad / sizeof bad[0]; j++)
+        xn[bad[j]] = (j % 2) ? (dv_real_t)NAN : (dv_real_t)((j % 4) == 0 ? INFINITY : -INFINITY);
+    dv_chan_t a, b;
+    dv_chan_init(&a, &CFG, buf, DV_CHAN_BUF_LEN(WIN, NS));
+    dv_chan_init(&b, &CFG, buf2, DV_CHAN_BUF_LEN(WIN, NS));
+    const size_t n = 2 * NMAX;
+    int ra = 0, rb = 0;
+    for (size_t i = 0; i < n; i++) ra += dv_chan_update(&a, xn[i]) == DV_RECORD;
+    size_t off = 0, used = 0;
+    while (off < n) {
+        dv_status_t st = dv_chan_update_block(&b, xn + off, n - off, &used);
+        assert_true(used >= 1 && used <= n - off);
+        rb += st == DV_RECORD;
+        off += used;
+    }
+    assert_int_equal(ra, 1);
+    assert_int_equal(rb, 1);
+    assert_int_equal(a.n_nonfinite, 8);
+    assert_int_equal(b.n_nonfinite, 8);
+    assert_true(a.tm.count == b.tm.count && a.rec.count == b.rec.count);
+    dv_stats_t sa, sb;
+    dv_temporal_out_t ta, tb;
+    assert_int_equal(dv_chan_get_record(&a, &sa, &ta), DV_OK);
+    assert_int_equal(dv_chan_get_record(&b, &sb, &tb), DV_OK);
+    assert_true(dv_test_stats_close(&sa, &sb, DV_TEST_RTOL));
+    assert_true(dv_test_close(tb.energy, ta.energy, DV_TEST_RTOL, 0));
+    assert_true(dv_test_close(tb.rms_duration, ta.rms_duration, DV_TEST_RTOL, 0));
+    assert_int_equal(dv_chan_get_window(&a, &sa), DV_OK);
+    assert_int_equal(dv_chan_get_window(&b, &sb), DV_OK);
+    assert_true(dv_test_stats_close(&sa, &sb, DV_TEST_RTOL));
+    dv_real_t va[NS], vb[NS];
+    assert_int_equal(dv_segstd_get(&a.seg, va, NS), DV_OK);
+    assert_int_equal(dv_segstd_get(&b.seg, vb, NS), DV_OK);
+    for (int i = 0; i < NS; i++) assert_true(dv_test_close(vb[i], va[i], DV_TEST_RTOL, 1e-12));
+}
+
 static void test_chan_bad_config(void **state)
 {
     (void)state;
@@ -141,6 +187,7 @@ int main(void)
         cmocka_unit_test(test_chan_record_features_match_golden),
         cmocka_unit_test(test_chan_block_agrees_with_per_sample),
         cmocka_unit_test(test_chan_nan_is_dropped_everywhere),
+        cmocka_unit_test(test_chan_block_nan_in_whole_blocks),
         cmocka_unit_test(test_chan_bad_config),
     };
     return cmocka_run_group_tests_name("dv_chan", tests, NULL, NULL);
