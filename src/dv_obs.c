@@ -804,9 +804,12 @@ static void contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
         for (size_t j = 0; j < f; j++) {
             lin += srow[j] * g[j];
         }
-        /* implicit in the node's own force: fixed-point iterations, a fixed number */
-        const uint32_t iters = f > 0u ? DV_MODEL_FP_ITERS : 1u;
-        dv_real_t cur = f > 0u ? g[f - 1u] : DV_R(0.0);
+        /* implicit in the node's own force: fixed-point iterations, a fixed number, from the
+         * previous node's force (second node) or the line through the previous two (later
+         * nodes: one iteration; see dv_model.h) */
+        const uint32_t iters = f == 1u ? DV_MODEL_FP_ITERS : 1u;
+        dv_real_t cur = f == 0u ? DV_R(0.0)
+                                : (f == 1u ? g[0] : DV_R(2.0) * g[f - 1u] - g[f - 2u]);
         dv_real_t xr = lin;
         for (uint32_t it = 0; it < iters; it++) {
             xr = lin + srow[f] * cur;
@@ -862,10 +865,13 @@ static void contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
                 s += srow[j] * g[j];
             }
             lin[e] = s;
-            cur[e] = i > 0u ? g[f0 - nc + e] : DV_R(0.0);
+            /* start: as in contact_forces_1() */
+            cur[e] = i == 0u ? DV_R(0.0)
+                             : (i == 1u ? g[f0 - nc + e]
+                                        : DV_R(2.0) * g[f0 - nc + e] - g[f0 - 2u * nc + e]);
         }
         /* implicit in the node's own force: fixed-point iterations, a fixed number */
-        const uint32_t iters = i > 0u ? DV_MODEL_FP_ITERS : 1u;
+        const uint32_t iters = i == 1u ? DV_MODEL_FP_ITERS : 1u;
         for (uint32_t it = 0; it < iters; it++) {
             for (size_t e = 0; e < nc; e++) {
                 const dv_real_t *srow = m->smat + (f0 + e) * nf + f0;

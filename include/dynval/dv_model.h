@@ -59,8 +59,11 @@
  * x[k+1] = Ad x[k] + (G0 - G1) u[k] + G1 u[k+1]. The contact forces are extra inputs with
  * the same hold on n_sub sub-intervals of h = T / n_sub: at each sub-node the relative
  * displacements are predicted exactly from the state, the input and the earlier sub-node
- * forces, and the implicit force at the node is resolved by DV_MODEL_FP_ITERS fixed-point
- * iterations, so a step always costs the same. The end state adds all sub-node forces through
+ * forces, and the implicit force at the node is resolved by fixed-point iterations, a fixed
+ * number, so a step always costs the same: DV_MODEL_FP_ITERS at the step's second node (started
+ * from the first node's force), one at each later node, started from the line through the two
+ * previous nodes' forces (that start is already O(h^2) close, the order of the scheme; a second
+ * iteration changes the error by a few per cent). The end state adds all sub-node forces through
  * precomputed columns. Error: O((w_c h)^2) in the contact force's effect, w_c the contact
  * stiffened frequency; init refuses w_max h > DV_MODEL_CONTACT_MAX_WH.
  *
@@ -94,7 +97,8 @@ extern "C" {
 /** DOF index that stands for the ground in a contact element. */
 enum { DV_GROUND = 65535 };
 
-/** Fixed-point iterations that resolve each implicit sub-node contact force. */
+/** Fixed-point iterations that resolve the implicit contact force at a step's second sub-node
+ *  (the later nodes take one, from an extrapolated start: see the file comment). */
 #define DV_MODEL_FP_ITERS 2u
 
 /** Largest (highest natural frequency with all contacts engaged, rad/s) x (dt / n_sub). */
