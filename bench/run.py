@@ -157,6 +157,7 @@ def main() -> int:
            f"every slow period: the same binary has also run 1.4-1.6x slower at a normal "
            f"figure (a busy sibling thread or memory system), which the min-max ranges show.", ""]
     for prog, rs in rows.items():
+        notes: list[str] = []
         out += [f"## {prog}", "", "| case | real | ns/unit [min-max] | instr/unit | target | met |",
                 "|---|---|---|---|---|---|"]
         for r in rs:
@@ -175,12 +176,16 @@ def main() -> int:
             instr = f"{r['instr']:.1f}" if r["instr"] is not None else "n/a"
             out.append(f"| {r['case']} | {r['real']} | {r['ns']:.2f} [{r['ns_min']:.2f}-"
                        f"{r['ns_max']:.2f}] /{r['unit']} | {instr} | {tdesc} | {met} |")
+            if tgt and tgt.get("note") and met != "yes":
+                notes.append(f"- {r['case']} ({r['real']}): {tgt['note']}")
             for c in comps.get(r["case"], []) if r["real"] == "double" else []:
                 extra = "".join(f", {k} {v:.3g}" for k, v in c.items()
                                 if k not in ("case", "what", "ns", "unit") and isinstance(v, float))
                 out.append(f"| ↳ comparison: {c['what']} | double | {c['ns']:.2f} /{c['unit']}"
                            f" | | dynval is {c['ns'] / r['ns']:.3g}x as fast{extra} | |")
         out.append("")
+        if notes:
+            out += ["Notes on targets not met:", "", *notes, ""]
     if sizes:
         out += ["## State sizes", "", "| program | real | size |", "|---|---|---|", *sizes, ""]
     for c in comps.get("_failed", []):
