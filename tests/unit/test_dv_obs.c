@@ -284,6 +284,19 @@ static void test_obs_gain_removed_is_open_loop(void **state)
     assert_int_equal(dv_obs_update_block(&o2, force_r, ytrue, NS, NULL, res2), DV_OK);
     assert_memory_equal(res, res2, sizeof(dv_real_t) * NS * 4);
     assert_true(rms(res, NS * 4) > 0.05 * rms(ytrue, NS * 4)); // uncorrected: 10 % off
+    // mid-record, setting a gain (a new fold, maybe new modal coordinates) keeps the state
+    dv_real_t x1[8], x2[8], l[32];
+    assert_int_equal(dv_obs_get_state(&o1, x1, 8), DV_OK);
+    for (int i = 0; i < 32; i++) l[i] = (dv_real_t)(1e-3 * ((i * 7) % 5 - 2));
+    assert_int_equal(dv_obs_set_gain(&o1, l, 32), DV_OK);
+    assert_int_equal(dv_obs_get_state(&o1, x2, 8), DV_OK);
+    double dx = 0, xm = 0;
+    for (int i = 0; i < 8; i++) {
+        dx = fmax(dx, fabs((double)x1[i] - x2[i]));
+        xm = fmax(xm, fabs((double)x1[i]));
+    }
+    fprintf(stderr, "state across set_gain: max |dx| / max |x| = %.3g\n", dx / xm);
+    assert_true(xm > 0 && dx <= (sizeof(dv_real_t) == 8 ? 1e-12 : 1e-5) * xm);
 }
 
 static void test_obs_nan_measurement_predicts_without_correction(void **state)
