@@ -6,9 +6,13 @@ of data (8192 samples of a lightly damped 2-mode process, AR(60)).
 - ar60_resid_block: scipy.signal.lfilter over the whole record (FIR with the 61 taps).
 - ar60_levinson_fit_8192: numpy lags (one np.dot per lag, biased) + scipy.linalg.solve_toeplitz.
 - ar60_burg_fit_8192: a plain numpy Burg (vectorised per order, O(n p)).
+- ar60_resid_sample / _block: CMSIS-DSP's arm_fir_f64 over the record, through the cmsisdsp
+  package (`pip install cmsisdsp`: its C sources built for this host); left out, with a log
+  line, when the package is not installed.
 """
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 
@@ -55,6 +59,27 @@ def _burg(x: np.ndarray, p: int) -> np.ndarray:
     return a
 
 
+def _cmsis(taps: np.ndarray, xc: np.ndarray) -> list[dict]:
+    """arm_fir_f64 over the record (coefficients in time-reversed order, as CMSIS wants)."""
+    try:
+        import cmsisdsp as dsp  # type: ignore[import-not-found]
+    except ImportError:
+        logging.getLogger("bench").warning("cmsisdsp not installed: no CMSIS-DSP comparison")
+        return []
+    rev = np.ascontiguousarray(taps[::-1])
+
+    def fir() -> np.ndarray:
+        inst = dsp.arm_fir_instance_f64()
+        dsp.arm_fir_init_f64(inst, P + 1, rev, np.zeros(P + N))
+        return np.asarray(dsp.arm_fir_f64(inst, xc))
+
+    err = float(np.max(np.abs(fir() - signal.lfilter(taps, [1.0], xc))))
+    ns = _median_ns(fir, N, 101)
+    what = f"CMSIS-DSP arm_fir_f64 over the record (cmsisdsp {dsp.__version__}, max |diff| {err:.1e})"
+    return [{"case": c, "what": what, "ns": ns, "unit": "sample"}
+            for c in ("ar60_resid_sample", "ar60_resid_block")]
+
+
 def compare() -> list[dict]:
     x = _data()
     a = _levinson(x, P)
@@ -69,7 +94,8 @@ def compare() -> list[dict]:
     def block() -> None:
         signal.lfilter(taps, [1.0], xc)
 
-    return [
+    out = _cmsis(taps, xc)
+    return out + [
         {"case": "ar60_resid_sample", "what": "scipy lfilter over the record (the issue's figure)",
          "ns": _median_ns(block, N, 201), "unit": "sample"},
         {"case": "ar60_resid_sample", "what": "scipy lfilter, one call per sample with zi",

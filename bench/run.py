@@ -32,6 +32,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 BENCH = ROOT / "bench"
 log = logging.getLogger("bench")
+PEAK_FLOPS_PER_CYCLE = 32  # double, 2 x 512-bit FMA per cycle (8 lanes x 2 flops x 2 units)
 LINE = re.compile(r"case=(\S+) units=(\d+) unit=(\S+) ns=([0-9.eE+-]+)")
 
 
@@ -164,11 +165,16 @@ def main() -> int:
            f"{clock[-1]:.2f} GHz after them (about 2.9 GHz when the host is quiet). A lower "
            f"figure means other processes shared the cores during the run. It does not catch "
            f"every slow period: the same binary has also run 1.4-1.6x slower at a normal "
-           f"figure (a busy sibling thread or memory system), which the min-max ranges show.", ""]
+           f"figure (a busy sibling thread or memory system), which the min-max ranges show.",
+           f"Compute bound: the case's floating-point operations (bench/targets.json: flops, the "
+           f"arithmetic of the cheapest known formulation) at this core's peak in double, "
+           f"{PEAK_FLOPS_PER_CYCLE} flops per cycle (two AVX-512 fused multiply-add units), at "
+           f"{clock[-1]:.2f} GHz. A floor, not a goal: latency-bound code (a recursion) and "
+           f"memory traffic stay above it.", ""]
     for prog, rs in rows.items():
         notes: list[str] = []
-        out += [f"## {prog}", "", "| case | real | ns/unit [min-max] | instr/unit | target | met |",
-                "|---|---|---|---|---|---|"]
+        out += [f"## {prog}", "", "| case | real | ns/unit [min-max] | instr/unit | compute bound "
+                "| target | met |", "|---|---|---|---|---|---|---|"]
         for r in rs:
             tgt = targets.get(r["case"], {}).get(r["real"])
             met = ""
@@ -183,15 +189,17 @@ def main() -> int:
                     ok = ok and r["instr"] <= tgt["instr"]
                 tdesc, met = ", ".join(parts), ("yes" if ok else "**no**")
             instr = f"{r['instr']:.1f}" if r["instr"] is not None else "n/a"
+            flops = targets.get(r["case"], {}).get(r["real"], {}).get("flops")
+            bound = f"{flops / (PEAK_FLOPS_PER_CYCLE * clock[-1]):.3g} ns" if flops else ""
             out.append(f"| {r['case']} | {r['real']} | {r['ns']:.2f} [{r['ns_min']:.2f}-"
-                       f"{r['ns_max']:.2f}] /{r['unit']} | {instr} | {tdesc} | {met} |")
+                       f"{r['ns_max']:.2f}] /{r['unit']} | {instr} | {bound} | {tdesc} | {met} |")
             if tgt and tgt.get("note") and met != "yes":
                 notes.append(f"- {r['case']} ({r['real']}): {tgt['note']}")
             for c in comps.get(r["case"], []) if r["real"] == "double" else []:
                 extra = "".join(f", {k} {v:.3g}" for k, v in c.items()
                                 if k not in ("case", "what", "ns", "unit") and isinstance(v, float))
                 out.append(f"| ↳ comparison: {c['what']} | double | {c['ns']:.2f} /{c['unit']}"
-                           f" | | dynval is {c['ns'] / r['ns']:.3g}x as fast{extra} | |")
+                           f" | | | dynval is {c['ns'] / r['ns']:.3g}x as fast{extra} | |")
         out.append("")
         if notes:
             out += ["Notes on targets not met:", "", *notes, ""]
