@@ -765,14 +765,25 @@ static inline dv_real_t node_x_free(const dv_model_t *m, size_t f, size_t ns, bo
     return s;
 }
 
-/* One side of the bilinear gap law (dv_priv_contact_g1()) without branches, kh = kb / (2 delta)
- * given: kh min(max(s, 0), delta)^2 + kb max(s - delta, 0). Continuous, like the law. */
-static inline dv_real_t gap_g1(dv_real_t s, dv_real_t delta, dv_real_t kb, dv_real_t kh)
+/* kB / (2 delta) of a gap element (the constant of its transition), 0 for the other laws. */
+static inline dv_real_t elem_kh(const dv_contact_desc_t *c)
 {
-    const dv_real_t pos = s > DV_R(0.0) ? s : DV_R(0.0);
-    const dv_real_t sc = pos < delta ? pos : delta;
-    const dv_real_t over = s - delta > DV_R(0.0) ? s - delta : DV_R(0.0);
-    return kh * sc * sc + kb * over;
+    return c->law == DV_ELEM_CONTACT ? dv_priv_contact_kh(c->kb_n_per_m, c->delta_m) : DV_R(0.0);
+}
+
+/* The force of element c at X = x: every law evaluation of the observer goes through here.
+ * (xp, gp): the element's X and force at the previous sub-node (stick-slip history); kh from
+ * elem_kh(). */
+static inline dv_real_t elem_force(const dv_contact_desc_t *c, dv_real_t kh, dv_real_t xp,
+                                   dv_real_t gp, dv_real_t x)
+{
+    if (c->law == DV_ELEM_CONTACT) {
+        return dv_priv_contact_gk((int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, kh, x);
+    }
+    if (c->law == DV_ELEM_STICKSLIP) {
+        return stickslip_g(c, xp, gp, x);
+    }
+    return dv_priv_elem_g((int)c->law, (int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, x);
 }
 
 /* contact_forces() for one element (the common case), in the same order of operations: the
@@ -791,11 +802,7 @@ static void contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
     for (size_t f = 0; f < nf; f++) {
         xl[f] = node_x_free(m, f, ns, cubic, win, sv);
     }
-    const int law = (int)c->law;
-    const bool gap = law == DV_ELEM_CONTACT;
-    const bool pos = ((int)c->side & 1) != 0;
-    const bool neg = ((int)c->side & 2) != 0;
-    const dv_real_t kh = gap ? c->kb_n_per_m / (DV_R(2.0) * c->delta_m) : DV_R(0.0);
+    const dv_real_t kh = elem_kh(c);
     dv_real_t xp = o->elem_x[0];
     dv_real_t gp = o->elem_g[0];
     for (size_t f = 0; f < nf; f++) {
@@ -813,14 +820,7 @@ static void contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
         dv_real_t xr = lin;
         for (uint32_t it = 0; it < iters; it++) {
             xr = lin + srow[f] * cur;
-            if (gap) {
-                cur = (pos ? gap_g1(xr - c->gap_m, c->delta_m, c->kb_n_per_m, kh) : DV_R(0.0)) -
-                      (neg ? gap_g1(-xr - c->gap_m, c->delta_m, c->kb_n_per_m, kh) : DV_R(0.0));
-            } else if (law == DV_ELEM_STICKSLIP) {
-                cur = stickslip_g(c, xp, gp, xr);
-            } else {
-                cur = dv_priv_elem_g(law, (int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, xr);
-            }
+            cur = elem_force(c, kh, xp, gp, xr);
         }
         g[f] = cur;
         xp = xr;
@@ -850,7 +850,9 @@ static void contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
     dv_real_t xp[DV_MAX_CONTACT];
     dv_real_t gp[DV_MAX_CONTACT];
     dv_real_t xn[DV_MAX_CONTACT];
+    dv_real_t kh[DV_MAX_CONTACT];
     for (size_t e = 0; e < nc; e++) {
+        kh[e] = elem_kh(&m->contact[e]);
         xp[e] = o->elem_x[e];
         gp[e] = o->elem_g[e];
         xn[e] = xp[e];
@@ -879,12 +881,8 @@ static void contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
                 for (size_t e2 = 0; e2 < nc; e2++) {
                     xr += srow[e2] * cur[e2];
                 }
-                const dv_contact_desc_t *c = &m->contact[e];
                 xn[e] = xr;
-                g[f0 + e] = c->law == DV_ELEM_STICKSLIP
-                                ? stickslip_g(c, xp[e], gp[e], xr)
-                                : dv_priv_elem_g((int)c->law, (int)c->side, c->gap_m,
-                                                 c->delta_m, c->kb_n_per_m, xr);
+                g[f0 + e] = elem_force(&m->contact[e], kh[e], xp[e], gp[e], xr);
             }
             for (size_t e = 0; e < nc; e++) {
                 cur[e] = g[f0 + e];
@@ -1157,7 +1155,7 @@ static void step_first_cubic(dv_obs_t *o, const dv_real_t *y, bool correct)
         const size_t off = vel ? (size_t)m->n_dof : 0u;
         const dv_real_t xa = c->dof_a == (uint16_t)DV_GROUND ? DV_R(0.0) : sv[off + c->dof_a];
         const dv_real_t x = sv[off + c->dof_b] - xa + (vel ? DV_R(0.0) : m->contact_dx[e] * win[2]);
-        g[e] = dv_priv_elem_g((int)c->law, (int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, x);
+        g[e] = elem_force(c, elem_kh(c), o->elem_x[e], o->elem_g[e], x); /* history: at rest */
     }
     for (size_t q = 0; q < no; q++) {
         dv_real_t s = DV_R(0.0);

@@ -111,30 +111,44 @@ void dv_priv_ar_fir(const dv_real_t *c, size_t p, dv_real_t c0, const dv_real_t 
                     dv_real_t *e, uint32_t kern);
 
 /* Contact force law of dv_model.h, one side: s = X - gap; 0, then kB s^2 / (2 delta) on the
- * transition, then kB (s - delta / 2). Continuous force and tangent stiffness. */
-static inline dv_real_t dv_priv_contact_g1(dv_real_t s, dv_real_t delta, dv_real_t kb)
+ * transition, then kB (s - delta / 2). Continuous force and tangent stiffness. Written without
+ * branches, kh = kB / (2 delta) given (callers evaluating the law many times compute it once):
+ * kh min(max(s, 0), delta)^2 + kB max(s - delta, 0). */
+static inline dv_real_t dv_priv_contact_g1k(dv_real_t s, dv_real_t delta, dv_real_t kb,
+                                            dv_real_t kh)
 {
-    if (s <= DV_R(0.0)) {
-        return DV_R(0.0);
-    }
-    if (s < delta) {
-        return kb * s * s / (DV_R(2.0) * delta);
-    }
-    return kb * (s - DV_R(0.5) * delta);
+    const dv_real_t pos = s > DV_R(0.0) ? s : DV_R(0.0);
+    const dv_real_t sc = pos < delta ? pos : delta;
+    const dv_real_t over = s - delta > DV_R(0.0) ? s - delta : DV_R(0.0);
+    return kh * sc * sc + kb * over;
 }
 
 /* Both sides: side bit 1 = positive (X > gap), bit 2 = negative (X < -gap, mirrored). */
-static inline dv_real_t dv_priv_contact_g(int side, dv_real_t gap, dv_real_t delta,
-                                          dv_real_t kb, dv_real_t x)
+static inline dv_real_t dv_priv_contact_gk(int side, dv_real_t gap, dv_real_t delta,
+                                           dv_real_t kb, dv_real_t kh, dv_real_t x)
 {
     dv_real_t g = DV_R(0.0);
     if ((side & 1) != 0) {
-        g += dv_priv_contact_g1(x - gap, delta, kb);
+        g += dv_priv_contact_g1k(x - gap, delta, kb, kh);
     }
     if ((side & 2) != 0) {
-        g -= dv_priv_contact_g1(-x - gap, delta, kb);
+        g -= dv_priv_contact_g1k(-x - gap, delta, kb, kh);
     }
     return g;
+}
+
+/* kh of dv_priv_contact_g1k(): kB / (2 delta); 0 for delta = 0 (plain bilinear: no transition,
+ * and no 0 x Inf). */
+static inline dv_real_t dv_priv_contact_kh(dv_real_t kb, dv_real_t delta)
+{
+    return delta > DV_R(0.0) ? kb / (DV_R(2.0) * delta) : DV_R(0.0);
+}
+
+/* dv_priv_contact_gk() with kh formed here. */
+static inline dv_real_t dv_priv_contact_g(int side, dv_real_t gap, dv_real_t delta,
+                                          dv_real_t kb, dv_real_t x)
+{
+    return dv_priv_contact_gk(side, gap, delta, kb, dv_priv_contact_kh(kb, delta), x);
 }
 
 /* Two Burg stages in one pass on aligned errors f[0..len), b[0..len) (f[j] = f(i),

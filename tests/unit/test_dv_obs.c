@@ -299,6 +299,35 @@ static void test_obs_gain_removed_is_open_loop(void **state)
     assert_true(xm > 0 && dx <= (sizeof(dv_real_t) == 8 ? 1e-12 : 1e-5) * xm);
 }
 
+// A plain bilinear bumper (Delta = 0, allowed by the law) runs through the observer's contact
+// path without NaN, and agrees with a bumper of vanishing transition (Delta = 1e-12 m): the law
+// is continuous in Delta.
+static void test_obs_bilinear_bumper_delta_zero(void **state)
+{
+    (void)state;
+    load_force();
+    dv_model_desc_t d;
+    dv_model_t m1, m2;
+    dv_obs_t o1, o2;
+    mt_lanl_desc(&d);
+    mt_add_bumper(&d, 0.0, 8);
+    assert_int_equal(dv_model_init(&m1, &d, DT, mbuf, NBUF), DV_OK);
+    assert_int_equal(dv_obs_init(&o1, &m1, NULL, obuf, NBUF), DV_OK);
+    assert_int_equal(dv_obs_simulate(&o1, force_r, NS, ytrue), DV_OK);
+    mt_add_bumper(&d, 1e-12, 8);
+    assert_int_equal(dv_model_init(&m2, &d, DT, mbuf2, NBUF), DV_OK);
+    assert_int_equal(dv_obs_init(&o2, &m2, NULL, obuf2, NBUF), DV_OK);
+    assert_int_equal(dv_obs_simulate(&o2, force_r, NS, ypred), DV_OK);
+    double e = 0, y = rms(ytrue, NS * 4);
+    for (size_t i = 0; i < NS * 4; i++) {
+        assert_true(isfinite((double)ytrue[i]));
+        e = fmax(e, fabs((double)ytrue[i] - ypred[i]));
+    }
+    fprintf(stderr, "bilinear bumper (Delta 0) vs Delta 1e-12 m: max |dy| / rms y = %.3g\n",
+            e / y);
+    assert_true(y > 0 && e <= (sizeof(dv_real_t) == 8 ? 1e-6 : 1e-3) * y);
+}
+
 static void test_obs_nan_measurement_predicts_without_correction(void **state)
 {
     (void)state;
@@ -647,6 +676,7 @@ int main(void)
         cmocka_unit_test(test_obs_two_half_bumpers_equal_one),
         cmocka_unit_test(test_obs_state_same_in_modal_and_dense_form),
         cmocka_unit_test(test_obs_gain_removed_is_open_loop),
+        cmocka_unit_test(test_obs_bilinear_bumper_delta_zero),
         cmocka_unit_test(test_obs_nan_measurement_predicts_without_correction),
         cmocka_unit_test(test_obs_nan_input_holds_state),
         cmocka_unit_test(test_obs_simulate_equals_steps),
