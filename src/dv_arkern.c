@@ -121,13 +121,14 @@ static void fir_c(const dv_real_t *c, size_t p, dv_real_t c0, const dv_real_t *x
 
 
 /* Two stages per pass: the error arrays (the memory traffic) are swept half as often. Stage-1
- * values at j and j+1 feed stage 2; the new values' lag-1 products use the previous element. */
-static void burg2_c(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_real_t k2,
-                    dv_real_t s[7])
+ * values at j and j+1 feed stage 2; the new values' lag-1 products use the previous element.
+ * From element j on, with the sums so far in s (and fp, bp the last new f and b): the whole
+ * pass from j = 0 with zeros, and the vector kernels' tails. */
+static void burg2_from(dv_real_t *f, dv_real_t *b, size_t len, size_t j, dv_real_t k1,
+                       dv_real_t k2, dv_real_t fp, dv_real_t bp, dv_real_t s[7])
 {
-    dv_real_t s0 = DV_R(0.0), s1 = DV_R(0.0), s2 = DV_R(0.0), s3 = DV_R(0.0), s4 = DV_R(0.0),
-              s5 = DV_R(0.0), s6 = DV_R(0.0), fp = DV_R(0.0), bp = DV_R(0.0);
-    for (size_t j = 0u; j + 2u < len; j++) {
+    dv_real_t s0 = s[0], s1 = s[1], s2 = s[2], s3 = s[3], s4 = s[4], s5 = s[5], s6 = s[6];
+    for (; j + 2u < len; j++) {
         const dv_real_t fa = f[j + 1u] - k1 * b[j + 1u], ba = b[j] - k1 * f[j];
         const dv_real_t fb = f[j + 2u] - k1 * b[j + 2u], bb = b[j + 1u] - k1 * f[j + 1u];
         const dv_real_t fn = fb - k2 * bb, bn = ba - k2 * fa;
@@ -150,6 +151,15 @@ static void burg2_c(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_rea
     s[4] = s4;
     s[5] = s5;
     s[6] = s6;
+}
+
+static void burg2_c(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_real_t k2,
+                    dv_real_t s[7])
+{
+    for (size_t i = 0; i < 7u; i++) {
+        s[i] = DV_R(0.0);
+    }
+    burg2_from(f, b, len, 0u, k1, k2, DV_R(0.0), DV_R(0.0), s);
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -347,31 +357,14 @@ DV_TGT_AVX2 static void burg2_avx2(double *f, double *b, size_t len, double k1, 
     double fp = t[3];
     _mm256_storeu_pd(t, bprev);
     double bp = t[3];
-    double s0 = hsum256(a0), s1 = hsum256(a1), s2 = hsum256(a2), s3 = hsum256(a3),
-           s4 = hsum256(a4), s5 = hsum256(a5), s6 = hsum256(a6);
-    for (; j + 2u < len; j++) {
-        const double fa = f[j + 1u] - k1 * b[j + 1u], ba = b[j] - k1 * f[j];
-        const double fb = f[j + 2u] - k1 * b[j + 2u], bb = b[j + 1u] - k1 * f[j + 1u];
-        const double fn = fb - k2 * bb, bn = ba - k2 * fa;
-        f[j] = fn;
-        b[j] = bn;
-        s0 += fn * fn;
-        s1 += bn * bn;
-        s2 += fn * bn;
-        s3 += fn * bp;
-        s4 += fn * fp;
-        s5 += bn * bp;
-        s6 += bn * fp;
-        fp = fn;
-        bp = bn;
-    }
-    s[0] = s0;
-    s[1] = s1;
-    s[2] = s2;
-    s[3] = s3;
-    s[4] = s4;
-    s[5] = s5;
-    s[6] = s6;
+    s[0] = hsum256(a0);
+    s[1] = hsum256(a1);
+    s[2] = hsum256(a2);
+    s[3] = hsum256(a3);
+    s[4] = hsum256(a4);
+    s[5] = hsum256(a5);
+    s[6] = hsum256(a6);
+    burg2_from(f, b, len, j, k1, k2, fp, bp, s);
 }
 
 /* NaN/Inf make x - x NaN, which poisons the sums. */
@@ -767,33 +760,14 @@ DV_TGT_AVX512 static void burg2_avx512(double *f, double *b, size_t len, double 
     double fp = t[7];
     _mm512_storeu_pd(t, bprev);
     double bp = t[7];
-    double s0 = _mm512_reduce_add_pd(a0), s1 = _mm512_reduce_add_pd(a1),
-           s2 = _mm512_reduce_add_pd(a2), s3 = _mm512_reduce_add_pd(a3),
-           s4 = _mm512_reduce_add_pd(a4), s5 = _mm512_reduce_add_pd(a5),
-           s6 = _mm512_reduce_add_pd(a6);
-    for (; j + 2u < len; j++) {
-        const double fa = f[j + 1u] - k1 * b[j + 1u], ba = b[j] - k1 * f[j];
-        const double fb = f[j + 2u] - k1 * b[j + 2u], bb = b[j + 1u] - k1 * f[j + 1u];
-        const double fn = fb - k2 * bb, bn = ba - k2 * fa;
-        f[j] = fn;
-        b[j] = bn;
-        s0 += fn * fn;
-        s1 += bn * bn;
-        s2 += fn * bn;
-        s3 += fn * bp;
-        s4 += fn * fp;
-        s5 += bn * bp;
-        s6 += bn * fp;
-        fp = fn;
-        bp = bn;
-    }
-    s[0] = s0;
-    s[1] = s1;
-    s[2] = s2;
-    s[3] = s3;
-    s[4] = s4;
-    s[5] = s5;
-    s[6] = s6;
+    s[0] = _mm512_reduce_add_pd(a0);
+    s[1] = _mm512_reduce_add_pd(a1);
+    s[2] = _mm512_reduce_add_pd(a2);
+    s[3] = _mm512_reduce_add_pd(a3);
+    s[4] = _mm512_reduce_add_pd(a4);
+    s[5] = _mm512_reduce_add_pd(a5);
+    s[6] = _mm512_reduce_add_pd(a6);
+    burg2_from(f, b, len, j, k1, k2, fp, bp, s);
 }
 
 #endif /* DV_AR_X86 */
