@@ -82,7 +82,7 @@ static dv_status_t run(dv_ar_method_t method, uint32_t pmax, const dv_real_t *x,
                        dv_real_t *work, dv_real_t *a, dv_real_t *refl, dv_real_t *sig,
                        run_out_t *ro)
 {
-    const uint32_t kern = dv_priv_ar_kern();
+    const uint32_t kern = dv_priv_simd_kern();
     const dv_real_t nn = (dv_real_t)n;
     dv_real_t *y = work;                 /* n: centred record (Burg: forward errors) */
     dv_real_t *small = work + 2u * n;    /* 4 (pmax + 1) */
@@ -301,7 +301,7 @@ dv_status_t dv_ar_autocorr(const dv_real_t *x, size_t n, size_t maxlag, dv_real_
     if (x == NULL || r == NULL || n == 0u || maxlag >= n) {
         return DV_EINVAL;
     }
-    dv_priv_ar_acf(x, n, maxlag, r, dv_priv_ar_kern());
+    dv_priv_ar_acf(x, n, maxlag, r, dv_priv_simd_kern());
     const dv_real_t nn = (dv_real_t)n;
     dv_status_t st = DV_OK;
     for (size_t k = 0u; k <= maxlag; k++) {
@@ -369,7 +369,7 @@ dv_status_t dv_ar_resid_init(dv_ar_resid_t *r, const dv_ar_model_t *m, dv_real_t
     r->p = p;
     r->nb = nb;
     r->off = off;
-    r->kern = dv_priv_ar_kern();
+    r->kern = dv_priv_simd_kern();
     r->step = r->kern != 0u ? 9u * (r->kern - 1u) + nb : 0u;
     dv_ar_resid_reset(r);
     return DV_OK;
@@ -388,7 +388,7 @@ void dv_ar_resid_reset(dv_ar_resid_t *r)
 
 /* The portable step (x finite); dv_priv_ar_rstep_* do the same around their vector kernels.
  * Kept out of line on x86 so that the dispatch below stays a few instructions + a tail jump. */
-#if DV_AR_X86
+#if DV_SIMD_X86
 __attribute__((noinline))
 #endif
 static dv_status_t rstep_c(dv_ar_resid_t *r, dv_real_t x, dv_real_t *e)
@@ -415,7 +415,7 @@ dv_status_t dv_ar_resid_update(dv_ar_resid_t *r, dv_real_t x, dv_real_t *e)
         r->n_nonfinite++;
         return DV_ENUMERIC;
     }
-#if DV_AR_X86
+#if DV_SIMD_X86
     if (r->kern != 0u) {
         return dv_priv_ar_rstep(r, x, e);
     }

@@ -7,7 +7,7 @@
  * AR(60) residuals at a few ns per sample. The arm-none-eabi and float builds see only C. */
 #include "dv_priv.h"
 
-#if DV_AR_X86 /* dv_priv.h */
+#if DV_SIMD_X86 /* dv_priv.h */
 #include <immintrin.h>
 #endif
 
@@ -164,7 +164,7 @@ static void burg2_c(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_rea
 
 /* ------------------------------------------------------------------------------------------ */
 /* x86-64, double: AVX2 + FMA                                                                  */
-#if DV_AR_X86
+#if DV_SIMD_X86
 
 #define DV_TGT_AVX2 __attribute__((target("avx2,fma")))
 #define DV_TGT_AVX512 __attribute__((target("avx512f,avx2,fma")))
@@ -770,29 +770,14 @@ DV_TGT_AVX512 static void burg2_avx512(double *f, double *b, size_t len, double 
     burg2_from(f, b, len, j, k1, k2, fp, bp, s);
 }
 
-#endif /* DV_AR_X86 */
+#endif /* DV_SIMD_X86 */
 
 /* ------------------------------------------------------------------------------------------ */
 /* dispatch                                                                                    */
 
-uint32_t dv_priv_ar_kern(void)
-{
-#if DV_AR_X86
-    /* libgcc/compiler-rt check CPUID and that the OS saves the wide registers (XGETBV). */
-    __builtin_cpu_init();
-    if (__builtin_cpu_supports("avx512f")) {
-        return 2u;
-    }
-    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
-        return 1u;
-    }
-#endif
-    return 0u;
-}
-
 void dv_priv_ar_acf(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r, uint32_t kern)
 {
-#if DV_AR_X86
+#if DV_SIMD_X86
     if (kern == 2u) {
         acf_avx512(x, n, maxlag, r);
         return;
@@ -808,7 +793,7 @@ void dv_priv_ar_acf(const dv_real_t *x, size_t n, size_t maxlag, dv_real_t *r, u
 
 dv_real_t dv_priv_ar_dot(const dv_real_t *a, const dv_real_t *b, size_t n, uint32_t kern)
 {
-#if DV_AR_X86
+#if DV_SIMD_X86
     if (kern == 2u) {
         return dot_avx512(a, b, n);
     }
@@ -823,7 +808,7 @@ dv_real_t dv_priv_ar_dot(const dv_real_t *a, const dv_real_t *b, size_t n, uint3
 void dv_priv_ar_fir(const dv_real_t *c, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
                     dv_real_t *e, uint32_t kern)
 {
-#if DV_AR_X86
+#if DV_SIMD_X86
     if (kern == 2u) {
         fir_avx512(c, p, c0, x, n, e);
         return;
@@ -840,7 +825,7 @@ void dv_priv_ar_fir(const dv_real_t *c, size_t p, dv_real_t c0, const dv_real_t 
 void dv_priv_ar_burg2(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_real_t k2,
                       dv_real_t s[7], uint32_t kern)
 {
-#if DV_AR_X86
+#if DV_SIMD_X86
     if (kern == 2u) {
         burg2_avx512(f, b, len, k1, k2, s);
         return;
@@ -856,7 +841,7 @@ void dv_priv_ar_burg2(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_r
 
 bool dv_priv_ar_all_finite(const dv_real_t *x, size_t n, uint32_t kern)
 {
-#if DV_AR_X86
+#if DV_SIMD_X86
     if (kern != 0u) {
         return finite_avx2(x, n); /* memory-bound: AVX2 is enough on AVX-512 machines too */
     }
@@ -867,7 +852,7 @@ bool dv_priv_ar_all_finite(const dv_real_t *x, size_t n, uint32_t kern)
 
 dv_real_t dv_priv_ar_sum(const dv_real_t *x, size_t n, uint32_t kern)
 {
-#if DV_AR_X86
+#if DV_SIMD_X86
     if (kern == 2u) {
         return sum_avx512(x, n);
     }
@@ -878,7 +863,7 @@ dv_real_t dv_priv_ar_sum(const dv_real_t *x, size_t n, uint32_t kern)
 
 void dv_priv_ar_sub(const dv_real_t *x, size_t n, dv_real_t c, dv_real_t *y, uint32_t kern)
 {
-#if DV_AR_X86
+#if DV_SIMD_X86
     if (kern == 2u) {
         sub_avx512(x, n, c, y);
         return;

@@ -225,7 +225,7 @@ dv_status_t dv_ararx_fit(dv_arx_model_t *m, dv_ar_model_t *ar, const dv_arx_cfg_
         crev[p - 1u - j] = a1.a[j];
     }
     dv_priv_ar_fir(crev, p, a1.mean * (DV_R(1.0) - suma), x + p, n - p, e + p,
-                   dv_priv_ar_kern());
+                   dv_priv_simd_kern());
     for (size_t i = 0u; i < n; i++) {
         xc[i] = x[i] - a1.mean;
     }
@@ -271,7 +271,7 @@ dv_status_t dv_arx_resid_init(dv_arx_resid_t *r, const dv_arx_model_t *m, dv_rea
     r->lf = m->nb + m->nk;
     r->hx = buf;
     r->hf = buf + 2u * (size_t)m->na;
-    r->kern = dv_priv_ar_kern();
+    r->kern = dv_priv_simd_kern();
     dv_arx_resid_reset(r);
     return DV_OK;
 }

@@ -189,7 +189,7 @@ DV_COLD static dv_status_t close_ring_block(dv_chan_t *s)
     const bool starts = s->seg_pos == 0u;
     blk_acc_t acc;
     acc_clear(&acc);
-    const uint32_t kern = dv_priv_feat_kern();
+    const uint32_t kern = dv_priv_simd_kern();
     if (end >= n) {
         add_span(s, kern, &acc, s->win.ring + (end - n), n, starts);
     } else { /* the block wraps around the ring's end */
@@ -245,7 +245,7 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
         size_t done = 0u;
         dv_status_t st = DV_OK;
         if (whole > 0u && kern == UINT32_MAX) {
-            kern = dv_priv_feat_kern();
+            kern = dv_priv_simd_kern();
         }
         while (done < whole) {
             const uint32_t m = block_len(s, s->seg_pos);

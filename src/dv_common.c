@@ -1,6 +1,21 @@
 /* Status strings and the exact moment-merge arithmetic every feature module builds on. */
 #include "dv_priv.h"
 
+uint32_t dv_priv_simd_kern(void)
+{
+#if DV_SIMD_X86
+    /* libgcc/compiler-rt check CPUID and that the OS saves the wide registers (XGETBV). */
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("avx512f")) {
+        return 2u;
+    }
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
+        return 1u;
+    }
+#endif
+    return 0u;
+}
+
 const char *dv_status_str(dv_status_t st)
 {
     switch (st) {

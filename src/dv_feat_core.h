@@ -16,12 +16,9 @@ void dv_priv_sliding_turn_over(dv_sliding_t *s, const dv_real_t *src);
 /* ---- block kernels (src/dv_featkern.c): portable C, and on x86-64 double builds AVX2/FMA and
  * AVX-512F versions picked at run time. ---- */
 
-/* 0 portable, 1 AVX2+FMA, 2 AVX-512F */
-uint32_t dv_priv_feat_kern(void);
-
 /* One block of DV_BLOCK_LEN samples: p[k] = sum (x - k0)^(k+1), mm = {min, max} folded
  * into the given {min, max}, w[k] = sum x^2 tau^k with tau = 0, 1, ... kern is
- * dv_priv_feat_kern(), asked once by the caller. A NaN/Inf sample makes w[0] non-finite (so
+ * dv_priv_simd_kern(), asked once by the caller. A NaN/Inf sample makes w[0] non-finite (so
  * does a finite |x| > ~1e154: callers treat both as "take the per-sample path"). */
 void dv_priv_feat_block(uint32_t kern, const dv_real_t *x, dv_real_t k0, dv_real_t p[4],
                         dv_real_t mm[2], dv_real_t w[5]);

@@ -10,12 +10,8 @@
 #include "dv_feat_core.h"
 #include "dv_priv.h"
 
-#if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) &&   \
-    !defined(DV_NO_SIMD)
-#define DV_FEAT_X86 1
+#if DV_SIMD_X86
 #include <immintrin.h>
-#else
-#define DV_FEAT_X86 0
 #endif
 
 /* ------------------------------------------------------------------------------------------ */
@@ -104,7 +100,7 @@ static void turn_c(const dv_real_t *restrict r, uint32_t n, dv_real_t k, dv_real
     s[3] = a4 + b4;
 }
 
-#if DV_FEAT_X86
+#if DV_SIMD_X86
 
 #define DV_TGT_AVX2 __attribute__((target("avx2,fma")))
 #define DV_TGT_AVX512 __attribute__((target("avx512f,avx2,fma")))
@@ -321,31 +317,16 @@ DV_TGT_AVX512 static void turn_avx512(const double *r, double *dst, uint32_t n, 
     s[3] = _mm512_reduce_add_pd(p4) + a[3];
 }
 
-#endif /* DV_FEAT_X86 */
+#endif /* DV_SIMD_X86 */
 
 /* ------------------------------------------------------------------------------------------ */
 /* dispatch                                                                                    */
-
-uint32_t dv_priv_feat_kern(void)
-{
-#if DV_FEAT_X86
-    /* libgcc/compiler-rt check CPUID and that the OS saves the wide registers (XGETBV). */
-    __builtin_cpu_init();
-    if (__builtin_cpu_supports("avx512f")) {
-        return 2u;
-    }
-    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
-        return 1u;
-    }
-#endif
-    return 0u;
-}
 
 void dv_priv_feat_block(uint32_t kern, const dv_real_t *x, dv_real_t k, dv_real_t p[4],
                         dv_real_t mm[2], dv_real_t w[5])
 {
     (void)kern;
-#if DV_FEAT_X86 && (DV_BLOCK_LEN % 8u == 0u)
+#if DV_SIMD_X86 && (DV_BLOCK_LEN % 8u == 0u)
     if (kern == 2u) {
         block_avx512(x, k, p, mm, w);
         return;
@@ -361,8 +342,8 @@ void dv_priv_feat_block(uint32_t kern, const dv_real_t *x, dv_real_t k, dv_real_
 void dv_priv_feat_turn(const dv_real_t *src, dv_real_t *ring, uint32_t n, dv_real_t k,
                        dv_real_t *smax, dv_real_t *smin, dv_real_t s[4])
 {
-#if DV_FEAT_X86
-    const uint32_t kern = dv_priv_feat_kern();
+#if DV_SIMD_X86
+    const uint32_t kern = dv_priv_simd_kern();
     if (kern == 2u) {
         turn_avx512(src, ring, n, k, smax, smin, s);
         return;

@@ -35,7 +35,7 @@ size_t dv_obs_scratch_len(const dv_model_t *m)
     return obs_len(m, 1);
 }
 
-#if DV_OBS_X86
+#if DV_SIMD_X86
 static bool make_modal(dv_obs_t *o, dv_real_t *x);
 #endif
 
@@ -116,7 +116,7 @@ static void fold(dv_obs_t *o)
         }
     }
     o->modal = false;
-#if DV_OBS_X86
+#if DV_SIMD_X86
     if (o->tq != NULL) { /* storage for the modal form: it may apply (see make_modal()) */
         o->modal = make_modal(o, o->sv);
     }
@@ -153,7 +153,7 @@ static void state_x(const dv_obs_t *o, dv_real_t *x)
     }
 }
 
-#if DV_OBS_X86
+#if DV_SIMD_X86
 /* Inverse iteration: the real invariant subspace of the eigenvalue (re, im) of f (8 x 8
  * row-major) into columns c, c + 1 of t (8 x 8 row-major); im == 0: the real eigenvector into
  * column c only. The shift is moved by 1e-9 so the solve is not singular. */
@@ -638,7 +638,7 @@ dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_
         p += no;
     }
     o->fast = ns == 8u && no == 4u && nin == 2u;
-    o->simd = (uint8_t)dv_priv_ar_kern();
+    o->simd = (uint8_t)dv_priv_simd_kern();
     if (o->simd == 2u && (!o->fast || nf > 0u)) {
         o->simd = 1u; /* the AVX-512 step is the linear 8 x 4 one; AVX2 kernel otherwise */
     }
@@ -1070,7 +1070,7 @@ static inline void kernel_8x4(const dv_obs_t *o, size_t nin, size_t ny, const dv
                               const dv_real_t *fy, dv_real_t *sv, const dv_real_t *y,
                               dv_real_t *yo, dv_real_t *resid)
 {
-#if DV_OBS_X86
+#if DV_SIMD_X86
     if (o->simd != 0u) {
         dv_priv_obs_kern8x4_avx2(nin, ny, fx, fy, sv, y, yo, resid);
         return;
@@ -1308,7 +1308,7 @@ static inline bool fast_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y)
     if (!(o->fast && o->started && y != NULL)) {
         return false;
     }
-#if DV_OBS_X86
+#if DV_SIMD_X86
     if (o->simd == 2u && !o->modal) { /* (the modal step is taken before, by the callers) */
         return dv_priv_obs_step8x4_avx512(o, u, y);
     }
@@ -1347,7 +1347,7 @@ dv_status_t dv_priv_obs_step_slow(dv_obs_t *o, dv_real_t u, const dv_real_t *y_m
 dv_status_t dv_obs_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas)
 {
     DV_ASSERT(o != NULL && o->m != NULL);
-#if DV_OBS_X86
+#if DV_SIMD_X86
     /* the modal step, a tail call (it hands anything but a regular step to the slow path) */
     if (o->modal && o->started && y_meas != NULL) {
         return dv_priv_obs_step8x4_modal_avx512(o, u, y_meas);
@@ -1452,7 +1452,7 @@ static dv_status_t run_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y
     for (size_t k = 0; k < n; k++) {
         const dv_real_t *yk = y_meas != NULL ? y_meas + k * no : NULL;
         dv_status_t st;
-#if DV_OBS_X86
+#if DV_SIMD_X86
         if (use_gain && o->modal && o->started && yk != NULL) {
             st = dv_priv_obs_step8x4_modal_avx512(o, u[k], yk);
         } else

@@ -7,7 +7,7 @@
 #include "dv_obskern.h"
 #include "dynval/dv_obs.h"
 
-#if DV_OBS_X86
+#if DV_SIMD_X86
 #include <immintrin.h>
 
 #define DV_TGT_AVX2 __attribute__((target("avx2,fma")))

@@ -6,28 +6,23 @@
 #include "dynval/dv_types.h"
 #include "dynval/dv_obs.h"
 
-#if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
-    !defined(DV_NO_SIMD)
-#define DV_OBS_X86 1
-#else
-#define DV_OBS_X86 0
-#endif
+#include "dv_priv.h"
 
 /* dv_obs_step() without the modal step: the direct path when it applies, else the general
  * one (dv_obs.c). */
 dv_status_t dv_priv_obs_step_slow(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas);
 
-#if DV_OBS_X86
+#if DV_SIMD_X86
 /* The 8-state, 4-output step product with AVX2 + FMA: the same contract as kernel_8x4() in
  * dv_obs.c (fx: 8-row column-major state rows over [x, inputs (nin), y (ny)], fy: 4-row
  * column-major output rows over [x, inputs]; sv[0..8) becomes the new state, yo the
- * prediction, and with y, resid = y - yo). Only call when dv_priv_ar_kern() != 0. */
+ * prediction, and with y, resid = y - yo). Only call when dv_priv_simd_kern() != 0. */
 void dv_priv_obs_kern8x4_avx2(size_t nin, size_t ny, const dv_real_t *fx, const dv_real_t *fy,
                               dv_real_t *sv, const dv_real_t *y, dv_real_t *yo,
                               dv_real_t *resid);
 
 /* The regular linear step of dv_obs_step() for 8 states, 4 outputs, first-order hold, no
- * contact, past the first sample, with AVX-512 (dv_priv_ar_kern() == 2): false, with nothing
+ * contact, past the first sample, with AVX-512 (dv_priv_simd_kern() == 2): false, with nothing
  * touched, when u or a y[q] is not finite. */
 bool dv_priv_obs_step8x4_avx512(dv_obs_t *o, double u, const double *y);
 

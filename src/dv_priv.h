@@ -80,18 +80,24 @@ void dv_priv_sums_shift(dv_real_t s[4], dv_real_t n, dv_real_t delta);
 void dv_priv_stats_fill(dv_stats_t *out, const dv_priv_cm_t *cm, uint64_t count, dv_real_t min,
                         dv_real_t max);
 
-/* ---- AR kernels (src/dv_arkern.c): portable C, and on x86-64 double builds AVX2/FMA and
- * AVX-512F versions picked at run time. kern: 0 portable, 1 AVX2+FMA, 2 AVX-512F. ---- */
+/* ---- Vector kernels: on x86-64 double builds (gcc, clang) the hot loops also exist as AVX2/FMA
+ * and AVX-512F functions (target attributes), picked at run time (dv_arkern.c, dv_featkern.c,
+ * dv_obskern.c); float and Cortex-M builds see only C. include/dynval/dv_obs.h repeats this
+ * condition for DV_OBS_MODAL_LEN (a public header cannot include this one). ---- */
 #if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
     !defined(DV_NO_SIMD)
-#define DV_AR_X86 1
+#define DV_SIMD_X86 1
 #else
-#define DV_AR_X86 0
+#define DV_SIMD_X86 0
 #endif
 
-uint32_t dv_priv_ar_kern(void);
+/* The vector unit this CPU offers the kernels: 0 portable C, 1 AVX2 + FMA, 2 AVX-512F (always 0
+ * without DV_SIMD_X86). Asked at init (or once per block call), kept by the caller. */
+uint32_t dv_priv_simd_kern(void);
 
-#if DV_AR_X86
+/* ---- AR kernels (src/dv_arkern.c); kern from dv_priv_simd_kern(). ---- */
+
+#if DV_SIMD_X86
 #include "dynval/dv_ar.h"
 /* dv_ar_resid_update() after the finite check, x finite, for r->kern != 0: a tail jump to the
  * whole step in one leaf function (prediction, history stores, counters) specialised for the

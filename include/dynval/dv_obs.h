@@ -58,7 +58,7 @@ typedef struct {
 
 /** Storage of the modal form of the linear 4-DOF, 4-output step (dv_obs.c), in elements:
  *  T (64) and the kernel's blocks and output rows (48); x86-64 double builds only, where the
- *  AVX-512 step uses it. */
+ *  AVX-512 step uses it (the condition of DV_SIMD_X86 in src/dv_priv.h). */
 #if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
     !defined(DV_NO_SIMD)
 #define DV_OBS_MODAL_LEN(n, nc, nout, nin)                                                      \
