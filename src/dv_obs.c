@@ -212,7 +212,6 @@ static bool make_modal(dv_obs_t *o, dv_real_t *x)
     const size_t n = 8u;
     const size_t no = 4u;
     const size_t ncg = o->ncol_gain;
-    const size_t nco = o->ncol_open;
     double *f = o->f;
     double *fy = o->f + n * ncg;
     double fr[64], t[64], ti[64], lam[64], wr[8], wi[8], work[DV_MAT_EIGR_WORK_LEN(8)];
@@ -278,18 +277,10 @@ static bool make_modal(dv_obs_t *o, dv_real_t *x)
     if (!(n1 * n2 < 1e6)) {
         return false;
     }
-    for (size_t i = 0; i < n; i++) {
-        for (size_t j = 0; j < n; j++) {
-            double s = 0.0;
-            for (size_t k = 0; k < n; k++) {
-                double ft = 0.0;
-                for (size_t l = 0; l < n; l++) {
-                    ft += fr[k * n + l] * t[l * n + j];
-                }
-                s += ti[i * n + k] * ft;
-            }
-            lam[i * n + j] = s;
-        }
+    double ft[64];
+    dv_mat_t tv = {8u, 8u, t}, ftm = {8u, 8u, ft}, lm = {8u, 8u, lam};
+    if (dv_mat_mul(&fm, &tv, &ftm) != DV_OK || dv_mat_mul(&im, &ftm, &lm) != DV_OK) {
+        return false;
     }
     for (size_t i = 0; i < n; i++) {
         for (size_t j = 0; j < n; j++) {
@@ -354,7 +345,6 @@ static bool make_modal(dv_obs_t *o, dv_real_t *x)
     for (size_t i = 0; i < n; i++) {
         x[i] = q[i];
     }
-    (void)nco;
     return true;
 }
 #endif
@@ -639,10 +629,10 @@ dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_
     }
     o->fast = ns == 8u && no == 4u && nin == 2u;
     o->simd = (uint8_t)dv_priv_simd_kern();
-    if (o->simd == 2u && (!o->fast || nf > 0u)) {
-        o->simd = 1u; /* the AVX-512 step is the linear 8 x 4 one; AVX2 kernel otherwise */
+    if (o->simd == 2u && DV_OBS_MODAL_LEN(m->n_dof, m->n_contact, no, nin) == 0u) {
+        o->simd = 1u; /* AVX-512 serves the linear 8 x 4 step (modal); AVX2 kernel otherwise */
     }
-    if (o->simd == 2u && DV_OBS_MODAL_LEN(m->n_dof, m->n_contact, no, nin) > 0u) {
+    if (o->simd == 2u) {
         o->tq = p;
         p += ns * ns;
         o->fm = p;
@@ -1308,11 +1298,6 @@ static inline bool fast_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y)
     if (!(o->fast && o->started && y != NULL)) {
         return false;
     }
-#if DV_SIMD_X86
-    if (o->simd == 2u && !o->modal) { /* (the modal step is taken before, by the callers) */
-        return dv_priv_obs_step8x4_avx512(o, u, y);
-    }
-#endif
     const dv_real_t bad =
         ((u - u) + (y[0] - y[0])) + ((y[1] - y[1]) + ((y[2] - y[2]) + (y[3] - y[3])));
     if (bad != DV_R(0.0)) {
@@ -1349,7 +1334,7 @@ dv_status_t dv_obs_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas)
     DV_ASSERT(o != NULL && o->m != NULL);
 #if DV_SIMD_X86
     /* the modal step, a tail call (it hands anything but a regular step to the slow path) */
-    if (o->modal && o->started && y_meas != NULL) {
+    if (o->simd == 2u && o->modal && o->started && y_meas != NULL) {
         return dv_priv_obs_step8x4_modal_avx512(o, u, y_meas);
     }
 #endif
@@ -1453,7 +1438,7 @@ static dv_status_t run_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y
         const dv_real_t *yk = y_meas != NULL ? y_meas + k * no : NULL;
         dv_status_t st;
 #if DV_SIMD_X86
-        if (use_gain && o->modal && o->started && yk != NULL) {
+        if (use_gain && o->simd == 2u && o->modal && o->started && yk != NULL) {
             st = dv_priv_obs_step8x4_modal_avx512(o, u[k], yk);
         } else
 #endif

@@ -100,69 +100,6 @@ DV_TGT_AVX2 void dv_priv_obs_kern8x4_avx2(size_t nin, size_t ny, const double *f
 }
 
 
-/* The end of a regular step: the new state (x or q), the prediction, the residual, the input
- * kept as the next step's u[k-1], the counters. */
-DV_TGT_AVX512 static inline void finish8x4(dv_obs_t *o, __m512d xn, __m256d yh, __m256d ym,
-                                           double u)
-{
-    double *sv = o->sv;
-    _mm512_storeu_pd(sv, xn);
-    _mm256_storeu_pd(o->z + 8, yh);
-    _mm256_storeu_pd(o->resid, _mm256_sub_pd(ym, yh));
-    sv[8] = u;
-    o->flags = 0u;
-    o->n_pred++;
-    o->n_steps++;
-}
-
-/* The whole regular linear step of the 4-DOF, 4-channel observer with AVX-512: the 8 state
- * rows of a column fill one register. Returns false, touching nothing, when u or a measured
- * channel is not finite (the caller's general path flags it). */
-DV_TGT_AVX512 bool dv_priv_obs_step8x4_avx512(dv_obs_t *o, double u, const double *y)
-{
-    const __m256d ym = _mm256_loadu_pd(y);
-    const __m256d fin = _mm256_add_pd(_mm256_sub_pd(ym, ym), _mm256_set1_pd(u - u));
-    if (_mm256_movemask_pd(_mm256_cmp_pd(fin, _mm256_setzero_pd(), _CMP_NEQ_UQ)) != 0) {
-        return false;
-    }
-    double *sv = o->sv;
-    const bool gain = o->has_gain;
-    const double *fx = o->f;
-    const double *fy = fx + 8u * (size_t)o->ncol_gain;
-    /* inputs: u[k-1] (sv[8]) and u[k] */
-    const __m512d up = _mm512_set1_pd(sv[8]);
-    const __m512d uk = _mm512_set1_pd(u);
-    __m512d a = _mm512_mul_pd(_mm512_loadu_pd(fx + 64), up);
-    a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 72), uk, a);
-    __m256d ay = _mm256_mul_pd(_mm256_loadu_pd(fy + 32), _mm512_castpd512_pd256(up));
-    ay = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 36), _mm512_castpd512_pd256(uk), ay);
-    if (gain) {
-        for (size_t j = 0; j < 4u; j++) {
-            a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 80u + 8u * j), _mm512_set1_pd(y[j]), a);
-        }
-    }
-    __m512d p[4];
-    __m256d py[4];
-    for (size_t c = 0; c < 4u; c++) {
-        const __m512d x0 = _mm512_set1_pd(sv[c]);
-        const __m512d x1 = _mm512_set1_pd(sv[c + 4u]);
-        if (c == 0u) {
-            p[c] = _mm512_fmadd_pd(_mm512_loadu_pd(fx), x0, a);
-            py[c] = _mm256_fmadd_pd(_mm256_loadu_pd(fy), _mm512_castpd512_pd256(x0), ay);
-        } else {
-            p[c] = _mm512_mul_pd(_mm512_loadu_pd(fx + 8u * c), x0);
-            py[c] = _mm256_mul_pd(_mm256_loadu_pd(fy + 4u * c), _mm512_castpd512_pd256(x0));
-        }
-        p[c] = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 8u * (c + 4u)), x1, p[c]);
-        py[c] = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 4u * (c + 4u)), _mm512_castpd512_pd256(x1),
-                                py[c]);
-    }
-    const __m512d xn = _mm512_add_pd(_mm512_add_pd(p[0], p[1]), _mm512_add_pd(p[2], p[3]));
-    const __m256d yh = _mm256_add_pd(_mm256_add_pd(py[0], py[1]), _mm256_add_pd(py[2], py[3]));
-    finish8x4(o, xn, yh, ym, u);
-    return true;
-}
-
 DV_TGT_AVX512 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u,
                                                           const double *y)
 {
@@ -206,7 +143,13 @@ DV_TGT_AVX512 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u
     __m256d yh = _mm512_castpd512_pd256(g);
     yh = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 32), _mm512_castpd512_pd256(up), yh);
     yh = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 36), _mm512_castpd512_pd256(uk), yh);
-    finish8x4(o, qn, yh, ym, u);
+    _mm512_storeu_pd(sv, qn);
+    _mm256_storeu_pd(o->z + 8, yh);
+    _mm256_storeu_pd(o->resid, _mm256_sub_pd(ym, yh));
+    sv[8] = u;
+    o->flags = 0u;
+    o->n_pred++;
+    o->n_steps++;
     return DV_OK;
 }
 

@@ -21,11 +21,6 @@ void dv_priv_obs_kern8x4_avx2(size_t nin, size_t ny, const dv_real_t *fx, const 
                               dv_real_t *sv, const dv_real_t *y, dv_real_t *yo,
                               dv_real_t *resid);
 
-/* The regular linear step of dv_obs_step() for 8 states, 4 outputs, first-order hold, no
- * contact, past the first sample, with AVX-512 (dv_priv_simd_kern() == 2): false, with nothing
- * touched, when u or a y[q] is not finite. */
-bool dv_priv_obs_step8x4_avx512(dv_obs_t *o, double u, const double *y);
-
 /* The same step in modal coordinates (o->modal, past the first sample, y given): q+ = Lam q +
  * inputs, with Lam's 2 x 2 blocks from o->fm, and the prediction from the C T rows in o->fm.
  * A non-finite u or y goes to dv_priv_obs_step_slow(); returns dv_obs_step()'s status. */

@@ -109,7 +109,8 @@ typedef struct {
     uint16_t ncol_gain;  /**< ns + nin + nf + no */
     bool has_gain;       /**< L != 0 */
     bool started;        /**< the first sample has been seen */
-    uint8_t simd;        /**< 8 x 4 step kernel: 0 portable, 1 AVX2 + FMA, 2 AVX-512 (linear step) */
+    uint8_t simd;        /**< 8 x 4 step kernel: 0 portable, 1 AVX2 + FMA, 2 AVX-512 (the modal
+                              linear step; AVX2 kernel where the modal form does not apply) */
     bool fast;           /**< 8 states, 4 outputs, first-order hold: the direct step path */
     bool modal;          /**< the state is kept as q = T^-1 x, the folded rows in that basis */
     uint32_t flags;      /**< DV_OBS_FLAG_* of the last step */
