@@ -2,13 +2,12 @@
 from __future__ import annotations
 
 import logging
-import math
 from pathlib import Path
 
 import numpy as np
 
 from dynval.errors import InputFileError
-from dynval.io.recording import Channel, Recording, default_role, file_sha256, split_unit
+from dynval.io.recording import Channel, Recording, default_role, file_sha256, parse_row, split_unit
 
 log = logging.getLogger(__name__)
 
@@ -41,36 +40,15 @@ def read_csv(path: Path | str, *, lenient: bool = False) -> Recording:
         raise InputFileError(p, "the first line is numeric: a header row is required", 1)
     except ValueError:
         pass
-    ncol = len(header)
     rows: list[list[float]] = []
     warnings: list[str] = []
     for ln, line in enumerate(lines[1:], start=2):
         if not line.strip():
             continue
-        cells = line.split(",")
-        if len(cells) != ncol:
-            msg = f"expected {ncol} cells, found {len(cells)}"
-            last = ln == len(lines)
-            if lenient and last and len(cells) < ncol:
-                warnings.append(f"{p}:{ln}: truncated last row dropped ({msg})")
-                log.warning(warnings[-1])
-                continue
-            raise InputFileError(p, msg + (" (truncated file?)" if last else ""), ln)
-        row = []
-        for j, cell in enumerate(cells):
-            try:
-                v = float(cell)
-            except ValueError:
-                raise InputFileError(p, f"not a number: {cell.strip()!r}", ln, header[j]) from None
-            if not math.isfinite(v):
-                if not lenient or j == 0:
-                    raise InputFileError(p, f"non-finite value {cell.strip()!r}", ln, header[j])
-                warnings.append(f"{p}:{ln}: non-finite {header[j]} kept as NaN (dropped and "
-                                "counted by the core)")
-                log.warning(warnings[-1])
-                v = math.nan
-            row.append(v)
-        rows.append(row)
+        row = parse_row(p, ln, line.split(","), header, last=ln == len(lines), lenient=lenient,
+                        warnings=warnings, required=0)
+        if row is not None:
+            rows.append(row)
     if len(rows) < 2:
         raise InputFileError(p, f"needs at least 2 data rows, found {len(rows)}")
     data = np.array(rows, dtype=np.float64)

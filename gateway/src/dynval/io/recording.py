@@ -2,11 +2,16 @@
 from __future__ import annotations
 
 import hashlib
+import logging
+import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from dynval.errors import InputFileError
 
 _UNIT_SUFFIX = re.compile(r"^(?P<name>.+?)_(?P<unit>mps2|m_s2|N|m|mm|s|V|g|ms2|um|ue|lbf|in)$")
 _UNITS = {"mps2": "m/s^2", "m_s2": "m/s^2", "ms2": "m/s^2", "N": "N", "m": "m", "mm": "mm",
@@ -72,3 +77,35 @@ def file_sha256(path: Path) -> str:
         for chunk in iter(lambda: f.read(1 << 20), b""):
             h.update(chunk)
     return h.hexdigest()
+
+
+def parse_row(path: Path, ln: int, cells: Sequence[str], names: Sequence[str], *, last: bool,
+              lenient: bool, warnings: list[str], required: int = -1) -> list[float] | None:
+    """One data row of a text table (the CSV and the whitespace readers): its cells as floats.
+    Errors name the file, line and column: a wrong number of cells, a non-number, NaN/Inf.
+    lenient=True drops a short last row (a truncated file: returns None) and keeps NaN/Inf as
+    NaN (the core drops and counts it), each counted in warnings; column `required` (the time)
+    must be finite even then."""
+    ncol = len(names)
+    if len(cells) != ncol:
+        msg = f"expected {ncol} cells, found {len(cells)}"
+        if lenient and last and len(cells) < ncol:
+            warnings.append(f"{path}:{ln}: truncated last row dropped ({msg})")
+            logging.getLogger(__name__).warning(warnings[-1])
+            return None
+        raise InputFileError(path, msg + (" (truncated file?)" if last else ""), ln)
+    row = []
+    for j, cell in enumerate(cells):
+        try:
+            v = float(cell)
+        except ValueError:
+            raise InputFileError(path, f"not a number: {cell.strip()!r}", ln, names[j]) from None
+        if not math.isfinite(v):
+            if not lenient or j == required:
+                raise InputFileError(path, f"non-finite value {cell.strip()!r}", ln, names[j])
+            warnings.append(f"{path}:{ln}: non-finite {names[j]} kept as NaN (dropped and "
+                            "counted by the core)")
+            logging.getLogger(__name__).warning(warnings[-1])
+            v = math.nan
+        row.append(v)
+    return row

@@ -3,7 +3,6 @@ rate. Default layout (the three-story structure data): force + 4 accelerations. 
 first line of names (non-numeric) names the columns; '#' starts a comment."""
 from __future__ import annotations
 
-import logging
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -11,9 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from dynval.errors import InputFileError
-from dynval.io.recording import Channel, Recording, default_role, file_sha256, split_unit
-
-log = logging.getLogger(__name__)
+from dynval.io.recording import Channel, Recording, default_role, file_sha256, parse_row, split_unit
 
 #: the three-story structure layout: channel 1 force, channels 2..5 accelerations of DOF 1..4
 DEFAULT_COLUMNS = ("force_N", "acc1_mps2", "acc2_mps2", "acc3_mps2", "acc4_mps2")
@@ -62,27 +59,10 @@ def read_text(path: Path | str, fs_hz: float, *, columns: Sequence[str] | None =
         raise InputFileError(p, f"{len(names)} column names for {ncol} columns", first_ln)
     last_ln = numbered[-1][0] if numbered else first_ln
     for ln, cells in numbered:
-        if len(cells) != ncol:
-            msg = f"expected {ncol} cells, found {len(cells)}"
-            if lenient and ln == last_ln and len(cells) < ncol:
-                warnings.append(f"{p}:{ln}: truncated last row dropped ({msg})")
-                log.warning(warnings[-1])
-                continue
-            raise InputFileError(p, msg + (" (truncated file?)" if ln == last_ln else ""), ln)
-        row = []
-        for j, cell in enumerate(cells):
-            try:
-                v = float(cell)
-            except ValueError:
-                raise InputFileError(p, f"not a number: {cell!r}", ln, names[j]) from None
-            if not math.isfinite(v):
-                if not lenient:
-                    raise InputFileError(p, f"non-finite value {cell!r}", ln, names[j])
-                warnings.append(f"{p}:{ln}: non-finite {names[j]} kept as NaN")
-                log.warning(warnings[-1])
-                v = math.nan
-            row.append(v)
-        rows.append(row)
+        row = parse_row(p, ln, cells, names, last=ln == last_ln, lenient=lenient,
+                        warnings=warnings)
+        if row is not None:
+            rows.append(row)
     if len(rows) < 2:
         raise InputFileError(p, f"needs at least 2 data rows, found {len(rows)}")
     data = np.array(rows, dtype=np.float64)
