@@ -265,9 +265,9 @@ def reaction_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
         p = _simulate_states(m, t)
         if p is None:
             return None
-        xs.append(np.vstack([p[f"__x{j}"] for j in range(1, n + 1)]))
-        vs.append(np.vstack([p[f"__v{j}"] for j in range(1, n + 1)]))
-        as_.append(np.vstack([p[f"__a{j}"] for j in range(1, n + 1)]))
+        xs.append(_dof_rows(p, "x", n))
+        vs.append(_dof_rows(p, "v", n))
+        as_.append(_dof_rows(p, "a", n))
         f = np.zeros((n, t.u.size))
         f[0] = (t.y[c0] - p[c0]) / m.outputs[c0].gain
         fl.append(f)
@@ -305,6 +305,11 @@ def _frf(m: mdl.Model, chans: Sequence[str], nf: int, fs: float) -> np.ndarray:
         fac = {"acc": -(w ** 2), "vel": 1j * w, "disp": np.ones_like(w)}[o.kind] * o.gain
         rows.append(fac[:, None] * hx[:, o.index - 1, :])
     return np.stack(rows, axis=1)  # nfreq x n_out x n
+
+
+def _dof_rows(p: dict[str, np.ndarray], kind: str, n: int) -> np.ndarray:
+    """n x samples: the __<kind><j> series of _simulate_states() for DOF j = 1..n."""
+    return np.vstack([p[f"__{kind}{j}"] for j in range(1, n + 1)])
 
 
 def _simulate_states(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
@@ -349,9 +354,9 @@ def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
         p = _simulate_states(m, t)
         if p is None:
             return None
-        xs.append(np.vstack([p[f"__x{j}"] for j in range(1, n + 1)]))
-        vs.append(np.vstack([p[f"__v{j}"] for j in range(1, n + 1)]))
-        as_.append(np.vstack([p[f"__a{j}"] for j in range(1, n + 1)]))
+        xs.append(_dof_rows(p, "x", n))
+        vs.append(_dof_rows(p, "v", n))
+        as_.append(_dof_rows(p, "a", n))
         target.append(np.concatenate([-(t.y[ch] - p[ch]) / scales[ch] for ch in chans]))
         for ch in chans:
             pred[ch].append(p[ch] / scales[ch])
