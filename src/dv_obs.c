@@ -764,6 +764,9 @@ static inline dv_real_t elem_kh(const dv_contact_desc_t *c)
 /* The force of element c at X = x: every law evaluation of the observer goes through here.
  * (xp, gp): the element's X and force at the previous sub-node (stick-slip history); kh from
  * elem_kh(). */
+#if defined(__GNUC__)
+__attribute__((always_inline)) /* -Os would call it, and the law's helpers, per evaluation */
+#endif
 static inline dv_real_t elem_force(const dv_contact_desc_t *c, dv_real_t kh, dv_real_t xp,
                                    dv_real_t gp, dv_real_t x)
 {

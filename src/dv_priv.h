@@ -116,11 +116,19 @@ dv_real_t dv_priv_ar_dot(const dv_real_t *a, const dv_real_t *b, size_t n, uint3
 void dv_priv_ar_fir(const dv_real_t *c, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
                     dv_real_t *e, uint32_t kern);
 
+/* Small helpers forced inline (the contact law sits in the observer's per-step loop; -Os would
+ * otherwise call them). */
+#if defined(__GNUC__)
+#define DV_PRIV_INLINE static inline __attribute__((always_inline))
+#else
+#define DV_PRIV_INLINE static inline
+#endif
+
 /* Contact force law of dv_model.h, one side: s = X - gap; 0, then kB s^2 / (2 delta) on the
  * transition, then kB (s - delta / 2). Continuous force and tangent stiffness. Written without
  * branches, kh = kB / (2 delta) given (callers evaluating the law many times compute it once):
  * kh min(max(s, 0), delta)^2 + kB max(s - delta, 0). */
-static inline dv_real_t dv_priv_contact_g1k(dv_real_t s, dv_real_t delta, dv_real_t kb,
+DV_PRIV_INLINE dv_real_t dv_priv_contact_g1k(dv_real_t s, dv_real_t delta, dv_real_t kb,
                                             dv_real_t kh)
 {
     const dv_real_t pos = s > DV_R(0.0) ? s : DV_R(0.0);
@@ -130,7 +138,7 @@ static inline dv_real_t dv_priv_contact_g1k(dv_real_t s, dv_real_t delta, dv_rea
 }
 
 /* Both sides: side bit 1 = positive (X > gap), bit 2 = negative (X < -gap, mirrored). */
-static inline dv_real_t dv_priv_contact_gk(int side, dv_real_t gap, dv_real_t delta,
+DV_PRIV_INLINE dv_real_t dv_priv_contact_gk(int side, dv_real_t gap, dv_real_t delta,
                                            dv_real_t kb, dv_real_t kh, dv_real_t x)
 {
     dv_real_t g = DV_R(0.0);
