@@ -60,7 +60,7 @@ static void run_temporal(void)
     bench_sink = o.rms_duration;
 }
 
-static const dv_chan_config_t CFG = {WIN, SEG, NSEG, DV_R(1.0) / DV_R(640.0)};
+static const dv_chan_config_t CFG = {WIN, SEG, NSEG, DV_R(1.0) / DV_R(640.0), false};
 
 static void run_chan(void)
 {

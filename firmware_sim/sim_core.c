@@ -146,7 +146,9 @@ static int chan_setup(struct sim_core *c, const struct sim_config *cfg, int i, d
     cc.seg_len = cfg->seg_len;
     cc.n_seg = cfg->n_seg;
     cc.dt_s = (dv_real_t)1 / (dv_real_t)cfg->fs_hz[i];
-    const size_t len = DV_CHAN_BUF_LEN(cc.win_len, cc.n_seg);
+    /* each segment's STD is published as it completes: no vectors kept */
+    cc.no_seg_vectors = true;
+    const size_t len = DV_CHAN_BUF_LEN(cc.win_len, 0u);
     dv_real_t *buf = malloc(len * sizeof *buf);
     if (buf == NULL) {
         return -1;

@@ -25,13 +25,15 @@ dv_status_t dv_chan_init(dv_chan_t *s, const dv_chan_config_t *cfg, dv_real_t *b
         cfg->n_seg == 0u || !dv_priv_finite(cfg->dt_s) || !(cfg->dt_s > DV_R(0.0))) {
         return DV_EINVAL;
     }
-    if (buf_len < DV_CHAN_BUF_LEN(cfg->win_len, cfg->n_seg)) {
+    if (buf_len < DV_CHAN_BUF_LEN(cfg->win_len, cfg->no_seg_vectors ? 0u : cfg->n_seg)) {
         return DV_ESIZE;
     }
     const size_t wl = DV_SLIDING_BUF_LEN(cfg->win_len);
     dv_status_t st = dv_sliding_init(&s->win, cfg->win_len, buf, wl);
     if (st == DV_OK) {
-        st = dv_segstd_init(&s->seg, cfg->seg_len, cfg->n_seg, buf + wl, buf_len - wl);
+        st = cfg->no_seg_vectors
+                 ? dv_segstd_init(&s->seg, cfg->seg_len, cfg->n_seg, NULL, 0u)
+                 : dv_segstd_init(&s->seg, cfg->seg_len, cfg->n_seg, buf + wl, buf_len - wl);
     }
     if (st == DV_OK) {
         st = dv_temporal_init(&s->tm, cfg->dt_s);

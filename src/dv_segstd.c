@@ -6,15 +6,15 @@
 dv_status_t dv_segstd_init(dv_segstd_t *s, size_t seg_len, size_t n_seg, dv_real_t *buf,
                            size_t buf_len)
 {
-    if (s == NULL || buf == NULL || seg_len < 2u || n_seg == 0u || seg_len > UINT32_MAX ||
-        n_seg > UINT32_MAX / 2u) {
+    if (s == NULL || (buf == NULL && buf_len != 0u) || seg_len < 2u || n_seg == 0u ||
+        seg_len > UINT32_MAX || n_seg > UINT32_MAX / 2u) {
         return DV_EINVAL;
     }
-    if (buf_len < DV_SEGSTD_BUF_LEN(n_seg)) {
+    if (buf != NULL && buf_len < DV_SEGSTD_BUF_LEN(n_seg)) {
         return DV_ESIZE;
     }
     s->cur = buf;
-    s->done = buf + n_seg;
+    s->done = buf == NULL ? NULL : buf + n_seg;
     s->seg_len = (uint32_t)seg_len;
     s->n_seg = (uint32_t)n_seg;
     dv_segstd_reset(s);
@@ -57,7 +57,9 @@ dv_status_t dv_priv_segstd_push(dv_segstd_t *s, dv_real_t s1, dv_real_t s2)
     dv_real_t var = (s2 - s1 * s1 / n) / n;
     var = var > DV_R(0.0) ? var : DV_R(0.0);
     s->last = DV_SQRT(var);
-    s->cur[s->seg] = s->last;
+    if (s->cur != NULL) {
+        s->cur[s->seg] = s->last;
+    }
     if (++s->seg < s->n_seg) {
         return DV_DONE;
     }
@@ -85,7 +87,7 @@ dv_status_t dv_segstd_last(const dv_segstd_t *s, dv_real_t *std, uint32_t *seg_i
 
 dv_status_t dv_segstd_get(const dv_segstd_t *s, dv_real_t *out, size_t out_len)
 {
-    if (s == NULL || out == NULL) {
+    if (s == NULL || out == NULL || s->done == NULL) {
         return DV_EINVAL;
     }
     if (out_len < s->n_seg) {

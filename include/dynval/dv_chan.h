@@ -21,7 +21,7 @@
 extern "C" {
 #endif
 
-/** Storage needed by dv_chan_init(), in elements. */
+/** Storage needed by dv_chan_init(), in elements (n_seg 0 with no_seg_vectors). */
 #define DV_CHAN_BUF_LEN(win_len, n_seg) (DV_SLIDING_BUF_LEN(win_len) + DV_SEGSTD_BUF_LEN(n_seg))
 
 /** @brief Configuration of one channel's feature set. */
@@ -30,6 +30,8 @@ typedef struct {
     uint32_t seg_len; /**< samples per STD segment, >= 2 (e.g. 64) */
     uint32_t n_seg;   /**< segments per record, >= 1 (e.g. 64: a 4096-sample record) */
     dv_real_t dt_s;   /**< sample period, s, > 0 */
+    bool no_seg_vectors; /**< true: keep no segmented-STD vector, each STD is read as its segment
+                              completes (dv_segstd_last()); the buffer is DV_CHAN_BUF_LEN(win_len, 0) */
 } dv_chan_config_t;
 
 /** @brief One channel's features. Fields are private. */
@@ -53,7 +55,8 @@ typedef struct {
 
 /**
  * @brief Bind storage and clear state.
- * @param[in] buf DV_CHAN_BUF_LEN(cfg->win_len, cfg->n_seg) elements, must outlive @p s
+ * @param[in] buf DV_CHAN_BUF_LEN(cfg->win_len, cfg->n_seg) elements (n_seg 0 with
+ *                cfg->no_seg_vectors), must outlive @p s
  * @retval DV_OK / DV_EINVAL (NULL or a config value out of range) / DV_ESIZE (buffer too small)
  */
 dv_status_t dv_chan_init(dv_chan_t *s, const dv_chan_config_t *cfg, dv_real_t *buf,

@@ -3,7 +3,9 @@
  * @brief Segmented STD: a record cut into n_seg consecutive segments of seg_len samples,
  *        the population STD of each (the report uses 64 x 64 over a 4096-point record).
  *
- * Each completed record's vector is kept (double-buffered) while the next record fills.
+ * Each completed record's vector is kept (double-buffered) while the next record fills, or,
+ * initialised without storage, no vector is kept at all: firmware that publishes each STD as its
+ * segment completes (dv_segstd_last()) needs no RAM per segment.
  */
 #ifndef DV_SEGSTD_H
 #define DV_SEGSTD_H
@@ -19,8 +21,8 @@ extern "C" {
 
 /** @brief Segmented-STD state. Fields are private. */
 typedef struct {
-    dv_real_t *cur;       /**< STDs of the record being filled, length n_seg */
-    dv_real_t *done;      /**< STDs of the last complete record, length n_seg */
+    dv_real_t *cur;       /**< STDs of the record being filled, length n_seg (NULL: none kept) */
+    dv_real_t *done;      /**< STDs of the last complete record, length n_seg (NULL: none kept) */
     uint32_t seg_len;     /**< samples per segment */
     uint32_t n_seg;       /**< segments per record */
     uint32_t pos;         /**< samples in the open segment */
@@ -36,8 +38,10 @@ typedef struct {
  * @brief Bind storage and clear state.
  * @param[in] seg_len samples per segment, >= 2
  * @param[in] n_seg   segments per record, >= 1
- * @param[in] buf     DV_SEGSTD_BUF_LEN(n_seg) elements, must outlive @p s
- * @retval DV_OK / DV_EINVAL (NULL, seg_len < 2, n_seg 0) / DV_ESIZE (@p buf_len too small)
+ * @param[in] buf     DV_SEGSTD_BUF_LEN(n_seg) elements, must outlive @p s; or NULL with
+ *                    @p buf_len 0: keep no vectors (dv_segstd_get() then returns DV_EINVAL)
+ * @retval DV_OK / DV_EINVAL (NULL @p s, seg_len < 2, n_seg 0, NULL @p buf with @p buf_len > 0) /
+ *         DV_ESIZE (@p buf_len too small)
  */
 dv_status_t dv_segstd_init(dv_segstd_t *s, size_t seg_len, size_t n_seg, dv_real_t *buf,
                            size_t buf_len);
@@ -64,7 +68,7 @@ dv_status_t dv_segstd_last(const dv_segstd_t *s, dv_real_t *std, uint32_t *seg_i
  * @brief Copy the STD vector of the last complete record.
  * @param[out] out  n_seg elements
  * @retval DV_OK / DV_ENOTREADY (no complete record yet, @p out untouched) /
- *         DV_EINVAL (NULL) / DV_ESIZE (@p out_len < n_seg)
+ *         DV_EINVAL (NULL, or @p s keeps no vectors) / DV_ESIZE (@p out_len < n_seg)
  */
 dv_status_t dv_segstd_get(const dv_segstd_t *s, dv_real_t *out, size_t out_len);
 

@@ -10,7 +10,7 @@ static dv_chan_t chan;
 
 int main(void)
 {
-    const dv_chan_config_t cfg = {WIN, SEG, NSEG, DV_R(1.0) / DV_R(640.0)};
+    const dv_chan_config_t cfg = {WIN, SEG, NSEG, DV_R(1.0) / DV_R(640.0), false};
     if (dv_chan_init(&chan, &cfg, buf, sizeof buf / sizeof buf[0]) != DV_OK) return 1;
     int records = 0;
     for (int i = 0; i < SEG * NSEG; i++) {

@@ -100,7 +100,7 @@ int main(void)
             b.u = (unsigned int)lb;
             lsb[c] = b.f;
             fs_ch[c] = fs;
-            dv_chan_config_t cc = {win, seg, nseg, (dv_real_t)1 / (dv_real_t)fs};
+            dv_chan_config_t cc = {win, seg, nseg, (dv_real_t)1 / (dv_real_t)fs, false};
             size_t len = DV_CHAN_BUF_LEN(win, nseg);
             buf[c] = malloc(len * sizeof(dv_real_t));
             if (buf[c] == NULL || dv_chan_init(&ch[c], &cc, buf[c], len) != DV_OK) {

@@ -203,7 +203,7 @@ static void features(void)
         const float *x = feat_x[c];
         /* dv_chan: the per-channel bundle, one call per sample */
         dv_chan_t ch;
-        const dv_chan_config_t cfg = {WIN, SEGL, NSEG, DV_R(1.0) / DV_R(640.0)};
+        const dv_chan_config_t cfg = {WIN, SEGL, NSEG, DV_R(1.0) / DV_R(640.0), false};
         dv_status_t st = dv_chan_init(&ch, &cfg, chan_buf, DV_CHAN_BUF_LEN(WIN, NSEG));
         long records = 0, segs = 0;
         for (int i = 0; i < NF; i++) {

@@ -28,7 +28,8 @@
 #define N_OUT 4u
 
 dv_chan_t ram_chan[N_CH];
-dv_real_t ram_chan_buf[N_CH][DV_CHAN_BUF_LEN(WIN, N_SEG)];
+/* segment STDs are published as each segment completes (as firmware_sim does): no vectors */
+dv_real_t ram_chan_buf[N_CH][DV_CHAN_BUF_LEN(WIN, 0u)];
 dv_ar_resid_t ram_ar[N_CH];
 dv_real_t ram_ar_buf[N_CH][DV_AR_RESID_BUF_LEN(AR_P)];
 dv_model_t ram_model;
@@ -83,7 +84,7 @@ static void lanl_desc(dv_model_desc_t *d, uint16_t n_contact)
 
 static int init_all(uint16_t n_contact)
 {
-    const dv_chan_config_t cfg = {WIN, SEG_LEN, N_SEG, DV_R(1.0) / DV_R(640.0)};
+    const dv_chan_config_t cfg = {WIN, SEG_LEN, N_SEG, DV_R(1.0) / DV_R(640.0), true};
     dv_ar_model_t am;
     memset(&am, 0, sizeof am);
     am.order = AR_P;
@@ -93,7 +94,7 @@ static int init_all(uint16_t n_contact)
         for (unsigned j = 0; j < AR_P; j++) { /* a decaying, stable AR(32) */
             am.a[j] = DV_R(0.5) / (dv_real_t)((j + 1u) * (j + 1u + c));
         }
-        ok &= dv_chan_init(&ram_chan[c], &cfg, ram_chan_buf[c], DV_CHAN_BUF_LEN(WIN, N_SEG)) == DV_OK;
+        ok &= dv_chan_init(&ram_chan[c], &cfg, ram_chan_buf[c], DV_CHAN_BUF_LEN(WIN, 0u)) == DV_OK;
         ok &= dv_ar_resid_init(&ram_ar[c], &am, ram_ar_buf[c], DV_AR_RESID_BUF_LEN(AR_P)) == DV_OK;
     }
     dv_model_desc_t d;
@@ -156,7 +157,7 @@ int main(void)
     m4_put(" obs_scratch ");
     m4_put_u((uint32_t)OBS_SCRATCH);
     m4_line_end();
-    uint32_t records = 0, resid_ok = 0;
+    uint32_t records = 0, resid_ok = 0, segs = 0;
     /* float, as a firmware would: double arithmetic here would pull libgcc's soft-float
      * routines into the image and count against the library's flash */
     dv_real_t rsum = DV_R(0.0);
@@ -164,7 +165,13 @@ int main(void)
         dv_real_t x[N_CH];
         for (unsigned c = 0; c < N_CH; c++) {
             x[c] = noise();
-            records += dv_chan_update(&ram_chan[c], x[c]) == DV_RECORD;
+            const dv_status_t st = dv_chan_update(&ram_chan[c], x[c]);
+            records += st == DV_RECORD;
+            if (st == DV_DONE || st == DV_RECORD) { /* publish the segment's STD */
+                dv_real_t sd;
+                uint32_t idx;
+                segs += dv_segstd_last(&ram_chan[c].seg, &sd, &idx) == DV_OK && sd > DV_R(0.0);
+            }
             dv_real_t e;
             resid_ok += dv_ar_resid_update(&ram_ar[c], x[c], &e) == DV_OK;
         }
@@ -173,7 +180,7 @@ int main(void)
         ok &= dv_obs_get(&ram_obs, NULL, r, N_OUT) == DV_OK;
         rsum += r[0] * r[0];
     }
-    ok &= records == 2u * N_CH && resid_ok == N_CH * (2u * SEG_LEN * N_SEG - AR_P) &&
+    ok &= records == 2u * N_CH && segs == 2u * N_SEG * N_CH && resid_ok == N_CH * (2u * SEG_LEN * N_SEG - AR_P) &&
           rsum - rsum == DV_R(0.0);
     m4_put("STACK init ");
     m4_put_u(stack_init);

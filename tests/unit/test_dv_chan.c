@@ -13,7 +13,7 @@ enum { NMAX = 4096, WIN = 256, L = 64, NS = 64 };
 static double xin[NMAX];
 static dv_real_t xr[3 * NMAX];
 static dv_real_t buf[DV_CHAN_BUF_LEN(WIN, NS)], buf2[DV_CHAN_BUF_LEN(WIN, NS)];
-static const dv_chan_config_t CFG = {WIN, L, NS, DV_R(1.0) / DV_R(640.0)};
+static const dv_chan_config_t CFG = {WIN, L, NS, DV_R(1.0) / DV_R(640.0), false};
 
 static void load(void)
 {
@@ -91,7 +91,7 @@ static void test_chan_nan_is_dropped_everywhere(void **state)
     (void)state;
     dv_chan_t c;
     static dv_real_t small[DV_CHAN_BUF_LEN(4, 2)];
-    const dv_chan_config_t cfg = {4, 4, 2, DV_R(0.01)};
+    const dv_chan_config_t cfg = {4, 4, 2, DV_R(0.01), false};
     assert_int_equal(dv_chan_init(&c, &cfg, small, DV_CHAN_BUF_LEN(4, 2)), DV_OK);
     for (int i = 0; i < 7; i++) {
         assert_true(dv_chan_update(&c, (dv_real_t)i) >= DV_OK);
@@ -158,6 +158,47 @@ static void test_chan_block_nan_in_whole_blocks(void **state)
     for (int i = 0; i < NS; i++) assert_true(dv_test_close(vb[i], va[i], DV_TEST_RTOL, 1e-12));
 }
 
+// no_seg_vectors: a buffer without the segment vectors, the same features bit for bit
+// (each segment's STD read as it completes), and no vector to copy.
+static void test_chan_without_segment_vectors(void **state)
+{
+    (void)state;
+    load();
+    static dv_real_t small[DV_CHAN_BUF_LEN(WIN, 0)];
+    dv_chan_config_t cfg = CFG;
+    cfg.no_seg_vectors = true;
+    dv_chan_t a, b;
+    assert_int_equal(dv_chan_init(&a, &CFG, buf, DV_CHAN_BUF_LEN(WIN, NS)), DV_OK);
+    assert_int_equal(dv_chan_init(&b, &cfg, small, DV_CHAN_BUF_LEN(WIN, 0) - 1), DV_ESIZE);
+    assert_int_equal(dv_chan_init(&b, &cfg, small, DV_CHAN_BUF_LEN(WIN, 0)), DV_OK);
+    int segs = 0;
+    for (int i = 0; i < 2 * NMAX; i++) {
+        const dv_status_t sa = dv_chan_update(&a, xr[i]);
+        assert_int_equal(dv_chan_update(&b, xr[i]), sa);
+        if (sa == DV_DONE || sa == DV_RECORD) {
+            dv_real_t va, vb;
+            uint32_t ia, ib;
+            assert_int_equal(dv_segstd_last(&a.seg, &va, &ia), DV_OK);
+            assert_int_equal(dv_segstd_last(&b.seg, &vb, &ib), DV_OK);
+            assert_true(va == vb && ia == ib);
+            if (i < NMAX && ia == 17) {
+                assert_true(dv_test_close(vb, dv_test_expected("features_expected.csv", "random", "segstd_17"), DV_TEST_RTOL, 0));
+            }
+            segs++;
+        }
+    }
+    assert_int_equal(segs, 2 * NS);
+    dv_stats_t sa, sb;
+    assert_int_equal(dv_chan_get_window(&a, &sa), DV_OK);
+    assert_int_equal(dv_chan_get_window(&b, &sb), DV_OK);
+    assert_true(sa.rms == sb.rms && sa.peak == sb.peak && sa.kurt == sb.kurt);
+    assert_int_equal(dv_chan_get_record(&a, &sa, NULL), DV_OK);
+    assert_int_equal(dv_chan_get_record(&b, &sb, NULL), DV_OK);
+    assert_true(sa.std == sb.std && sa.max == sb.max);
+    dv_real_t v[NS];
+    assert_int_equal(dv_segstd_get(&b.seg, v, NS), DV_EINVAL);
+}
+
 static void test_chan_bad_config(void **state)
 {
     (void)state;
@@ -188,6 +229,7 @@ int main(void)
         cmocka_unit_test(test_chan_block_agrees_with_per_sample),
         cmocka_unit_test(test_chan_nan_is_dropped_everywhere),
         cmocka_unit_test(test_chan_block_nan_in_whole_blocks),
+        cmocka_unit_test(test_chan_without_segment_vectors),
         cmocka_unit_test(test_chan_bad_config),
     };
     return cmocka_run_group_tests_name("dv_chan", tests, NULL, NULL);

@@ -85,7 +85,9 @@ static void test_segstd_bad_input(void **state)
     assert_int_equal(dv_segstd_init(NULL, 2, 2, buf, 8), DV_EINVAL);
     assert_int_equal(dv_segstd_init(&s, 1, 2, buf, 8), DV_EINVAL);
     assert_int_equal(dv_segstd_init(&s, 2, 0, buf, 8), DV_EINVAL);
-    assert_int_equal(dv_segstd_init(&s, 2, 2, NULL, 8), DV_EINVAL);
+    assert_int_equal(dv_segstd_init(&s, 2, 2, NULL, 8), DV_EINVAL); // NULL storage is len 0
+    assert_int_equal(dv_segstd_init(&s, 2, 2, NULL, 0), DV_OK);      // keeps no vectors
+    assert_int_equal(dv_segstd_get(&s, buf, 8), DV_EINVAL);
     assert_int_equal(dv_segstd_init(&s, 2, 5, buf, 8), DV_ESIZE);
     assert_int_equal(dv_segstd_init(&s, 2, 4, buf, 8), DV_OK);
     dv_real_t v = 9;
@@ -100,12 +102,41 @@ static void test_segstd_bad_input(void **state)
     assert_int_equal(s.n_nonfinite, 1);
 }
 
+// Without storage (firmware publishing each STD as it completes) every segment's STD and
+// the DONE/RECORD signalling equal the double-buffered instance's, bit for bit.
+static void test_segstd_streaming_equals_buffered(void **state)
+{
+    (void)state;
+    assert_int_equal(dv_test_load("features_skewed.csv", xin, NMAX), NMAX);
+    dv_segstd_t a, b;
+    dv_real_t buf[DV_SEGSTD_BUF_LEN(8)];
+    assert_int_equal(dv_segstd_init(&a, 50, 8, buf, DV_SEGSTD_BUF_LEN(8)), DV_OK);
+    assert_int_equal(dv_segstd_init(&b, 50, 8, NULL, 0), DV_OK);
+    int segs = 0;
+    for (int i = 0; i < NMAX; i++) {
+        const dv_status_t sa = dv_segstd_update(&a, (dv_real_t)xin[i]);
+        assert_int_equal(dv_segstd_update(&b, (dv_real_t)xin[i]), sa);
+        if (sa == DV_DONE || sa == DV_RECORD) {
+            dv_real_t va, vb;
+            uint32_t ia, ib;
+            assert_int_equal(dv_segstd_last(&a, &va, &ia), DV_OK);
+            assert_int_equal(dv_segstd_last(&b, &vb, &ib), DV_OK);
+            assert_true(va == vb && ia == ib && va > 0);
+            segs++;
+        }
+    }
+    assert_int_equal(segs, NMAX / 50);
+    assert_int_equal(a.records, NMAX / 400);
+    assert_int_equal(b.records, a.records);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_segstd_golden_vector),
         cmocka_unit_test(test_segstd_vector_survives_next_record),
         cmocka_unit_test(test_segstd_bad_input),
+        cmocka_unit_test(test_segstd_streaming_equals_buffered),
     };
     return cmocka_run_group_tests_name("dv_segstd", tests, NULL, NULL);
 }
