@@ -105,6 +105,37 @@ static dv_real_t *take(dv_real_t **p, size_t count)
     return r;
 }
 
+/* take() for an array that may already hold data (old, not NULL): copied unless in place. */
+static dv_real_t *take_from(dv_real_t **p, dv_real_t *old, size_t count)
+{
+    dv_real_t *r = take(p, count);
+    if (old != NULL && old != r) {
+        for (size_t i = 0; i < count; i++) {
+            r[i] = old[i];
+        }
+    }
+    return r;
+}
+
+/* The arrays the observers' steps read, laid out from *p (DV_MODEL_STEP_LEN_HOLD elements):
+ * the start of the model's storage at init, a caller's buffer in dv_model_keep_step_only(). */
+static void lay_step_part(dv_model_t *m, dv_real_t **p)
+{
+    const size_t ns = m->n_state, no = m->n_out, nc = m->n_contact, nf = m->n_f;
+    m->cy = take_from(p, m->cy, no * ns);
+    m->d0 = take_from(p, m->d0, no);
+    m->d1 = take_from(p, m->d1, no);
+    m->ey = take_from(p, m->ey, no * nc);
+    m->rx = take_from(p, m->rx, nf * ns);
+    m->rxa = take_from(p, m->rxa, nf);
+    m->rxb = take_from(p, m->rxb, nf);
+    m->smat = take_from(p, m->smat, nf * nf);
+    if (m->input_hold == DV_HOLD_CUBIC) {
+        m->du = take_from(p, m->du, no * 4u);
+        m->rxu = take_from(p, m->rxu, nf * 4u);
+    }
+}
+
 static dv_status_t validate(const dv_model_desc_t *d, dv_real_t dt_s)
 {
     if (!desc_sizes_ok(d) || !fin(dt_s) || !(dt_s > DV_R(0.0))) {
@@ -372,7 +403,13 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
     m->n_in = (uint16_t)DV_MODEL_HOLD_NIN((int)d->input_hold);
     m->dt_s = dt_s;
 
+    /* what the observers' steps read first (DV_MODEL_STEP_LEN_HOLD), then what only the
+     * builds of observers read: dv_model_keep_step_only() lets the caller reuse the tail */
     dv_real_t *p = buf;
+    const bool cubic = d->input_hold == DV_HOLD_CUBIC;
+    lay_step_part(m, &p);
+    DV_ASSERT((size_t)(p - buf) ==
+              DV_MODEL_STEP_LEN_HOLD(n, nc, nsub, no, (size_t)m->n_in));
     m->kmat = take(&p, n * n);
     m->cmat = take(&p, n * n);
     m->modes = take(&p, n * n);
@@ -381,20 +418,9 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
     m->bc = take(&p, ns * nb);
     m->pa = take(&p, ns);
     m->pb = take(&p, ns);
-    m->cy = take(&p, no * ns);
-    m->d0 = take(&p, no);
-    m->d1 = take(&p, no);
-    m->ey = take(&p, no * nc);
-    m->rx = take(&p, nf * ns);
-    m->rxa = take(&p, nf);
-    m->rxb = take(&p, nf);
-    m->smat = take(&p, nf * nf);
     m->vmat = take(&p, ns * nf);
-    const bool cubic = d->input_hold == DV_HOLD_CUBIC;
     if (cubic) {
         m->pu = take(&p, ns * 4u);
-        m->du = take(&p, no * 4u);
-        m->rxu = take(&p, nf * 4u);
     }
     DV_ASSERT((size_t)(p - buf) <= len);
     dv_real_t *scr = scratch; /* init-only scratch, dead after init */
@@ -928,10 +954,26 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
     return DV_OK;
 }
 
+dv_status_t dv_model_keep_step_only(dv_model_t *m, dv_real_t *buf, size_t len)
+{
+    if (m == NULL || m->cy == NULL || buf == NULL) {
+        return DV_EINVAL;
+    }
+    if (len < DV_MODEL_STEP_LEN_HOLD((size_t)m->n_dof, (size_t)m->n_contact, (size_t)m->n_sub,
+                                     (size_t)m->n_out, (size_t)m->n_in)) {
+        return DV_ESIZE;
+    }
+    dv_real_t *p = buf;
+    lay_step_part(m, &p);
+    m->kmat = m->cmat = m->modes = m->ac = m->ad = m->bc = NULL;
+    m->pa = m->pb = m->vmat = m->pu = NULL;
+    return DV_OK;
+}
+
 dv_status_t dv_model_get_modes(const dv_model_t *m, dv_real_t *freq_hz, dv_real_t *modes,
                                size_t len)
 {
-    if (m == NULL || m->kmat == NULL) {
+    if (m == NULL || m->cy == NULL || (modes != NULL && m->modes == NULL)) {
         return DV_EINVAL;
     }
     const size_t n = m->n_dof;

@@ -656,7 +656,7 @@ dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_
 
 dv_status_t dv_obs_set_gain(dv_obs_t *o, const dv_real_t *gain, size_t len)
 {
-    if (o == NULL || o->m == NULL) {
+    if (o == NULL || o->m == NULL || o->m->ad == NULL) { /* dv_model_keep_step_only() */
         return DV_EINVAL;
     }
     const size_t nl = (size_t)o->ns * o->no;

@@ -212,6 +212,18 @@ typedef struct {
      ((nin) - 2u) * (DV_MODEL_NS(n) + (nout) + DV_MODEL_NF(nc, nsub)) * 2u)
 
 /**
+ * The part of the persistent storage a bound observer's steps still read (output, contact
+ * sub-node and, cubic, hold matrices), in elements: the first this many elements of the
+ * model's storage. After dv_model_keep_step_only() only these stay in use.
+ */
+#define DV_MODEL_STEP_LEN_HOLD(n, nc, nsub, nout, nin)                                          \
+    ((nout) * (DV_MODEL_NS(n) + 2u + (nc)) +                                                  \
+     DV_MODEL_NF(nc, nsub) * (DV_MODEL_NS(n) + 2u + DV_MODEL_NF(nc, nsub)) +                  \
+     ((nin) - 2u) * 2u * ((nout) + DV_MODEL_NF(nc, nsub)))
+/** DV_MODEL_STEP_LEN_HOLD() with the default first-order hold. */
+#define DV_MODEL_STEP_LEN(n, nc, nsub, nout) DV_MODEL_STEP_LEN_HOLD(n, nc, nsub, nout, 2u)
+
+/**
  * Init-time scratch of dv_model_init_ex(), in elements (eigen-solutions, the exponential of the
  * augmented matrix and the sub-step response): dead once init returns, so one scratch area can
  * serve several inits (e.g. dv_model_init_ex() then dv_obs_init_ex()) and be reused after.
@@ -371,13 +383,26 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
                              size_t scratch_len);
 
 /**
+ * @brief Keep only what the observers bound to @p m read in their steps (firmware RAM), in
+ *        @p buf: the model's own storage (then only its first DV_MODEL_STEP_LEN_HOLD() elements
+ *        stay in use) or a buffer apart from it (then none of the old storage does: build the
+ *        model in a transient area, bind the observers, move the step part out). Bound observers
+ *        step on bit for bit; what needs the build matrices (dv_obs_init(), dv_obs_set_gain(),
+ *        dv_model_get_mat(), the mode shapes of dv_model_get_modes()) returns DV_EINVAL after.
+ * @param[in] buf DV_MODEL_STEP_LEN_HOLD() elements, the model's storage or not overlapping it;
+ *                must outlive @p m
+ * @retval DV_OK / DV_EINVAL (NULL, or @p m not built) / DV_ESIZE (@p len too small)
+ */
+dv_status_t dv_model_keep_step_only(dv_model_t *m, dv_real_t *buf, size_t len);
+
+/**
  * @brief Natural frequencies (Hz, ascending) and mass-normalised mode shapes.
  * @param[in]  m        built model
  * @param[out] freq_hz  n frequencies, or NULL
  * @param[out] modes    n x n row-major, column k = mode k, or NULL
  * @param[in]  len      elements available in @p modes (>= n * n when modes is given)
  * @retval DV_OK     done
- * @retval DV_EINVAL @p m is NULL or not built
+ * @retval DV_EINVAL @p m is NULL or not built, or @p modes given after dv_model_keep_step_only()
  * @retval DV_ESIZE  @p len < n * n with @p modes given
  */
 dv_status_t dv_model_get_modes(const dv_model_t *m, dv_real_t *freq_hz, dv_real_t *modes,
@@ -386,7 +411,8 @@ dv_status_t dv_model_get_modes(const dv_model_t *m, dv_real_t *freq_hz, dv_real_
 /**
  * @brief A read-only view of one of the model's matrices.
  * @retval DV_OK     @p view set (data points into the model's storage; do not write)
- * @retval DV_EINVAL NULL argument, model not built, or unknown @p which (DV_MODEL_MAT_PU and
+ * @retval DV_EINVAL NULL argument, model not built or kept for steps only
+ *                   (dv_model_keep_step_only()), or unknown @p which (DV_MODEL_MAT_PU and
  *                   DV_MODEL_MAT_DU exist with DV_HOLD_CUBIC only)
  */
 dv_status_t dv_model_get_mat(const dv_model_t *m, dv_model_mat_id_t which, dv_mat_t *view);

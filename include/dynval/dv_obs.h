@@ -165,8 +165,9 @@ size_t dv_obs_scratch_len(const dv_model_t *m);
  *                    again when this returns
  * @param[in]  len    elements in @p buf
  * @retval DV_OK        ready; state at rest
- * @retval DV_EINVAL    NULL @p o, @p m or @p buf, model not built, a negative or non-finite
- *                      q, or an r <= 0 or non-finite
+ * @retval DV_EINVAL    NULL @p o, @p m or @p buf, model not built or kept for steps only
+ *                      (dv_model_keep_step_only()), a negative or non-finite q, or an r <= 0
+ *                      or non-finite
  * @retval DV_ESIZE     @p len too small
  * @retval DV_EUNSTABLE the DARE did not converge (an undetectable undamped mode, e.g. a free
  *                      rigid-body mode seen only through accelerations) or is singular
@@ -201,7 +202,8 @@ dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_
  * @param[in]     gain  L, ns x no row-major (x += L r), or NULL for open loop
  * @param[in]     len   elements in @p gain (>= ns * no unless NULL)
  * @retval DV_OK       set; the state is kept
- * @retval DV_EINVAL   @p o NULL or not initialised, or a non-finite gain element
+ * @retval DV_EINVAL   @p o NULL or not initialised, a non-finite gain element, or the model kept
+ *                     for steps only (dv_model_keep_step_only())
  * @retval DV_ESIZE    @p len too small
  */
 dv_status_t dv_obs_set_gain(dv_obs_t *o, const dv_real_t *gain, size_t len);

@@ -666,6 +666,76 @@ static void test_obs_init_scratch_is_transient(void **state)
             (unsigned)DV_MODEL_SCRATCH_LEN(4u, 1u, 8u, 4u), (unsigned)DV_OBS_SCRATCH_LEN(4u, 1u, 8u, 4u));
 }
 
+// dv_model_keep_step_only(): the freed storage (the tail after DV_MODEL_STEP_LEN_HOLD, or all
+// of it when the step part moved out) is overwritten with NaN and the observer, with a contact
+// and the gain, steps on bit for bit; what needs the build matrices refuses.
+static void test_obs_model_kept_for_steps_only(void **state)
+{
+    (void)state;
+    load_force();
+    for (int hold = 0; hold < 2; hold++) {
+        dv_model_desc_t d;
+        dv_model_t mt, m, m2;
+        dv_obs_t ot, o, o2;
+        dv_obs_noise_t nz;
+        const size_t nk = 1024, n0 = 16;
+        const size_t nin = DV_MODEL_HOLD_NIN(hold);
+        // measurements from a stiffer truth, so the gain has work to do
+        mt_lanl_desc(&d);
+        mt_add_bumper(&d, 5e-4, 8);
+        d.input_hold = hold ? DV_HOLD_CUBIC : DV_HOLD_FOH;
+        for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
+        assert_int_equal(dv_model_init(&mt, &d, DT, mbuf, NBUF), DV_OK);
+        assert_int_equal(dv_obs_init(&ot, &mt, NULL, obuf, NBUF), DV_OK);
+        assert_int_equal(dv_obs_simulate(&ot, force_r, nk, ytrue), DV_OK);
+        mt_lanl_desc(&d);
+        mt_add_bumper(&d, 5e-4, 8);
+        d.input_hold = hold ? DV_HOLD_CUBIC : DV_HOLD_FOH;
+        noise_model(&nz);
+        const size_t mper = dv_model_persistent_len(&d);
+        const size_t mstep = DV_MODEL_STEP_LEN_HOLD(4u, 1u, 8u, 4u, nin);
+        assert_true(mstep < mper);
+        assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
+        assert_int_equal(dv_model_init(&m2, &d, DT, mbuf2, NBUF), DV_OK);
+        assert_int_equal(dv_obs_init(&o, &m, &nz, obuf, NBUF), DV_OK);
+        assert_int_equal(dv_obs_init(&o2, &m2, &nz, obuf2, NBUF), DV_OK);
+        assert_int_equal(dv_obs_update_block(&o, force_r, ytrue, n0, ypred, res), DV_OK);
+        assert_int_equal(dv_obs_update_block(&o2, force_r, ytrue, n0, ypred, res), DV_OK);
+        // FOH: in place (the storage's tail is freed); cubic: moved out (all of it is freed)
+        static dv_real_t step_buf[512];
+        assert_true(mstep <= 512);
+        assert_int_equal(dv_model_keep_step_only(&m2, step_buf, mstep - 1), DV_ESIZE);
+        if (hold == 0) {
+            assert_int_equal(dv_model_keep_step_only(&m2, mbuf2, mstep), DV_OK);
+            fill(mbuf2 + mstep, NBUF - mstep, (dv_real_t)NAN);
+        } else {
+            assert_int_equal(dv_model_keep_step_only(&m2, step_buf, mstep), DV_OK);
+            fill(mbuf2, NBUF, (dv_real_t)NAN);
+        }
+        static dv_real_t yp2[NS * 4];
+        assert_int_equal(dv_obs_update_block(&o, force_r + n0, ytrue + 4 * n0, nk - n0, ypred, res), DV_OK);
+        assert_int_equal(dv_obs_update_block(&o2, force_r + n0, ytrue + 4 * n0, nk - n0, yp2, res2), DV_OK);
+        assert_memory_equal(ypred, yp2, (nk - n0) * 4 * sizeof(dv_real_t));
+        assert_memory_equal(res, res2, (nk - n0) * 4 * sizeof(dv_real_t));
+        const double rr = rms(res2, (nk - n0) * 4), yy = rms(ytrue, nk * 4);
+        assert_true(rr > 0 && rr < 0.5 * yy);
+        // what needs the build matrices refuses; the rest answers
+        dv_real_t g[32], fr[4], modes[16];
+        dv_mat_t view;
+        dv_obs_t o3;
+        assert_int_equal(dv_obs_set_gain(&o2, NULL, 0), DV_EINVAL);
+        assert_int_equal(dv_obs_get_gain(&o2, g, 32), DV_OK);
+        assert_true(g[0] != 0);
+        assert_int_equal(dv_obs_init(&o3, &m2, NULL, obuf, NBUF), DV_EINVAL);
+        assert_int_equal(dv_model_get_mat(&m2, DV_MODEL_MAT_AD, &view), DV_EINVAL);
+        assert_int_equal(dv_model_get_modes(&m2, fr, modes, 16), DV_EINVAL);
+        assert_int_equal(dv_model_get_modes(&m2, fr, NULL, 0), DV_OK);
+        assert_true(fabs(fr[1] - 29.80) < 0.05);
+    }
+    dv_real_t one;
+    assert_int_equal(dv_model_keep_step_only(NULL, &one, 1), DV_EINVAL);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -685,6 +755,7 @@ int main(void)
         cmocka_unit_test(test_obs_cubic_latency_and_alignment),
         cmocka_unit_test(test_obs_cubic_gain_and_nan),
         cmocka_unit_test(test_obs_init_scratch_is_transient),
+        cmocka_unit_test(test_obs_model_kept_for_steps_only),
     };
     return cmocka_run_group_tests_name("dv_obs", tests, NULL, NULL);
 }
