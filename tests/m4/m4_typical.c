@@ -34,13 +34,15 @@ dv_ar_resid_t ram_ar[N_CH];
 dv_real_t ram_ar_buf[N_CH][DV_AR_RESID_BUF_LEN(AR_P)];
 dv_model_t ram_model;
 dv_obs_t ram_obs;
-/* Only the persistent storage stays allocated for the observer's lifetime; the init-time
- * scratch (eigen-solutions, expm, DARE) is one transient area that both inits share
- * (dv_model_init_ex, dv_obs_init_ex) and that is free after init: here a static object named
- * tmp_* (not ram_*), which a firmware would overlay on a buffer that is not live during init,
- * or put on the stack. */
-dv_real_t ram_model_buf[DV_MODEL_PERSIST_LEN(N_DOF, N_CONTACT, N_SUB, N_OUT)];
+/* Only what the steps read stays allocated for the observer's lifetime: the observer's
+ * persistent storage and the model's step part (dv_model_keep_step_only moves it out of the
+ * model's storage after dv_obs_init_ex). The model's storage and the init-time scratch
+ * (eigen-solutions, expm, DARE; one area both inits share) are transient: free after init, here
+ * static objects named tmp_* (not ram_*), which a firmware would overlay on buffers that are not
+ * live during init, or put on the stack. */
+dv_real_t ram_model_buf[DV_MODEL_STEP_LEN(N_DOF, N_CONTACT, N_SUB, N_OUT)];
 dv_real_t ram_obs_buf[DV_OBS_PERSIST_LEN(N_DOF, N_CONTACT, N_SUB, N_OUT)];
+dv_real_t tmp_model_build[DV_MODEL_PERSIST_LEN(N_DOF, N_CONTACT, N_SUB, N_OUT)];
 #define MODEL_SCRATCH DV_MODEL_SCRATCH_LEN(N_DOF, N_CONTACT, N_SUB, N_OUT)
 #define OBS_SCRATCH DV_OBS_SCRATCH_LEN(N_DOF, N_CONTACT, N_SUB, N_OUT)
 dv_real_t tmp_init_scratch[MODEL_SCRATCH > OBS_SCRATCH ? MODEL_SCRATCH : OBS_SCRATCH];
@@ -107,14 +109,19 @@ static int init_all(uint16_t n_contact)
         nz.r_meas[i] = DV_R(0.04);
     }
     const size_t nscr = sizeof tmp_init_scratch / sizeof *tmp_init_scratch;
-    ok &= dv_model_init_ex(&ram_model, &d, DV_R(1.0) / DV_R(640.0), ram_model_buf,
-                           sizeof ram_model_buf / sizeof *ram_model_buf, tmp_init_scratch,
-                           nscr) == DV_OK;
+    const size_t nbuild = sizeof tmp_model_build / sizeof *tmp_model_build;
+    ok &= dv_model_init_ex(&ram_model, &d, DV_R(1.0) / DV_R(640.0), tmp_model_build, nbuild,
+                           tmp_init_scratch, nscr) == DV_OK;
     ok &= dv_obs_init_ex(&ram_obs, &ram_model, &nz, ram_obs_buf,
                          sizeof ram_obs_buf / sizeof *ram_obs_buf, tmp_init_scratch,
                          nscr) == DV_OK;
+    ok &= dv_model_keep_step_only(&ram_model, ram_model_buf,
+                                  sizeof ram_model_buf / sizeof *ram_model_buf) == DV_OK;
     for (size_t i = 0; i < nscr; i++) { /* dead after init: prove it */
         tmp_init_scratch[i] = (dv_real_t)NAN;
+    }
+    for (size_t i = 0; i < nbuild; i++) {
+        tmp_model_build[i] = (dv_real_t)NAN;
     }
     return ok;
 }
