@@ -15,6 +15,14 @@
 #define DV_COLD
 #endif
 
+size_t dv_chan_buf_len(const dv_chan_config_t *cfg)
+{
+    if (cfg == NULL || dv_sliding_buf_len(cfg->win_len) == 0u) {
+        return 0u;
+    }
+    return DV_CHAN_BUF_LEN(cfg->win_len, cfg->no_seg_vectors ? 0u : cfg->n_seg);
+}
+
 dv_status_t dv_chan_init(dv_chan_t *s, const dv_chan_config_t *cfg, dv_real_t *buf,
                          size_t buf_len)
 {
@@ -25,7 +33,7 @@ dv_status_t dv_chan_init(dv_chan_t *s, const dv_chan_config_t *cfg, dv_real_t *b
         cfg->n_seg == 0u || !dv_priv_finite(cfg->dt_s) || !(cfg->dt_s > DV_R(0.0))) {
         return DV_EINVAL;
     }
-    if (buf_len < DV_CHAN_BUF_LEN(cfg->win_len, cfg->no_seg_vectors ? 0u : cfg->n_seg)) {
+    if (buf_len < dv_chan_buf_len(cfg)) {
         return DV_ESIZE;
     }
     const size_t wl = DV_SLIDING_BUF_LEN(cfg->win_len);

@@ -23,10 +23,10 @@ void dv_priv_sliding_turn_over(dv_sliding_t *s, const dv_real_t *src);
 void dv_priv_feat_block(uint32_t kern, const dv_real_t *x, dv_real_t k0, dv_real_t p[4],
                         dv_real_t mm[2], dv_real_t w[5]);
 
-/* ring[0..n) = src[0..n) (src may be ring), s[k] = sum (ring - k0)^(k+1),
- * smax[i] / smin[i] = max / min of ring[i..n). */
+/* ring[0..n) = src[0..n) (src may be ring), s[k] = sum (ring - k0)^(k+1), bmax[b] / bmin[b] =
+ * extremes of ring[b DV_SLIDING_BLK .. (b + 1) DV_SLIDING_BLK) (the last block may be short). */
 void dv_priv_feat_turn(const dv_real_t *src, dv_real_t *ring, uint32_t n, dv_real_t k0,
-                       dv_real_t *smax, dv_real_t *smin, dv_real_t s[4]);
+                       dv_real_t *bmax, dv_real_t *bmin, dv_real_t s[4]);
 
 /* dv_sliding_update_block() for samples known to be finite (the caller checked). */
 void dv_priv_sliding_push_finite(dv_sliding_t *s, const dv_real_t *x, size_t n);

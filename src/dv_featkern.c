@@ -1,6 +1,6 @@
 /* Waveform-feature block kernels: the channel bundle's fused block pass (power sums about a
  * shift, extremes, time-weighted energy sums) and the sliding window's turn-over (exact power
- * sums of the ring plus suffix extremes).
+ * sums of the ring and the extremes of each DV_SLIDING_BLK block).
  *
  * The portable versions are plain C with two accumulator chains. On x86-64 double builds the
  * same loops also exist as AVX2/FMA and AVX-512F functions compiled with target attributes and
@@ -53,51 +53,33 @@ static void block_c(const dv_real_t *restrict x, dv_real_t k, dv_real_t p[4], dv
     w[4] = w4;
 }
 
-/* Backward pass over r[0..n): power sums of r - k, and smax[i] / smin[i] = extremes of
- * r[i..n). */
-static void turn_c(const dv_real_t *restrict r, uint32_t n, dv_real_t k, dv_real_t *restrict smax,
-                   dv_real_t *restrict smin, dv_real_t s[4])
+/* From i (a multiple of DV_SLIDING_BLK) on: power sums of r - k added to a, and each block's
+ * extremes bmax[b] / bmin[b] (the last block may be short). The portable turn-over, and the
+ * vector ones' tails. */
+static void turn_from(const dv_real_t *restrict r, uint32_t i, uint32_t n, dv_real_t k,
+                      dv_real_t a[4], dv_real_t *restrict bmax, dv_real_t *restrict bmin)
 {
-    dv_real_t mx = -DV_REAL_MAX, mn = DV_REAL_MAX;
-    dv_real_t a1 = DV_R(0.0), a2 = DV_R(0.0), a3 = DV_R(0.0), a4 = DV_R(0.0);
-    dv_real_t b1 = DV_R(0.0), b2 = DV_R(0.0), b3 = DV_R(0.0), b4 = DV_R(0.0);
-    uint32_t i = n;
-    for (; i >= 2u; i -= 2u) {
-        const dv_real_t v = r[i - 1u], w = r[i - 2u];
-        const dv_real_t u = v - k, z = w - k;
-        const dv_real_t u2 = u * u, z2 = z * z;
-        a1 += u;
-        b1 += z;
-        a2 += u2;
-        b2 += z2;
-        a3 += u2 * u;
-        b3 += z2 * z;
-        a4 += u2 * u2;
-        b4 += z2 * z2;
-        mx = v > mx ? v : mx;
-        mn = v < mn ? v : mn;
-        smax[i - 1u] = mx;
-        smin[i - 1u] = mn;
-        mx = w > mx ? w : mx;
-        mn = w < mn ? w : mn;
-        smax[i - 2u] = mx;
-        smin[i - 2u] = mn;
+    dv_real_t a1 = a[0], a2 = a[1], a3 = a[2], a4 = a[3];
+    while (i < n) {
+        const uint32_t b = i / DV_SLIDING_BLK;
+        const uint32_t end = n - i < DV_SLIDING_BLK ? n : i + DV_SLIDING_BLK;
+        dv_real_t mx = -DV_REAL_MAX, mn = DV_REAL_MAX;
+        for (; i < end; i++) {
+            const dv_real_t v = r[i], u = v - k, u2 = u * u;
+            a1 += u;
+            a2 += u2;
+            a3 += u2 * u;
+            a4 += u2 * u2;
+            mx = v > mx ? v : mx;
+            mn = v < mn ? v : mn;
+        }
+        bmax[b] = mx;
+        bmin[b] = mn;
     }
-    if (i == 1u) {
-        const dv_real_t v = r[0], u = v - k, u2 = u * u;
-        a1 += u;
-        a2 += u2;
-        a3 += u2 * u;
-        a4 += u2 * u2;
-        mx = v > mx ? v : mx;
-        mn = v < mn ? v : mn;
-        smax[0] = mx;
-        smin[0] = mn;
-    }
-    s[0] = a1 + b1;
-    s[1] = a2 + b2;
-    s[2] = a3 + b3;
-    s[3] = a4 + b4;
+    a[0] = a1;
+    a[1] = a2;
+    a[2] = a3;
+    a[3] = a4;
 }
 
 #if DV_SIMD_X86
@@ -163,49 +145,34 @@ DV_TGT_AVX2 static void block_avx2(const double *x, double k, double p[4], doubl
     mm[1] = hmax4(mx);
 }
 
-/* Suffix extremes four at a time, from the ring's end backwards: within a vector by two
- * shift-and-compare steps, then against the carry from the samples to its right. */
-DV_TGT_AVX2 static void turn_avx2(const double *r, double *dst, uint32_t n, double k, double *smax,
-                                  double *smin, double s[4])
+/* Whole blocks of DV_SLIDING_BLK = 16 samples as four vectors, then the scalar tail. */
+DV_TGT_AVX2 static void turn_avx2(const double *r, double *dst, uint32_t n, double k,
+                                  double *bmax, double *bmin, double s[4])
 {
-    double mxs = -DV_REAL_MAX, mns = DV_REAL_MAX;
     double a[4] = {0.0, 0.0, 0.0, 0.0};
-    uint32_t i = n;
-    for (; (i & 3u) != 0u; i--) { /* the n % 4 last samples */
-        const double v = r[i - 1u], u = v - k, u2 = u * u;
-        dst[i - 1u] = v;
-        a[0] += u;
-        a[1] += u2;
-        a[2] += u2 * u;
-        a[3] += u2 * u2;
-        mxs = v > mxs ? v : mxs;
-        mns = v < mns ? v : mns;
-        smax[i - 1u] = mxs;
-        smin[i - 1u] = mns;
-    }
     const __m256d kv = _mm256_set1_pd(k);
     __m256d p1 = _mm256_setzero_pd(), p2 = p1, p3 = p1, p4 = p1;
-    __m256d cmx = _mm256_set1_pd(mxs), cmn = _mm256_set1_pd(mns);
-    for (; i >= 4u; i -= 4u) {
-        const __m256d v = _mm256_loadu_pd(r + i - 4u);
-        _mm256_storeu_pd(dst + i - 4u, v);
-        const __m256d u = _mm256_sub_pd(v, kv), u2 = _mm256_mul_pd(u, u);
-        p1 = _mm256_add_pd(p1, u);
-        p2 = _mm256_add_pd(p2, u2);
-        p3 = _mm256_fmadd_pd(u2, u, p3);
-        p4 = _mm256_fmadd_pd(u2, u2, p4);
-        /* lanes (0,1,2,3) -> (1,2,3,3), then -> (2,3,3,3) */
-        __m256d hx = _mm256_max_pd(v, _mm256_permute4x64_pd(v, 0xF9));
-        __m256d hn = _mm256_min_pd(v, _mm256_permute4x64_pd(v, 0xF9));
-        hx = _mm256_max_pd(hx, _mm256_permute4x64_pd(hx, 0xFE));
-        hn = _mm256_min_pd(hn, _mm256_permute4x64_pd(hn, 0xFE));
-        hx = _mm256_max_pd(hx, cmx);
-        hn = _mm256_min_pd(hn, cmn);
-        _mm256_storeu_pd(smax + i - 4u, hx);
-        _mm256_storeu_pd(smin + i - 4u, hn);
-        cmx = _mm256_permute4x64_pd(hx, 0x00);
-        cmn = _mm256_permute4x64_pd(hn, 0x00);
+    uint32_t i = 0u;
+    for (; i + 16u <= n; i += 16u) {
+        __m256d mx = _mm256_set1_pd(-DV_REAL_MAX), mn = _mm256_set1_pd(DV_REAL_MAX);
+        for (uint32_t j = 0u; j < 16u; j += 4u) {
+            const __m256d v = _mm256_loadu_pd(r + i + j);
+            _mm256_storeu_pd(dst + i + j, v);
+            const __m256d u = _mm256_sub_pd(v, kv), u2 = _mm256_mul_pd(u, u);
+            p1 = _mm256_add_pd(p1, u);
+            p2 = _mm256_add_pd(p2, u2);
+            p3 = _mm256_fmadd_pd(u2, u, p3);
+            p4 = _mm256_fmadd_pd(u2, u2, p4);
+            mx = _mm256_max_pd(mx, v);
+            mn = _mm256_min_pd(mn, v);
+        }
+        bmax[i / 16u] = hmax4(mx);
+        bmin[i / 16u] = hmin4(mn);
     }
+    for (uint32_t j = i; j < n; j++) {
+        dst[j] = r[j];
+    }
+    turn_from(dst, i, n, k, a, bmax, bmin);
     s[0] = hsum4(p1) + a[0];
     s[1] = hsum4(p2) + a[1];
     s[2] = hsum4(p3) + a[2];
@@ -266,51 +233,29 @@ DV_TGT_AVX512 static void block_avx512(const double *x, double k, double p[4], d
 }
 
 DV_TGT_AVX512 static void turn_avx512(const double *r, double *dst, uint32_t n, double k,
-                                      double *smax, double *smin, double s[4])
+                                      double *bmax, double *bmin, double s[4])
 {
-    double mxs = -DV_REAL_MAX, mns = DV_REAL_MAX;
     double a[4] = {0.0, 0.0, 0.0, 0.0};
-    uint32_t i = n;
-    for (; (i & 7u) != 0u; i--) { /* the n % 8 last samples */
-        const double v = r[i - 1u], u = v - k, u2 = u * u;
-        dst[i - 1u] = v;
-        a[0] += u;
-        a[1] += u2;
-        a[2] += u2 * u;
-        a[3] += u2 * u2;
-        mxs = v > mxs ? v : mxs;
-        mns = v < mns ? v : mns;
-        smax[i - 1u] = mxs;
-        smin[i - 1u] = mns;
-    }
     const __m512d kv = _mm512_set1_pd(k);
-    const __m512i sh1 = _mm512_set_epi64(7, 7, 6, 5, 4, 3, 2, 1);
-    const __m512i sh2 = _mm512_set_epi64(7, 7, 7, 6, 5, 4, 3, 2);
-    const __m512i sh4 = _mm512_set_epi64(7, 7, 7, 7, 7, 6, 5, 4);
-    const __m512i lane0 = _mm512_setzero_si512();
     __m512d p1 = _mm512_setzero_pd(), p2 = p1, p3 = p1, p4 = p1;
-    __m512d cmx = _mm512_set1_pd(mxs), cmn = _mm512_set1_pd(mns);
-    for (; i >= 8u; i -= 8u) {
-        const __m512d v = _mm512_loadu_pd(r + i - 8u);
-        _mm512_storeu_pd(dst + i - 8u, v);
+    uint32_t i = 0u;
+    for (; i + 16u <= n; i += 16u) {
+        const __m512d v = _mm512_loadu_pd(r + i), w = _mm512_loadu_pd(r + i + 8u);
+        _mm512_storeu_pd(dst + i, v);
+        _mm512_storeu_pd(dst + i + 8u, w);
         const __m512d u = _mm512_sub_pd(v, kv), u2 = _mm512_mul_pd(u, u);
-        p1 = _mm512_add_pd(p1, u);
-        p2 = _mm512_add_pd(p2, u2);
-        p3 = _mm512_fmadd_pd(u2, u, p3);
-        p4 = _mm512_fmadd_pd(u2, u2, p4);
-        __m512d hx = _mm512_max_pd(v, _mm512_permutexvar_pd(sh1, v));
-        __m512d hn = _mm512_min_pd(v, _mm512_permutexvar_pd(sh1, v));
-        hx = _mm512_max_pd(hx, _mm512_permutexvar_pd(sh2, hx));
-        hn = _mm512_min_pd(hn, _mm512_permutexvar_pd(sh2, hn));
-        hx = _mm512_max_pd(hx, _mm512_permutexvar_pd(sh4, hx));
-        hn = _mm512_min_pd(hn, _mm512_permutexvar_pd(sh4, hn));
-        hx = _mm512_max_pd(hx, cmx);
-        hn = _mm512_min_pd(hn, cmn);
-        _mm512_storeu_pd(smax + i - 8u, hx);
-        _mm512_storeu_pd(smin + i - 8u, hn);
-        cmx = _mm512_permutexvar_pd(lane0, hx);
-        cmn = _mm512_permutexvar_pd(lane0, hn);
+        const __m512d z = _mm512_sub_pd(w, kv), z2 = _mm512_mul_pd(z, z);
+        p1 = _mm512_add_pd(p1, _mm512_add_pd(u, z));
+        p2 = _mm512_add_pd(p2, _mm512_add_pd(u2, z2));
+        p3 = _mm512_fmadd_pd(u2, u, _mm512_fmadd_pd(z2, z, p3));
+        p4 = _mm512_fmadd_pd(u2, u2, _mm512_fmadd_pd(z2, z2, p4));
+        bmax[i / 16u] = _mm512_reduce_max_pd(_mm512_max_pd(v, w));
+        bmin[i / 16u] = _mm512_reduce_min_pd(_mm512_min_pd(v, w));
     }
+    for (uint32_t j = i; j < n; j++) {
+        dst[j] = r[j];
+    }
+    turn_from(dst, i, n, k, a, bmax, bmin);
     s[0] = _mm512_reduce_add_pd(p1) + a[0];
     s[1] = _mm512_reduce_add_pd(p2) + a[1];
     s[2] = _mm512_reduce_add_pd(p3) + a[2];
@@ -340,16 +285,16 @@ void dv_priv_feat_block(uint32_t kern, const dv_real_t *x, dv_real_t k, dv_real_
 }
 
 void dv_priv_feat_turn(const dv_real_t *src, dv_real_t *ring, uint32_t n, dv_real_t k,
-                       dv_real_t *smax, dv_real_t *smin, dv_real_t s[4])
+                       dv_real_t *bmax, dv_real_t *bmin, dv_real_t s[4])
 {
 #if DV_SIMD_X86
     const uint32_t kern = dv_priv_simd_kern();
     if (kern == 2u) {
-        turn_avx512(src, ring, n, k, smax, smin, s);
+        turn_avx512(src, ring, n, k, bmax, bmin, s);
         return;
     }
     if (kern == 1u) {
-        turn_avx2(src, ring, n, k, smax, smin, s);
+        turn_avx2(src, ring, n, k, bmax, bmin, s);
         return;
     }
 #endif
@@ -358,5 +303,9 @@ void dv_priv_feat_turn(const dv_real_t *src, dv_real_t *ring, uint32_t n, dv_rea
             ring[i] = src[i];
         }
     }
-    turn_c(ring, n, k, smax, smin, s);
+    dv_real_t a[4] = {DV_R(0.0), DV_R(0.0), DV_R(0.0), DV_R(0.0)};
+    turn_from(ring, 0u, n, k, a, bmax, bmin);
+    for (int q = 0; q < 4; q++) {
+        s[q] = a[q];
+    }
 }

@@ -1,9 +1,17 @@
 /* Sliding-window statistics: add/subtract power sums, refreshed exactly once per window;
- * extremes from suffix (previous turn) and prefix (current turn) maxima. */
+ * extremes from the current turn's running (prefix) extremes and the previous turn's suffix
+ * extremes, kept per block of DV_SLIDING_BLK samples (the rest of the block the window starts
+ * in is scanned when the extremes are read): O(1) per sample, 2 / DV_SLIDING_BLK extra
+ * elements per window sample. */
 #include "dynval/dv_sliding.h"
 #include "dynval/dv_config.h"
 #include "dv_feat_core.h"
 #include "dv_priv.h"
+
+size_t dv_sliding_buf_len(size_t len)
+{
+    return len < 2u || len > DV_SLIDING_MAX_LEN ? 0u : DV_SLIDING_BUF_LEN(len);
+}
 
 dv_status_t dv_sliding_init(dv_sliding_t *s, size_t len, dv_real_t *buf, size_t buf_len)
 {
@@ -13,9 +21,10 @@ dv_status_t dv_sliding_init(dv_sliding_t *s, size_t len, dv_real_t *buf, size_t 
     if (buf_len < DV_SLIDING_BUF_LEN(len)) {
         return DV_ESIZE;
     }
+    const size_t nb = (len + DV_SLIDING_BLK - 1u) / DV_SLIDING_BLK;
     s->ring = buf;
     s->sufmax = buf + len;
-    s->sufmin = buf + 2u * len;
+    s->sufmin = buf + len + nb;
     s->len = (uint32_t)len;
     dv_sliding_reset(s);
     return DV_OK;
@@ -37,11 +46,20 @@ void dv_sliding_reset(dv_sliding_t *s)
     s->n_nonfinite = 0u;
 }
 
+/* Block extremes (from the turn-over kernel) to suffix extremes over the blocks, in place. */
+static void block_suffix_extremes(dv_sliding_t *s)
+{
+    uint32_t b = (s->len + DV_SLIDING_BLK - 1u) / DV_SLIDING_BLK - 1u;
+    while (b-- > 0u) {
+        s->sufmax[b] = s->sufmax[b + 1u] > s->sufmax[b] ? s->sufmax[b + 1u] : s->sufmax[b];
+        s->sufmin[b] = s->sufmin[b + 1u] < s->sufmin[b] ? s->sufmin[b + 1u] : s->sufmin[b];
+    }
+}
+
 /* The ring has turned over and holds exactly the window. Recompute its power sums from scratch
- * (no add/subtract round-off survives a turn) in one backward pass that also takes the suffix
- * extremes for the next turn, then re-centre them on the window mean (exact algebra; the old
- * shift is within a few STDs of it, so this is well conditioned) so a drifting signal keeps
- * small deviations. */
+ * (no add/subtract round-off survives a turn) and the block suffix extremes for the next turn,
+ * then re-centre the sums on the window mean (exact algebra; the old shift is within a few STDs
+ * of it, so this is well conditioned) so a drifting signal keeps small deviations. */
 void dv_priv_sliding_turn_over(dv_sliding_t *s, const dv_real_t *src)
 {
     const uint32_t n = s->len;
@@ -49,6 +67,7 @@ void dv_priv_sliding_turn_over(dv_sliding_t *s, const dv_real_t *src)
     const dv_real_t k = s->fill == n ? s->shift : src[0];
     s->fill = n;
     dv_priv_feat_turn(src, s->ring, n, k, s->sufmax, s->sufmin, s->s);
+    block_suffix_extremes(s);
     const dv_real_t delta = s->s[0] / (dv_real_t)n; /* window mean - shift */
     dv_priv_sums_shift(s->s, (dv_real_t)n, -delta);
     s->shift = k + delta;
@@ -172,10 +191,20 @@ dv_status_t dv_sliding_get(const dv_sliding_t *s, dv_stats_t *out)
     if (s->fill < s->len) {
         return DV_ENOTREADY;
     }
-    /* window = previous turn from head on + current turn before head */
-    dv_real_t mx = s->sufmax[s->head], mn = s->sufmin[s->head];
-    mx = s->premax > mx ? s->premax : mx;
-    mn = s->premin < mn ? s->premin : mn;
+    /* window = previous turn from head on + current turn before head; the previous turn's
+     * part: the rest of head's block, then the blocks after it */
+    const uint32_t h = s->head, b = h / DV_SLIDING_BLK;
+    const uint32_t end = (b + 1u) * DV_SLIDING_BLK;
+    dv_real_t mx = s->premax, mn = s->premin;
+    if (end < s->len) {
+        mx = s->sufmax[b + 1u] > mx ? s->sufmax[b + 1u] : mx;
+        mn = s->sufmin[b + 1u] < mn ? s->sufmin[b + 1u] : mn;
+    }
+    for (uint32_t i = h; i < end && i < s->len; i++) {
+        const dv_real_t v = s->ring[i];
+        mx = v > mx ? v : mx;
+        mn = v < mn ? v : mn;
+    }
     dv_priv_cm_t cm;
     dv_priv_cm_from_sums(&cm, s->shift, (dv_real_t)s->len, s->s[0], s->s[1], s->s[2], s->s[3]);
     dv_priv_stats_fill(out, &cm, s->len, mn, mx);

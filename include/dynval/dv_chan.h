@@ -53,6 +53,10 @@ typedef struct {
     uint64_t n_nonfinite;   /**< NaN/Inf samples dropped */
 } dv_chan_t;
 
+/** @brief Storage dv_chan_init() needs for @p cfg, in elements (DV_CHAN_BUF_LEN(), n_seg 0 with
+ *         no_seg_vectors), at run time for bindings; 0 for NULL or a window length out of range. */
+size_t dv_chan_buf_len(const dv_chan_config_t *cfg);
+
 /**
  * @brief Bind storage and clear state.
  * @param[in] buf DV_CHAN_BUF_LEN(cfg->win_len, cfg->n_seg) elements (n_seg 0 with

@@ -18,14 +18,20 @@
 extern "C" {
 #endif
 
-/** Storage needed by dv_sliding_init(), in elements, for a window of @p n samples. */
-#define DV_SLIDING_BUF_LEN(n) (3u * (size_t)(n))
+/** Ring blocks whose suffix extremes the window keeps (the rest of a block is scanned when
+ *  the window's extremes are read). */
+#define DV_SLIDING_BLK 16u
+/** Storage needed by dv_sliding_init(), in elements, for a window of @p n samples: the ring
+ *  and two extremes per DV_SLIDING_BLK samples. */
+#define DV_SLIDING_BUF_LEN(n)                                                                    \
+    ((size_t)(n) + 2u * (((size_t)(n) + DV_SLIDING_BLK - 1u) / DV_SLIDING_BLK))
 
 /** @brief Sliding-window statistics. Fields are private. */
 typedef struct {
     dv_real_t *ring;      /**< last @c len samples, length @c len */
-    dv_real_t *sufmax;    /**< max of ring[i..len-1] over the previous turn, length @c len */
-    dv_real_t *sufmin;    /**< min of ring[i..len-1] over the previous turn, length @c len */
+    dv_real_t *sufmax;    /**< [b]: max of ring[b * DV_SLIDING_BLK .. len-1] over the previous
+                               turn, ceil(len / DV_SLIDING_BLK) of them */
+    dv_real_t *sufmin;    /**< [b]: min of the same */
     uint32_t len;         /**< window length in samples */
     uint32_t head;        /**< next ring slot to write */
     uint32_t fill;        /**< @c len once the ring has turned over (window full), else 0 */
@@ -35,6 +41,9 @@ typedef struct {
     dv_real_t s[4];       /**< window sums of d, d^2, d^3, d^4, d = x - shift */
     uint64_t n_nonfinite; /**< NaN/Inf samples dropped */
 } dv_sliding_t;
+
+/** @brief DV_SLIDING_BUF_LEN(len) at run time (bindings); 0 for @p len out of 2..DV_SLIDING_MAX_LEN. */
+size_t dv_sliding_buf_len(size_t len);
 
 /**
  * @brief Bind storage and clear state.

@@ -169,6 +169,9 @@ static void test_chan_without_segment_vectors(void **state)
     cfg.no_seg_vectors = true;
     dv_chan_t a, b;
     assert_int_equal(dv_chan_init(&a, &CFG, buf, DV_CHAN_BUF_LEN(WIN, NS)), DV_OK);
+    assert_int_equal(dv_chan_buf_len(&CFG), DV_CHAN_BUF_LEN(WIN, NS));
+    assert_int_equal(dv_chan_buf_len(&cfg), DV_CHAN_BUF_LEN(WIN, 0));
+    assert_int_equal(dv_chan_buf_len(NULL), 0);
     assert_int_equal(dv_chan_init(&b, &cfg, small, DV_CHAN_BUF_LEN(WIN, 0) - 1), DV_ESIZE);
     assert_int_equal(dv_chan_init(&b, &cfg, small, DV_CHAN_BUF_LEN(WIN, 0)), DV_OK);
     int segs = 0;

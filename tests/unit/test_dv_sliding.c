@@ -6,6 +6,7 @@
 #include <setjmp.h>
 #include <cmocka.h>
 
+#include "dynval/dv_config.h"
 #include "dynval/dv_sliding.h"
 #include "dv_test_util.h"
 
@@ -70,26 +71,36 @@ static void test_sliding_golden_windows(void **state)
 static void test_sliding_matches_brute_force_everywhere(void **state)
 {
     (void)state;
-    enum { W = 37 }; // not a power of two, not a divisor of the record
-    static dv_real_t b[DV_SLIDING_BUF_LEN(W)];
+    // around the extremes' block length (16): one block, a partial second, 37 (not a power of
+    // two, not a divisor of the record), many blocks with a partial last
+    static const size_t wins[] = {2, 15, 16, 17, 37, 300};
+    static dv_real_t b[DV_SLIDING_BUF_LEN(300)];
     static dv_real_t xr[NMAX];
     size_t n = dv_test_load("features_skewed.csv", xin, NMAX);
-    dv_sliding_t s;
-    assert_int_equal(dv_sliding_init(&s, W, b, DV_SLIDING_BUF_LEN(W)), DV_OK);
-    for (size_t i = 0; i < n; i++) {
-        xr[i] = (dv_real_t)xin[i];
-        dv_sliding_update(&s, xr[i]);
-        dv_stats_t st;
-        if (i + 1 < W) {
-            assert_int_equal(dv_sliding_get(&s, &st), DV_ENOTREADY);
-            continue;
+    for (size_t i = 0; i < n; i++) xr[i] = (dv_real_t)xin[i];
+    // add/subtract round-off scales with the record's spread, not a short window's own STD
+    double gmean, gstd, gmn, gmx;
+    two_pass(xr, n, &gmean, &gstd, &gmn, &gmx);
+    for (size_t c = 0; c < sizeof wins / sizeof *wins; c++) {
+        const size_t W = wins[c];
+        dv_sliding_t s;
+        assert_int_equal(dv_sliding_buf_len(W), W + 2 * ((W + 15) / 16)); // ring + block extremes
+        assert_int_equal(dv_sliding_init(&s, W, b, DV_SLIDING_BUF_LEN(W) - 1), DV_ESIZE);
+        assert_int_equal(dv_sliding_init(&s, W, b, DV_SLIDING_BUF_LEN(W)), DV_OK);
+        for (size_t i = 0; i < n; i++) {
+            dv_sliding_update(&s, xr[i]);
+            dv_stats_t st;
+            if (i + 1 < W) {
+                assert_int_equal(dv_sliding_get(&s, &st), DV_ENOTREADY);
+                continue;
+            }
+            assert_int_equal(dv_sliding_get(&s, &st), DV_OK);
+            double mean, std, mn, mx;
+            two_pass(xr + i + 1 - W, W, &mean, &std, &mn, &mx);
+            assert_true(st.min == (dv_real_t)mn && st.max == (dv_real_t)mx);
+            assert_true(dv_test_close(st.std, std, DV_TEST_RTOL * 10, gstd));
+            assert_true(dv_test_close(st.mean, mean, DV_TEST_RTOL * 10, std));
         }
-        assert_int_equal(dv_sliding_get(&s, &st), DV_OK);
-        double mean, std, mn, mx;
-        two_pass(xr + i + 1 - W, W, &mean, &std, &mn, &mx);
-        assert_true(st.min == (dv_real_t)mn && st.max == (dv_real_t)mx);
-        assert_true(dv_test_close(st.std, std, DV_TEST_RTOL * 10, 0));
-        assert_true(dv_test_close(st.mean, mean, DV_TEST_RTOL * 10, std));
     }
 }
 
@@ -156,6 +167,8 @@ static void test_sliding_no_drift_over_1e8_samples(void **state)
 static void test_sliding_bad_input(void **state)
 {
     (void)state;
+    assert_int_equal(dv_sliding_buf_len(1), 0);
+    assert_int_equal(dv_sliding_buf_len((size_t)DV_SLIDING_MAX_LEN + 1), 0);
     dv_sliding_t s;
     assert_int_equal(dv_sliding_init(NULL, WIN, buf, DV_SLIDING_BUF_LEN(WIN)), DV_EINVAL);
     assert_int_equal(dv_sliding_init(&s, WIN, NULL, DV_SLIDING_BUF_LEN(WIN)), DV_EINVAL);

@@ -317,7 +317,7 @@ class ResidualMonitor:
     sample is tested against the mean/STD of the win_len samples before it."""
 
     def __init__(self, k_sigma: float = 4.0, win_len: int = 256, capacity: int = 4096) -> None:
-        blen = 3 * win_len  # DV_ARSTATS_BUF_LEN = DV_SLIDING_BUF_LEN
+        blen = max(int(lib.dv_sliding_buf_len(win_len)), 1)  # DV_ARSTATS_BUF_LEN; 0: bad length
         self._buf = _new("double[]", blen)
         self._idx = _new("uint32_t[]", max(capacity, 1))
         self._size = _new("double[]", max(capacity, 1))

@@ -86,8 +86,9 @@ def sliding(x: Any, win_len: int) -> Stats:
     """Statistics of the last win_len samples, computed by the streaming window."""
     a = as_doubles(x)
     s = ffi.new("dv_sliding_t *")
-    buf = ffi.new("double[]", 3 * win_len)
-    check(lib.dv_sliding_init(s, win_len, buf, 3 * win_len), "dv_sliding_init")
+    blen = max(int(lib.dv_sliding_buf_len(win_len)), 1)  # 0 for a bad length: init says why
+    buf = ffi.new("double[]", blen)
+    check(lib.dv_sliding_init(s, win_len, buf, blen), "dv_sliding_init")
     lib.dv_sliding_update_block(s, ptr(a), a.size)
     out = ffi.new("dv_stats_t *")
     check(lib.dv_sliding_get(s, out), "dv_sliding_get")
@@ -98,8 +99,9 @@ def sliding_series(x: Any, win_len: int, every: int = 1) -> dict[str, np.ndarray
     """Window RMS, peak, crest, STD after every `every` samples (NaN until the window is full)."""
     a = as_doubles(x)
     s = ffi.new("dv_sliding_t *")
-    buf = ffi.new("double[]", 3 * win_len)
-    check(lib.dv_sliding_init(s, win_len, buf, 3 * win_len), "dv_sliding_init")
+    blen = max(int(lib.dv_sliding_buf_len(win_len)), 1)  # 0 for a bad length: init says why
+    buf = ffi.new("double[]", blen)
+    check(lib.dv_sliding_init(s, win_len, buf, blen), "dv_sliding_init")
     n_out = a.size // every
     res = {k: np.full(n_out, np.nan) for k in ("rms", "peak", "crest", "std")}
     out = ffi.new("dv_stats_t *")
@@ -172,7 +174,7 @@ def channel_records(x: Any, fs_hz: float, win_len: int = 256, seg_len: int = 64,
     a = as_doubles(x)
     cfg = ffi.new("dv_chan_config_t *", {"win_len": win_len, "seg_len": seg_len,
                                          "n_seg": n_seg, "dt_s": 1.0 / fs_hz})
-    blen = 3 * win_len + 2 * n_seg
+    blen = max(int(lib.dv_chan_buf_len(cfg)), 1)  # 0 for a bad length: init says why
     buf = ffi.new("double[]", blen)
     s = ffi.new("dv_chan_t *")
     check(lib.dv_chan_init(s, cfg, buf, blen), "dv_chan_init")
