@@ -213,27 +213,30 @@ def main():
     st2 = live_line(B / "typical-o2.elf")[4:]
     n = c["n_ch"]
     rows = [("dv_chan_t (instance)", sz["ram_chan"] // n),
-            (f"dv_chan buffer DV_CHAN_BUF_LEN({c['win']}, {c['n_seg']}) = 3 x {c['win']} + 2 x "
-             f"{c['n_seg']} floats", sz["ram_chan_buf"] // n),
+            (f"dv_chan buffer DV_CHAN_BUF_LEN({c['win']}, 0) = {c['win']} ring + 2 x "
+             f"{-(-c['win'] // 16)} block-extreme floats (no_seg_vectors: each segment STD is "
+             f"published as it completes)", sz["ram_chan_buf"] // n),
             ("dv_ar_resid_t (instance)", sz["ram_ar"] // n),
             (f"AR buffer DV_AR_RESID_BUF_LEN({c['ar_p']}) = {c['ar_p']} coefficients + "
              f"2 x {c['ar_p']} history floats", sz["ram_ar_buf"] // n)]
     per_ch = sum(r[1] for r in rows)
     assert sz["ram_model_buf"] == 4 * lm and sz["ram_obs_buf"] == 4 * lo
     obs_live = sz["ram_model"] + sz["ram_obs"] + sz["ram_model_buf"] + sz["ram_obs_buf"]
-    scr = sz["tmp_init_scratch"]
+    build = sz["tmp_model_build"]
+    scr = sz["tmp_init_scratch"] + build
     L.append("## RAM\n")
     L.append("Static state and caller buffers (`arm-none-eabi-nm -S` of the image; float, "
              "bytes). The library has no other RAM: no globals, no heap (checked by "
-             "`tests/scripts/check_lib_symbols.sh`). The observer's storage is split: "
-             "`dv_model_init_ex`/`dv_obs_init_ex` take the persistent storage "
-             "(`DV_MODEL_PERSIST_LEN`, `DV_OBS_PERSIST_LEN`: what the observer keeps for its "
-             "lifetime) and one init-time scratch area (`DV_MODEL_SCRATCH_LEN`, "
-             "`DV_OBS_SCRATCH_LEN`: eigen-solutions, matrix exponentials, DARE) that both inits "
-             "share and that is free again when they return (the image overwrites it with NaN "
-             "after init; the self-test checks the steps stay bit-identical). The scratch is a "
-             "transient: a firmware overlays it on a buffer not live during init, or puts it on "
-             "the stack; it is listed apart. Stack: below the table.\n")
+             "`tests/scripts/check_lib_symbols.sh`). Only what the steps read stays allocated: "
+             "the model is built (`dv_model_init_ex`) in a transient area with one init-time "
+             "scratch area that `dv_obs_init_ex` shares (`DV_MODEL_SCRATCH_LEN`, "
+             "`DV_OBS_SCRATCH_LEN`: eigen-solutions, matrix exponentials, DARE); after the "
+             "observer is bound, `dv_model_keep_step_only` moves the part its steps read "
+             "(`DV_MODEL_STEP_LEN`: output and contact sub-node matrices) to the persistent "
+             "buffer. The image then overwrites the transient areas with NaN and the set still "
+             "passes (the self-test also checks the steps stay bit-identical). A firmware overlays "
+             "the transient areas on buffers not live during init, or puts them on the stack; "
+             "they are listed apart. Stack: below the table.\n")
     L.append("| item | bytes |")
     L.append("|---|---:|")
     for name, b in rows:
@@ -241,31 +244,28 @@ def main():
     L.append(f"| **per channel** | **{per_ch}** |")
     L.append(f"| **{n} channels** | **{n * per_ch}** = {kib(n * per_ch)} KiB |")
     L.append(f"| observer: dv_model_t + dv_obs_t | {sz['ram_model'] + sz['ram_obs']} |")
-    L.append(f"| observer: model persistent storage DV_MODEL_PERSIST_LEN = {lm} floats "
+    L.append(f"| observer: the model's step part DV_MODEL_STEP_LEN = {lm} floats "
              f"| {sz['ram_model_buf']} |")
     L.append(f"| observer: observer persistent storage DV_OBS_PERSIST_LEN = {lo} floats "
              f"| {sz['ram_obs_buf']} |")
     L.append(f"| **observer, persistent** | **{obs_live}** = {kib(obs_live)} KiB |")
     total = n * per_ch + obs_live
     L.append(f"| **typical set, persistent RAM** | **{total}** = **{kib(total)} KiB** |")
-    L.append(f"| transient: init scratch, shared by both inits, max(DV_MODEL_SCRATCH_LEN = {ms}, "
+    L.append(f"| transient: the model's build storage DV_MODEL_PERSIST_LEN = {build // 4} floats, "
+             f"and the init scratch shared by both inits, max(DV_MODEL_SCRATCH_LEN = {ms}, "
              f"DV_OBS_SCRATCH_LEN = {osc}) floats | {scr} = {kib(scr)} KiB |\n")
     L.append(f"Stack, measured (high-water mark of a painted stack in the image, including "
-             f"main's frame; the init scratch is the static area above, not on the stack): init "
+             f"main's frame; the transient areas are the static objects above, not on the stack): init "
              f"of the whole set {st_init} B at -Os / {st2[0]} B at -O2; the per-sample loop "
-             f"{st_run} B / {st2[1]} B. Peak RAM with the scratch on the stack instead: "
+             f"{st_run} B / {st2[1]} B. Peak RAM with the transient areas on the stack instead: "
              f"{total} + {scr} + {st_init} B = {kib(total + scr + st_init)} KiB during init, "
              f"{kib(total + st_run)} KiB while running.\n")
     inst = sz["ram_chan"] // n + sz["ram_ar"] // n
     L.append(f"RAM target 8 KiB: **{'met' if total <= 8192 else 'missed'}** "
              f"({kib(total)} KiB persistent). The observer keeps {kib(obs_live)} KiB (one folded "
-             f"step matrix with the gain, the model's matrices; before the init scratch was "
-             f"split off its buffers were 18.64 KiB). Per channel the cost is {inst} B of "
-             f"instances + 12 B per window sample (the ring and its suffix minima and maxima) + "
-             f"8 B per segment (the record being filled and the last complete one) + 12 B per AR "
-             f"order (coefficients and a double-length history), so the {n} channels alone take "
-             f"{kib(n * per_ch)} KiB"
-             f"{' and exceed the target' if n * per_ch > 8192 else ''}.\n")
+             f"step matrix with the gain, the state, and the model's step part). Per channel the "
+             f"cost is {inst} B of instances + 4 B per window sample and 8 B per 16 (the ring "
+             f"and its block extremes) + 12 B per AR order (coefficients and the history).\n")
     budget = {"flash_os": fl["os"], "flash_o2": fl["o2"], "per_ch": per_ch, "n": n,
               "obs": obs_live, "total": total, "scratch": scr}
 
@@ -332,7 +332,8 @@ def readme_table(b, per_sample):
         f"| RAM, observer (4-DOF, 1 contact, Kalman gain) | {kib(b['obs'])} KiB | |",
         f"| RAM, whole set ({b['n']} channels + observer), persistent | {kib(b['total'])} KiB "
         f"| 8 KiB |",
-        f"| RAM, init-time scratch (transient, shared by the inits) | {kib(b['scratch'])} KiB | |",
+        f"| RAM, init-time transient (model build storage + shared scratch) | "
+        f"{kib(b['scratch'])} KiB | |",
         f"| instructions per sample, whole set, -O2 | {per_sample['o2']:.0f} | |",
     ]
     body = "\n".join(rows)
