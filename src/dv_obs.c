@@ -322,7 +322,14 @@ static bool make_modal(dv_obs_t *o, dv_real_t *x)
     for (size_t q = 0; q < no; q++) {
         for (size_t j = 0; j < n; j++) {
             fy[j * no + q] = ct[q * n + j];
-            o->fm[16u + q * n + j] = ct[q * n + j];
+        }
+    }
+    /* the prediction without lane sums: lane l of product k pairs output l % 4 with state
+     * l ^ k (k < 4 keeps it in l's half), so the four products of q with its in-half
+     * permutations sum, per half, to the prediction's first and last four columns */
+    for (size_t k = 0; k < 4u; k++) {
+        for (size_t l = 0; l < n; l++) {
+            o->fm[16u + k * n + l] = ct[(l & 3u) * n + (l ^ k)];
         }
     }
     for (size_t b = 0; b < n; b += 2u) {

@@ -128,19 +128,15 @@ DV_TGT_AVX512 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u
     const __m512d qs = _mm512_permute_pd(q, 0x55);
     __m512d qn = _mm512_fmadd_pd(_mm512_loadu_pd(fm), q, a);
     qn = _mm512_fmadd_pd(_mm512_loadu_pd(fm + 8), qs, qn);
-    /* prediction: the four rows of C T times q, summed across lanes */
-    const __m512d r0 = _mm512_mul_pd(_mm512_loadu_pd(fm + 16), q);
-    const __m512d r1 = _mm512_mul_pd(_mm512_loadu_pd(fm + 24), q);
-    const __m512d r2 = _mm512_mul_pd(_mm512_loadu_pd(fm + 32), q);
-    const __m512d r3 = _mm512_mul_pd(_mm512_loadu_pd(fm + 40), q);
-    /* pairwise: [r0 r1] and [r2 r3] in each 128-bit lane, then the lanes */
-    const __m512d s01 = _mm512_add_pd(_mm512_unpacklo_pd(r0, r1), _mm512_unpackhi_pd(r0, r1));
-    const __m512d s23 = _mm512_add_pd(_mm512_unpacklo_pd(r2, r3), _mm512_unpackhi_pd(r2, r3));
-    const __m512d h = _mm512_add_pd(_mm512_shuffle_f64x2(s01, s23, 0x44),
-                                    _mm512_shuffle_f64x2(s01, s23, 0xEE));
-    const __m512d g = _mm512_add_pd(_mm512_shuffle_f64x2(h, h, 0x88),
-                                    _mm512_shuffle_f64x2(h, h, 0xDD));
-    __m256d yh = _mm512_castpd512_pd256(g);
+    /* prediction: C T q as sum_k M_k (q permuted by lane ^ k) (see make_modal()); the low
+     * half holds the state columns 0-3, the high half 4-7 */
+    const __m512d q2 = _mm512_permutex_pd(q, 0x4E), q3 = _mm512_permutex_pd(q, 0x1B);
+    __m512d ya = _mm512_mul_pd(_mm512_loadu_pd(fm + 16), q);
+    __m512d yb = _mm512_mul_pd(_mm512_loadu_pd(fm + 24), qs);
+    ya = _mm512_fmadd_pd(_mm512_loadu_pd(fm + 32), q2, ya);
+    yb = _mm512_fmadd_pd(_mm512_loadu_pd(fm + 40), q3, yb);
+    ya = _mm512_add_pd(ya, yb);
+    __m256d yh = _mm256_add_pd(_mm512_castpd512_pd256(ya), _mm512_extractf64x4_pd(ya, 1));
     yh = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 32), _mm512_castpd512_pd256(up), yh);
     yh = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 36), _mm512_castpd512_pd256(uk), yh);
     _mm512_storeu_pd(sv, qn);
