@@ -76,6 +76,257 @@ static dv_real_t levinson_num(const dv_real_t *a, const dv_real_t *r, uint32_t m
     return r[m] - ((s0 + s1) + (s2 + s3));
 }
 
+/* Burg by the lattice, two stages per sweep of the error arrays (they do not fit L1: the sweeps
+ * are what costs). A sweep returns the new errors' lag-0 and lag-1 sums; stage m's reflection
+ * coefficient comes from the lag-0 sums, stage m+1's from all seven through the one-stage update
+ * written out (exact in exact arithmetic). y: the centred record, work[0..2n) (y first). */
+static dv_status_t burg_lattice(uint32_t pmax, dv_real_t *work, size_t n, dv_real_t mean,
+                                dv_real_t *ak, dv_real_t *refl, dv_real_t *sig, run_out_t *ro,
+                                uint32_t kern)
+{
+    const dv_real_t nn = (dv_real_t)n;
+    dv_real_t *y = work, *b = work + n;
+    for (size_t i = 0u; i < n; i++) {
+        b[i] = y[i];
+    }
+    const dv_real_t r0s = dv_priv_ar_dot(b, b, n, kern);
+    const dv_real_t r0 = r0s / nn;
+    ro->r0 = r0;
+    ro->reached = 0u;
+    if (!dv_priv_finite(r0) || is_constant(r0, mean)) {
+        return DV_ENUMERIC;
+    }
+    const dv_real_t r1s = dv_priv_ar_dot(y, y + 1, n - 1u, kern);
+    const dv_real_t r2s = n > 2u ? dv_priv_ar_dot(y, y + 2, n - 2u, kern) : DV_R(0.0);
+    const dv_real_t y0 = b[0], y1 = b[1], yl = b[n - 1u], yl1 = b[n - 2u];
+    /* order-0 errors: f[j] = y[j+1], b[j] = y[j], j < n-1; their seven sums from r0..r2 */
+    dv_real_t sm[7];
+    sm[0] = r0s - y0 * y0;
+    sm[1] = r0s - yl * yl;
+    sm[2] = r1s;
+    sm[3] = r2s;
+    sm[4] = r1s - y1 * y0;
+    sm[5] = r1s - yl * yl1;
+    sm[6] = r0s - y0 * y0 - yl * yl;
+    dv_real_t *f = y;
+    for (size_t i = 0u; i + 1u < n; i++) {
+        f[i] = y[i + 1u];
+    }
+    size_t len = n - 1u;
+    dv_real_t err = r0;
+    for (uint32_t m = 1u; m <= pmax; m += 2u) {
+        const dv_real_t den = sm[0] + sm[1];
+        if (!(den > DV_R(0.0))) {
+            break;
+        }
+        const dv_real_t k = DV_R(2.0) * sm[2] / den;
+        if (!(DV_FABS(k) < DV_R(1.0))) {
+            break;
+        }
+        dv_real_t e2 = err * (DV_R(1.0) - k * k);
+        if (!(e2 > DV_R(0.0))) {
+            break;
+        }
+        order_update(ak, m, k);
+        err = e2;
+        refl[m - 1u] = k;
+        sig[m - 1u] = err;
+        ro->reached = m;
+        if (m == pmax) {
+            break;
+        }
+        /* stage m+1: sums of the stage-m errors f'[j] = f[j+1] - k b[j+1],
+         * b'[j] = b[j] - k f[j], j < len-1, from the sums of f and b */
+        const dv_real_t f0 = f[0], b0 = b[0], fl = f[len - 1u], bl = b[len - 1u];
+        const dv_real_t num2 = sm[3] - k * (sm[4] + sm[5]) + k * k * sm[6];
+        const dv_real_t den2 = (sm[0] - f0 * f0) - DV_R(2.0) * k * (sm[2] - f0 * b0) +
+                               k * k * (sm[1] - b0 * b0) + (sm[1] - bl * bl) -
+                               DV_R(2.0) * k * (sm[2] - bl * fl) + k * k * (sm[0] - fl * fl);
+        if (!(den2 > DV_R(0.0))) {
+            break;
+        }
+        const dv_real_t k2 = DV_R(2.0) * num2 / den2;
+        if (!(DV_FABS(k2) < DV_R(1.0))) {
+            break;
+        }
+        e2 = err * (DV_R(1.0) - k2 * k2);
+        if (!(e2 > DV_R(0.0))) {
+            break;
+        }
+        order_update(ak, m + 1u, k2);
+        err = e2;
+        refl[m] = k2;
+        sig[m] = err;
+        ro->reached = m + 1u;
+        if (m + 1u == pmax) {
+            break;
+        }
+        dv_priv_ar_burg2(f, b, len, k, k2, sm, kern);
+        len -= 2u;
+    }
+    return DV_OK;
+}
+
+#ifdef DV_REAL_DOUBLE
+/* Burg from the autocorrelation (the idea of K. Vos, "A fast implementation of Burg's method",
+ * 2013; derived and written here as follows). Let y be zero outside 0..n-1 and c_0 = 1,
+ * c_j = -a_j the order m-1 error filter; F(t) = sum_j c_j y(t-j) and B(t) = sum_j c_j
+ * y(t-m+1+j) are its forward and backward errors at every t (zero far out). The lattice
+ * F'(t) = F(t) - k B(t-1), B'(t) = B(t-1) - k F(t) holds at every t, and stage m sums over
+ * t = m..n-1, so each of its sums is a sum over all t minus the edges t < m and t >= n:
+ *   all t:  sum F(t)^2 = sum B(t-1)^2 = P = sum_j c_j u_j,  sum F(t) B(t-1) = X = sum_j c_j u_{m-j}
+ * with u_i = sum_j c_j R_|i-j| (R: the autocorrelation sums). The order update c' = [c, 0] -
+ * k [0, reverse(c)] gives u'_i = u_i - k u_{m-i}, i = 0..m, and u'_{m+1} = sum_j c_j R_{m+1-j}
+ * - k sum_j c_j R_{j+1}: O(m) per stage. The edges are small lattices of their own: F(t), B(t-1)
+ * for t < p on the record's head, and (time reversal swaps F and B) the same on the reversed
+ * tail; O(p) per stage. So the O(n p) cost is one autocorrelation instead of p sweeps.
+ *
+ * The price is cancellation: P ~ den/2 comes out of terms of size (sum |c_j|)^2 R_0, so den
+ * carries a relative error of about eps (sum |c_j|)^2 R_0 / den =: eps q_m, and so does k_m
+ * (3-30 eps q_m, measured against a long-double lattice), and sigma2 = r_0 prod (1 - k_m^2) one
+ * of about eps sum_m q_m 2 |k_m| / (1 - k_m^2) (0.5-6 eps times the sum, measured). For the
+ * lightly damped structure at AR(60), q_m stays below ~1.1e4 and the sum below ~7e4 (errors
+ * ~4e-12). The limits BURG_CORR_Q and BURG_CORR_QS2 keep both errors below ~3e-10; past them (a
+ * nearly noise-free sinusoid, a mode with damping ratio ~3e-4 at AR(20)), or when a stage does not
+ * give |k| < 1 and a positive error, the fit is handed to the lattice, which then decides.
+ * Beyond 8192 samples both limits shrink like sqrt(8192 / n): the autocorrelation's round-off,
+ * the larger part of these errors, grows about like that. */
+#define BURG_CORR_Q DV_R(1e5)
+#define BURG_CORR_QS2 DV_R(5e5)
+
+/* Records shorter than this many samples per order go to the lattice (cheap there): the edge
+ * lattices need 6 p - 2 elements of the workspace's second half. */
+#define BURG_CORR_MIN_N_PER_P 6u
+
+/* One lattice stage on an edge: f[t] = F(t), g[t] = B(t-1), t < len. */
+static void edge_stage(dv_real_t *restrict f, dv_real_t *restrict g, uint32_t len, dv_real_t k)
+{
+    for (uint32_t t = 0u; t < len; t++) {
+        const dv_real_t ft = f[t], gt = g[t];
+        f[t] = ft - k * gt;
+        g[t] = gt - k * ft;
+    }
+}
+
+/* sq += sum f^2 + g^2, fg += sum f g over t < m */
+static void edge_sums(const dv_real_t *f, const dv_real_t *g, uint32_t m, dv_real_t *sq,
+                      dv_real_t *fg)
+{
+    dv_real_t s0 = DV_R(0.0), s1 = DV_R(0.0), c0 = DV_R(0.0), c1 = DV_R(0.0);
+    uint32_t t = 0u;
+    for (; t + 2u <= m; t += 2u) {
+        s0 += f[t] * f[t] + g[t] * g[t];
+        s1 += f[t + 1u] * f[t + 1u] + g[t + 1u] * g[t + 1u];
+        c0 += f[t] * g[t];
+        c1 += f[t + 1u] * g[t + 1u];
+    }
+    if (t < m) {
+        s0 += f[t] * f[t] + g[t] * g[t];
+        c0 += f[t] * g[t];
+    }
+    *sq += s0 + s1;
+    *fg += c0 + c1;
+}
+
+/* Burg orders 1..p from the autocorrelation; false hands the fit to the lattice (nothing of it
+ * is kept). small: 4 (p + 1) elements (R, c = ak, reverse(c), u); edge: 6 p - 2. */
+static bool burg_corr(uint32_t p, const dv_real_t *y, size_t n, dv_real_t mean, dv_real_t *edge,
+                      dv_real_t *small, dv_real_t *refl, dv_real_t *sig, run_out_t *ro,
+                      uint32_t kern)
+{
+    dv_real_t *rs = small, *c = small + (p + 1u), *cr = small + 2u * (p + 1u);
+    dv_real_t *u = small + 3u * (p + 1u);
+    /* edges: F(t) at f[t], t < p; B(t-1) of order m-1 at g[t + p - m] (B(-1) = 0 at g[p-m]),
+     * so that a stage updates f[t] and g[t + p - m] in place; g has 2p - 1 slots */
+    dv_real_t *fy = edge, *gy = edge + p, *fz = gy + (2u * p - 1u), *gz = fz + p;
+    dv_priv_ar_acf(y, n, p, rs, kern);
+    const dv_real_t r0 = rs[0] / (dv_real_t)n;
+    if (!dv_priv_finite(r0) || is_constant(r0, mean)) {
+        return false;
+    }
+    for (uint32_t t = 0u; t < p; t++) {
+        fy[t] = y[t];
+        fz[t] = y[n - 1u - t];
+        gy[t] = DV_R(0.0);
+        gz[t] = DV_R(0.0);
+    }
+    for (uint32_t t = 0u; t + 1u < p; t++) {
+        gy[p + t] = y[t];
+        gz[p + t] = y[n - 1u - t];
+    }
+    c[0] = cr[0] = DV_R(1.0);
+    u[0] = rs[0];
+    u[1] = rs[1];
+    const dv_real_t shrink = n > 8192u ? DV_SQRT(DV_R(8192.0) / (dv_real_t)n) : DV_R(1.0);
+    const dv_real_t lim_q = BURG_CORR_Q * shrink, lim_qs2 = BURG_CORR_QS2 * shrink;
+    dv_real_t sabs = DV_R(1.0), err = r0, qs2 = DV_R(0.0);
+    for (uint32_t m = 1u; m <= p; m++) {
+        const dv_real_t pq = dv_priv_ar_dot(c, u, m, kern);
+        const dv_real_t xq = dv_priv_ar_dot(cr, u + 1, m, kern);
+        dv_real_t esq = DV_R(0.0), efg = DV_R(0.0);
+        edge_sums(fy, gy + (p - m), m, &esq, &efg);
+        edge_sums(fz, gz + (p - m), m, &esq, &efg);
+        const dv_real_t den = DV_R(2.0) * pq - esq, big = sabs * sabs * rs[0];
+        if (!(den * lim_q > big)) {
+            return false;
+        }
+        const dv_real_t k = DV_R(2.0) * (xq - efg) / den;
+        if (!(DV_FABS(k) < DV_R(1.0))) {
+            return false;
+        }
+        const dv_real_t omk2 = DV_R(1.0) - k * k, e2 = err * omk2;
+        if (!(e2 > DV_R(0.0))) {
+            return false;
+        }
+        qs2 += big * DV_R(2.0) * DV_FABS(k) / (den * omk2);
+        if (!(qs2 < lim_qs2)) {
+            return false;
+        }
+        err = e2;
+        refl[m - 1u] = k;
+        sig[m - 1u] = err;
+        if (m < p) {
+            const dv_real_t up = dv_priv_ar_dot(cr, rs + 2, m, kern);
+            const dv_real_t um = dv_priv_ar_dot(c, rs + 1, m, kern);
+            uint32_t lo = 0u, hi = m;
+            for (; lo < hi; lo++, hi--) {
+                const dv_real_t ul = u[lo], uh = u[hi];
+                u[lo] = ul - k * uh;
+                u[hi] = uh - k * ul;
+            }
+            if (lo == hi) {
+                u[lo] -= k * u[lo];
+            }
+            u[m + 1u] = up - k * um;
+            edge_stage(fy, gy + (p - m), p, k);
+            edge_stage(fz, gz + (p - m), p, k);
+        }
+        /* c' = [c, 0] - k [0, reverse(c)]: pairs (j, m-j) from their old values */
+        c[m] = DV_R(0.0);
+        uint32_t lo = 0u, hi = m;
+        for (; lo < hi; lo++, hi--) {
+            const dv_real_t cl = c[lo], ch = c[hi];
+            c[lo] = cl - k * ch;
+            c[hi] = ch - k * cl;
+        }
+        if (lo == hi) {
+            c[lo] -= k * c[lo];
+        }
+        sabs = DV_R(0.0);
+        for (uint32_t j = 0u; j <= m; j++) {
+            cr[j] = c[m - j];
+            sabs += DV_FABS(c[j]);
+        }
+    }
+    for (uint32_t j = 0u; j < p; j++) {
+        c[j] = -c[j + 1u]; /* c becomes ak: a_j = -c_j */
+    }
+    ro->r0 = r0;
+    ro->reached = p;
+    return true;
+}
+#endif
+
 /* Runs orders 1..pmax; stops at the first order whose reflection coefficient is not inside
  * (-1, 1) or whose error variance is not positive. a holds the last valid order's fit. */
 static dv_status_t run(dv_ar_method_t method, uint32_t pmax, const dv_real_t *x, size_t n,
@@ -123,87 +374,19 @@ static dv_status_t run(dv_ar_method_t method, uint32_t pmax, const dv_real_t *x,
             ro->reached = m;
         }
     } else {
-        /* Burg, two stages per sweep of the error arrays (they do not fit L1: the sweeps are
-         * what costs). A sweep returns the new errors' lag-0 and lag-1 sums; stage m's
-         * reflection coefficient comes from the lag-0 sums, stage m+1's from all seven through
-         * the one-stage update written out (exact in exact arithmetic). */
-        dv_real_t *b = work + n;
-        for (size_t i = 0u; i < n; i++) {
-            b[i] = y[i];
+        bool done = false;
+#ifdef DV_REAL_DOUBLE
+        /* float: burg_corr's cancellation would cost ~2e-4 on the structure at AR(60) (the
+         * lattice: ~3e-6), so the lattice */
+        if (n >= BURG_CORR_MIN_N_PER_P * (size_t)pmax) {
+            done = burg_corr(pmax, y, n, mean, work + n, small, refl, sig, ro, kern);
         }
-        const dv_real_t r0s = dv_priv_ar_dot(b, b, n, kern);
-        const dv_real_t r0 = r0s / nn;
-        ro->r0 = r0;
-        if (!dv_priv_finite(r0) || is_constant(r0, mean)) {
-            return DV_ENUMERIC;
-        }
-        const dv_real_t r1s = dv_priv_ar_dot(y, y + 1, n - 1u, kern);
-        const dv_real_t r2s = n > 2u ? dv_priv_ar_dot(y, y + 2, n - 2u, kern) : DV_R(0.0);
-        const dv_real_t y0 = b[0], y1 = b[1], yl = b[n - 1u], yl1 = b[n - 2u];
-        /* order-0 errors: f[j] = y[j+1], b[j] = y[j], j < n-1; their seven sums from r0..r2 */
-        dv_real_t sm[7];
-        sm[0] = r0s - y0 * y0;
-        sm[1] = r0s - yl * yl;
-        sm[2] = r1s;
-        sm[3] = r2s;
-        sm[4] = r1s - y1 * y0;
-        sm[5] = r1s - yl * yl1;
-        sm[6] = r0s - y0 * y0 - yl * yl;
-        dv_real_t *f = y;
-        for (size_t i = 0u; i + 1u < n; i++) {
-            f[i] = y[i + 1u];
-        }
-        size_t len = n - 1u;
-        dv_real_t err = r0;
-        for (uint32_t m = 1u; m <= pmax; m += 2u) {
-            const dv_real_t den = sm[0] + sm[1];
-            if (!(den > DV_R(0.0))) {
-                break;
+#endif
+        if (!done) {
+            st = burg_lattice(pmax, work, n, mean, ak, refl, sig, ro, kern);
+            if (st != DV_OK) {
+                return st;
             }
-            const dv_real_t k = DV_R(2.0) * sm[2] / den;
-            if (!(DV_FABS(k) < DV_R(1.0))) {
-                break;
-            }
-            dv_real_t e2 = err * (DV_R(1.0) - k * k);
-            if (!(e2 > DV_R(0.0))) {
-                break;
-            }
-            order_update(ak, m, k);
-            err = e2;
-            refl[m - 1u] = k;
-            sig[m - 1u] = err;
-            ro->reached = m;
-            if (m == pmax) {
-                break;
-            }
-            /* stage m+1: sums of the stage-m errors f'[j] = f[j+1] - k b[j+1],
-             * b'[j] = b[j] - k f[j], j < len-1, from the sums of f and b */
-            const dv_real_t f0 = f[0], b0 = b[0], fl = f[len - 1u], bl = b[len - 1u];
-            const dv_real_t num2 = sm[3] - k * (sm[4] + sm[5]) + k * k * sm[6];
-            const dv_real_t den2 = (sm[0] - f0 * f0) - DV_R(2.0) * k * (sm[2] - f0 * b0) +
-                                   k * k * (sm[1] - b0 * b0) + (sm[1] - bl * bl) -
-                                   DV_R(2.0) * k * (sm[2] - bl * fl) + k * k * (sm[0] - fl * fl);
-            if (!(den2 > DV_R(0.0))) {
-                break;
-            }
-            const dv_real_t k2 = DV_R(2.0) * num2 / den2;
-            if (!(DV_FABS(k2) < DV_R(1.0))) {
-                break;
-            }
-            e2 = err * (DV_R(1.0) - k2 * k2);
-            if (!(e2 > DV_R(0.0))) {
-                break;
-            }
-            order_update(ak, m + 1u, k2);
-            err = e2;
-            refl[m] = k2;
-            sig[m] = err;
-            ro->reached = m + 1u;
-            if (m + 1u == pmax) {
-                break;
-            }
-            dv_priv_ar_burg2(f, b, len, k, k2, sm, kern);
-            len -= 2u;
         }
     }
     for (uint32_t j = 0u; j < ro->reached; j++) {

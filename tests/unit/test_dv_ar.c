@@ -122,6 +122,154 @@ static void test_ar_burg_matches_reference(void **state)
     check_fit("struct", DV_AR_BURG, 60, RTOL_FIT_HARD);
 }
 
+// Reference Burg for records made here: the textbook lattice (Kay, sec. 7.6: whole error arrays,
+// one stage per pass) in long double on the record as stored, mean removed in long double. The
+// library takes other routes (the autocorrelation with edge corrections in double builds, a
+// two-stage lattice otherwise), so agreement is a real check.
+static long double ref_f[NMAX], ref_b[NMAX];
+static int ref_burg(const dv_real_t *x, size_t n, int p, double *a, double *refl, double *sigma2)
+{
+    long double mean = 0, err = 0, c[PMAX + 1] = {1}, cn[PMAX + 1];
+    for (size_t i = 0; i < n; i++) mean += x[i];
+    mean /= (long double)n;
+    for (size_t i = 0; i < n; i++) {
+        ref_f[i] = ref_b[i] = x[i] - mean;
+        err += ref_f[i] * ref_f[i];
+    }
+    err /= (long double)n;
+    for (int m = 1; m <= p; m++) {
+        long double num = 0, den = 0;
+        for (size_t t = (size_t)m; t < n; t++) {
+            num += ref_f[t] * ref_b[t - 1];
+            den += ref_f[t] * ref_f[t] + ref_b[t - 1] * ref_b[t - 1];
+        }
+        const long double k = 2 * num / den; // the library's sign: f' = f - k b
+        if (!(fabsl(k) < 1)) return 0;
+        for (size_t t = n - 1; t >= (size_t)m; t--) { // descending: b[t-1] is still the old one
+            const long double f = ref_f[t], b = ref_b[t - 1];
+            ref_f[t] = f - k * b;
+            ref_b[t] = b - k * f;
+        }
+        for (int j = 0; j <= m; j++) cn[j] = (j < m ? c[j] : 0) - k * (j > 0 ? c[m - j] : 0);
+        memcpy(c, cn, sizeof c);
+        err *= 1 - k * k;
+        refl[m - 1] = (double)k;
+    }
+    for (int j = 1; j <= p; j++) a[j - 1] = (double)-c[j];
+    *sigma2 = (double)err;
+    return 1;
+}
+
+// dv_ar_fit(BURG) on xr[0..n) against ref_burg: coefficients relative to max |a| (as check_fit),
+// reflection coefficients absolute, sigma2 relative. Returns the coefficient error.
+static double check_burg_direct(const char *what, size_t n, int p, double rtol)
+{
+    double ra[PMAX], rr[PMAX], rs2 = 0;
+    dv_ar_model_t m;
+    const dv_status_t st =
+        dv_ar_fit(&m, DV_AR_BURG, (uint32_t)p, xr, n, work, sizeof work / sizeof *work);
+    if (!ref_burg(xr, n, p, ra, rr, &rs2)) { // |k| = 1 (n = 2): no AR(p) of this record
+        assert_int_equal(st, DV_ENUMERIC);
+        return 0;
+    }
+    assert_int_equal(st, DV_OK);
+    double sa = 0, worst = 0, worst_k = 0;
+    for (int j = 0; j < p; j++) sa = fmax(sa, fabs(ra[j]));
+    for (int j = 0; j < p; j++) {
+        worst = fmax(worst, fabs(m.a[j] - ra[j]) / sa);
+        worst_k = fmax(worst_k, fabs(m.refl[j] - rr[j]));
+    }
+    const double es2 = fabs(m.sigma2 - rs2) / rs2;
+    if (!(worst <= rtol && worst_k <= rtol && es2 <= rtol)) {
+        fprintf(stderr, "  %s n=%zu p=%d: a %.3g refl %.3g sigma2 %.3g (rtol %.3g)\n", what, n, p,
+                worst, worst_k, es2, rtol);
+    }
+    assert_true(worst <= rtol && worst_k <= rtol && es2 <= rtol);
+    return worst;
+}
+
+// Deterministic N(0, 1) samples (LCG + Box-Muller): the tests must not depend on libc rand.
+static double gauss(uint64_t *s)
+{
+    double u[2];
+    for (int i = 0; i < 2; i++) {
+        *s = *s * 6364136223846793005ull + 1442695040888963407ull;
+        u[i] = ((double)(*s >> 11) + 0.5) / 9007199254740992.0;
+    }
+    return sqrt(-2 * log(u[0])) * cos(6.283185307179586 * u[1]);
+}
+
+// x_i = a1 x_{i-1} + a2 x_{i-2} + e_i, poles r exp(+-i w), after 4000 samples of run-in.
+static void make_ar2(size_t n, double r, double w, double offset, double scale, uint64_t seed)
+{
+    double x1 = 0, x2 = 0;
+    const double a1 = 2 * r * cos(w), a2 = -r * r;
+    for (size_t i = 0; i < n + 4000; i++) {
+        const double x = a1 * x1 + a2 * x2 + gauss(&seed);
+        x2 = x1;
+        x1 = x;
+        if (i >= 4000) xr[i - 4000] = (dv_real_t)(offset + scale * x);
+    }
+}
+
+// Records away from the golden ones, each against the direct long-double Burg:
+//  * AR(2) with poles at radius 0.999 and 0.9999 (double: at AR(20) the autocorrelation route's
+//    den is ~3e4 eps of its terms (kept, ~1e-11 off), ~1.6e5 eps (handed to the lattice));
+//  * two sinusoids in little noise, nearly deterministic: in double past that range, so the fit
+//    must be handed to the lattice. Taken alone the autocorrelation route is 3e-7 off at AR(30)
+//    (its den, relative to the terms it comes from, is ~4e8 eps) and its sigma2 2e-8 off at AR(4)
+//    (there den is fine, but 1 - k^2 ~ 1e-5 magnifies k's error);
+//  * a constant plus small noise (the mean removal);
+//  * short records, n = p+1 .. 8p+5, where double builds switch between the routes (at 6p).
+static void test_ar_burg_hard_records_match_direct_burg(void **state)
+{
+    (void)state;
+#ifdef DV_REAL_DOUBLE
+    const double radii[] = {0.999, 0.9999};
+#else
+    const double radii[] = {0.99}; // float: sigma2 = r0 prod (1 - k^2) loses ~u / (1 - |k|)
+#endif
+    double e = 0;
+    for (size_t i = 0; i < sizeof radii / sizeof radii[0]; i++) {
+        make_ar2(NMAX, radii[i], 0.3, 0.0, 1.0, 7);
+        e = fmax(e, check_burg_direct("ar2", NMAX, 2, RTOL_FIT));
+        e = fmax(e, check_burg_direct("ar2", NMAX, 20, RTOL_FIT));
+    }
+    fprintf(stderr, "  AR(2) near the unit circle, p = 2, 20: max coefficient error %.3g\n", e);
+
+    uint64_t seed = 11;
+#ifdef DV_REAL_DOUBLE
+    const double noise = 1e-4;
+#else
+    const double noise = 3e-2; // float: the lattice loses ~u / (1 - |k|): 8e-4 at 1e-2, AR(30)
+#endif
+    for (size_t i = 0; i < NMAX; i++) {
+        xr[i] = (dv_real_t)(sin(0.3 * (double)i) + 0.5 * sin(1.1 * (double)i + 1) +
+                            noise * gauss(&seed));
+    }
+    e = check_burg_direct("sines+noise", NMAX, 4, RTOL_FIT);
+    e = fmax(e, check_burg_direct("sines+noise", NMAX, 30, RTOL_FIT));
+    fprintf(stderr, "  two sines in noise %.0e, p = 4, 30: max coefficient error %.3g\n", noise, e);
+
+#ifdef DV_REAL_DOUBLE
+    make_ar2(NMAX, 0.95, 0.7, 1000.0, 1e-4, 13);
+#else
+    make_ar2(NMAX, 0.95, 0.7, 10.0, 1e-2, 13);
+#endif
+    e = check_burg_direct("offset+small", NMAX, 6, RTOL_FIT);
+    fprintf(stderr, "  constant plus small AR(2): max coefficient error %.3g\n", e);
+
+    make_ar2(NMAX, 0.9, 1.1, 0.0, 1.0, 17);
+    const int ps[] = {1, 2, 3, 7, 20, 64};
+    e = 0;
+    for (int i = 0; i < 6; i++) {
+        const size_t p = (size_t)ps[i];
+        const size_t ns[] = {p + 1, p + 2, p + 3, 2 * p, 6 * p - 1, 6 * p, 6 * p + 1, 8 * p + 5};
+        for (int j = 0; j < 8; j++) e = fmax(e, check_burg_direct("short", ns[j], (int)p, RTOL_FIT));
+    }
+    fprintf(stderr, "  short records n = p+1 .. 8p+5: max coefficient error %.3g\n", e);
+}
+
 static void test_ar_fit_recovers_true_coefficients(void **state)
 {
     (void)state;
@@ -409,6 +557,7 @@ int main(void)
         cmocka_unit_test(test_ar_autocorr_golden),
         cmocka_unit_test(test_ar_yw_matches_solve_toeplitz),
         cmocka_unit_test(test_ar_burg_matches_reference),
+        cmocka_unit_test(test_ar_burg_hard_records_match_direct_burg),
         cmocka_unit_test(test_ar_fit_recovers_true_coefficients),
         cmocka_unit_test(test_ar_aic_picks_true_order),
         cmocka_unit_test(test_ar_residual_is_white),
