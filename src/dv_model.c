@@ -794,7 +794,7 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
         for (size_t i = 0; i <= nsub; i++) {
             const size_t f = i * nc + e;
             for (size_t j = 0; j < ns; j++) {
-                m->rx[f * ns + j] = row[j];
+                m->rx[j * nf + f] = row[j]; /* column-major: see dv_model.h */
             }
             for (size_t j = 0; j < ns; j++) {
                 dv_real_t s = DV_R(0.0);

@@ -32,8 +32,8 @@ DV_TGT_AVX2 static inline void store4(double *p, __m256d v)
 }
 
 DV_TGT_AVX2 static inline __attribute__((always_inline)) void
-kern8x4(size_t nin, size_t ny, const double *fx, const double *fy, double *sv, const double *y,
-        double *yo, double *resid)
+kern8x4(size_t nin, size_t iy, size_t ny, const double *fx, const double *fy, double *sv,
+        const double *y, double *yo, double *resid)
 {
     const double *in = sv + 8;
     const double *fxi = fx + 64;
@@ -49,7 +49,7 @@ kern8x4(size_t nin, size_t ny, const double *fx, const double *fy, double *sv, c
         a1 = _mm256_fmadd_pd(_mm256_loadu_pd(fxi + 8u * j + 4u), s, a1);
         ay = _mm256_fmadd_pd(_mm256_loadu_pd(fyi + 4u * j), s, ay);
     }
-    const double *fxm = fxi + 8u * nin;
+    const double *fxm = fxi + 8u * iy;
     for (size_t j = 0; j < ny; j++) {
         s = _mm256_broadcast_sd(y + j);
         a0 = _mm256_fmadd_pd(_mm256_loadu_pd(fxm + 8u * j), s, a0);
@@ -91,14 +91,63 @@ DV_TGT_AVX2 void dv_priv_obs_kern8x4_avx2(size_t nin, size_t ny, const double *f
     /* the linear 4-DOF step (u[k-1], u[k]; with or without the gain's 4 measurement columns)
      * with constant sizes; anything else (contact forces) through the general form */
     if (nin == 2u && ny == 4u) {
-        kern8x4(2u, 4u, fx, fy, sv, y, yo, resid);
+        kern8x4(2u, 2u, 4u, fx, fy, sv, y, yo, resid);
     } else if (nin == 2u && ny == 0u) {
-        kern8x4(2u, 0u, fx, fy, sv, y, yo, resid);
+        kern8x4(2u, 2u, 0u, fx, fy, sv, y, yo, resid);
     } else {
-        kern8x4(nin, ny, fx, fy, sv, y, yo, resid);
+        kern8x4(nin, nin, ny, fx, fy, sv, y, yo, resid);
     }
 }
 
+DV_TGT_AVX2 void dv_priv_obs_kern8x4_open_avx2(size_t iy, size_t ny, const double *fx,
+                                               const double *fy, double *sv, const double *y,
+                                               double *yo, double *resid)
+{
+    if (ny == 4u) {
+        kern8x4(2u, iy, 4u, fx, fy, sv, y, yo, resid);
+    } else {
+        kern8x4(2u, iy, ny, fx, fy, sv, y, yo, resid);
+    }
+}
+
+/* Up to 12 nodes in three vectors (the last one masked), column by column. */
+DV_TGT_AVX2 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, const double *sv,
+                                        double *xl)
+{
+    const double *ra = rx + ns * nf, *rb = ra + nf;
+    if (nf > 12u) {
+        for (size_t f = 0; f < nf; f++) {
+            double a = ra[f] * sv[ns] + rb[f] * sv[ns + 1u];
+            for (size_t j = 0; j < ns; j++) {
+                a += rx[j * nf + f] * sv[j];
+            }
+            xl[f] = a;
+        }
+        return;
+    }
+    /* lanes f < nf of the three vectors */
+    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
+    const __m256i m0 = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)nf), lane);
+    const __m256i m1 = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)nf - 4), lane);
+    const __m256i m2 = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)nf - 8), lane);
+    const __m256d w0 = _mm256_broadcast_sd(sv + ns), w1 = _mm256_broadcast_sd(sv + ns + 1u);
+    __m256d a0 = _mm256_mul_pd(_mm256_maskload_pd(ra, m0), w0);
+    __m256d a1 = _mm256_mul_pd(_mm256_maskload_pd(ra + 4, m1), w0);
+    __m256d a2 = _mm256_mul_pd(_mm256_maskload_pd(ra + 8, m2), w0);
+    a0 = _mm256_fmadd_pd(_mm256_maskload_pd(rb, m0), w1, a0);
+    a1 = _mm256_fmadd_pd(_mm256_maskload_pd(rb + 4, m1), w1, a1);
+    a2 = _mm256_fmadd_pd(_mm256_maskload_pd(rb + 8, m2), w1, a2);
+    for (size_t j = 0; j < ns; j++) {
+        const double *c = rx + j * nf;
+        const __m256d v = _mm256_broadcast_sd(sv + j);
+        a0 = _mm256_fmadd_pd(_mm256_maskload_pd(c, m0), v, a0);
+        a1 = _mm256_fmadd_pd(_mm256_maskload_pd(c + 4, m1), v, a1);
+        a2 = _mm256_fmadd_pd(_mm256_maskload_pd(c + 8, m2), v, a2);
+    }
+    _mm256_maskstore_pd(xl, m0, a0);
+    _mm256_maskstore_pd(xl + 4, m1, a1);
+    _mm256_maskstore_pd(xl + 8, m2, a2);
+}
 
 DV_TGT_AVX512 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u,
                                                           const double *y)

@@ -21,6 +21,18 @@ void dv_priv_obs_kern8x4_avx2(size_t nin, size_t ny, const dv_real_t *fx, const 
                               dv_real_t *sv, const dv_real_t *y, dv_real_t *yo,
                               dv_real_t *resid);
 
+/* The same with only the input window's two columns used and y from input column iy on: a
+ * contact step whose forces are all zero (their columns skipped). */
+void dv_priv_obs_kern8x4_open_avx2(size_t iy, size_t ny, const dv_real_t *fx,
+                                   const dv_real_t *fy, dv_real_t *sv, const dv_real_t *y,
+                                   dv_real_t *yo, dv_real_t *resid);
+
+/* The force-free X at every contact sub-node (dv_obs.c nodes_x_free(), first-order hold):
+ * xl = [rx | rxa | rxb] [x; u[k-1]; u[k]], rx column-major nf x ns followed by the columns rxa
+ * and rxb (the model's layout), the vector [x; u window] = sv[0 .. ns + 2). */
+void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, const double *sv,
+                            double *xl);
+
 /* The same step in modal coordinates (o->modal, past the first sample, y given): q+ = Lam q +
  * inputs, with Lam's 2 x 2 blocks from o->fm, and the prediction from the C T rows in o->fm.
  * A non-finite u or y goes to dv_priv_obs_step_slow(); returns dv_obs_step()'s status. */

@@ -151,6 +151,12 @@ DV_PRIV_INLINE dv_real_t dv_priv_contact_gk(int side, dv_real_t gap, dv_real_t d
     return g;
 }
 
+/* dv_priv_contact_gk() is exactly 0 for every X in [xmin, xmax] (no side engaged). */
+static inline bool dv_priv_contact_open(int side, dv_real_t gap, dv_real_t xmin, dv_real_t xmax)
+{
+    return ((side & 1) == 0 || xmax <= gap) && ((side & 2) == 0 || xmin >= -gap);
+}
+
 /* kh of dv_priv_contact_g1k(): kB / (2 delta); 0 for delta = 0 (plain bilinear: no transition,
  * and no 0 x Inf). */
 static inline dv_real_t dv_priv_contact_kh(dv_real_t kb, dv_real_t delta)

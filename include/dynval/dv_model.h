@@ -280,7 +280,8 @@ typedef struct {
     dv_real_t *d0;    /**< nout: coefficient of u[k] in y[k] */
     dv_real_t *d1;    /**< nout: coefficient of u[k-1] in y[k] */
     dv_real_t *ey;    /**< nout x nc: coefficient of the contact forces in y[k] */
-    dv_real_t *rx;    /**< nf x 2n: sub-node X from x[k] */
+    dv_real_t *rx;    /**< nf x 2n, column-major (followed by rxa, rxb: the columns of
+                           [x[k], u[k], u[k+1]]): sub-node X from x[k] */
     dv_real_t *rxa;   /**< nf: sub-node X from u[k] */
     dv_real_t *rxb;   /**< nf: sub-node X from u[k+1] */
     dv_real_t *smat;  /**< nf x nf: sub-node X from sub-node forces (block lower triangular) */
