@@ -498,7 +498,7 @@ dv_status_t dv_ar_autocorr(const dv_real_t *x, size_t n, size_t maxlag, dv_real_
 
 /* ---- streaming residual ------------------------------------------------------------------ */
 
-/* Buffer layout (DV_AR_RESID_BUF_LEN): float [c: p][hist: 2p]; double [c part: p + 16][slack:
+/* Buffer layout (DV_AR_RESID_BUF_LEN): float [c: p][hist: p]; double [c part: p + 16][slack:
  * 8][hist: 2p], the coefficients a_p..a_1 after off zeros from a 64-byte boundary in the c
  * part, the slack zero (read by the vector kernels before hist[0]). The vector kernels
  * multiply the L = 8 nb + 4 coefficients ending at a_1 with the L samples ending at the newest:
@@ -561,7 +561,7 @@ dv_status_t dv_ar_resid_init(dv_ar_resid_t *r, const dv_ar_model_t *m, dv_real_t
 void dv_ar_resid_reset(dv_ar_resid_t *r)
 {
     DV_ASSERT(r != NULL);
-    for (uint32_t j = 0u; j < 2u * r->p; j++) {
+    for (size_t j = 0u; j < DV_AR_RESID_HIST_LEN(r->p); j++) {
         r->hist[j] = DV_R(0.0);
     }
     r->head = 0u;
@@ -577,15 +577,22 @@ __attribute__((noinline))
 static dv_status_t rstep_c(dv_ar_resid_t *r, dv_real_t x, dv_real_t *e)
 {
     const uint32_t p = r->p, head = r->head;
-    dv_real_t *h = r->hist + head; /* h[0..p): the last p centred samples, oldest first */
+    dv_real_t *h = r->hist + head; /* the last p centred samples, oldest first from here */
     const dv_real_t y = x - r->mean;
     dv_status_t st = DV_ENOTREADY;
     if (r->count >= p) {
+#ifdef DV_REAL_DOUBLE
         *e = y - dv_priv_ar_dot(r->c + r->off, h, p, 0u);
+#else /* a ring: the oldest p - head samples, then the newest head */
+        *e = y - (dv_priv_ar_dot(r->c, h, p - head, 0u) +
+                  dv_priv_ar_dot(r->c + (p - head), r->hist, head, 0u));
+#endif
         st = DV_OK;
     }
     h[0] = y;
+#ifdef DV_REAL_DOUBLE
     h[p] = y;
+#endif
     r->head = head + 1u == p ? 0u : head + 1u;
     r->count++;
     return st;
@@ -653,7 +660,9 @@ dv_status_t dv_ar_resid_update_block(dv_ar_resid_t *r, const dv_real_t *x, size_
         for (uint32_t j = 0u; j < p; j++) {
             const dv_real_t y = x[n - p + j] - r->mean;
             r->hist[j] = y;
+#ifdef DV_REAL_DOUBLE
             r->hist[j + p] = y;
+#endif
         }
         r->head = 0u;
     }

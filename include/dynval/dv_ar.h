@@ -44,10 +44,20 @@ extern "C" {
 #define DV_AR_RESID_PAD 0u
 #endif
 
+/** History of the streaming residual, in elements, for order @p p: double-length (2p: every
+ *  window of p contiguous, for the x86-64 double kernels' vector loads) in double builds, a
+ *  ring of p in float builds (firmware RAM). */
+#ifdef DV_REAL_DOUBLE
+#define DV_AR_RESID_HIST_LEN(p) (2u * (size_t)(p))
+#else
+#define DV_AR_RESID_HIST_LEN(p) ((size_t)(p))
+#endif
+
 /** Storage for dv_ar_resid_init(), in elements, for order @p p: the p coefficients and the
- *  double-length history of 2p samples (+ DV_AR_RESID_PAD). Sized by the order, so an AR(32)
- *  float instance needs 96 elements here; see also dv_ar_resid_buf_len(). */
-#define DV_AR_RESID_BUF_LEN(p) (3u * (size_t)(p) + (size_t)DV_AR_RESID_PAD)
+ *  history (+ DV_AR_RESID_PAD). Sized by the order, so an AR(32) float instance needs 64
+ *  elements here; see also dv_ar_resid_buf_len(). */
+#define DV_AR_RESID_BUF_LEN(p)                                                                  \
+    ((size_t)(p) + DV_AR_RESID_HIST_LEN(p) + (size_t)DV_AR_RESID_PAD)
 
 /** Estimator for dv_ar_fit() and dv_ar_order(). */
 typedef enum {
@@ -143,7 +153,8 @@ dv_status_t dv_ar_autocorr(const dv_real_t *x, size_t n, size_t maxlag, dv_real_
  *  and the history live in the caller's buffer (DV_AR_RESID_BUF_LEN). */
 typedef struct {
     const dv_real_t *c;  /**< a_p..a_1 (reversed) after `off` zeros, in the caller buffer */
-    dv_real_t *hist;     /**< double-length history, 2p: hist[j] == hist[j + p] */
+    dv_real_t *hist;     /**< history (DV_AR_RESID_HIST_LEN): double: 2p, hist[j] == hist[j + p];
+                              float: a ring of p */
     dv_real_t mean;      /**< subtracted from every input */
     dv_real_t c0;        /**< mean (1 - sum a_j): the mean folded out of the block kernel */
     uint32_t p;          /**< order */
