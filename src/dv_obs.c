@@ -800,6 +800,37 @@ static inline dv_real_t elem_force(const dv_contact_desc_t *c, dv_real_t kh, dv_
     return dv_priv_elem_g((int)c->law, (int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, x);
 }
 
+/* Every element a plain contact and open at all its sub-nodes at the force-free X (xl, node f
+ * = i nc + e): then zero forces solve every node (each law gives 0 at the force-free X, and
+ * each node's fixed-point start, from the earlier nodes' zeros, is 0), and the node chain
+ * would only add zeros to reach them. Sets the forces and element states as the chain would,
+ * bit for bit, and returns true; false (nothing written) otherwise. */
+static bool all_open(dv_obs_t *o, dv_real_t *g, const dv_real_t *xl)
+{
+    const dv_model_t *m = o->m;
+    const size_t nc = m->n_contact, nsub = m->n_sub;
+    for (size_t e = 0; e < nc; e++) {
+        const dv_contact_desc_t *c = &m->contact[e];
+        dv_real_t lo = DV_REAL_MAX, hi = -DV_REAL_MAX;
+        for (size_t i = 0; i <= nsub; i++) {
+            const dv_real_t x = xl[i * nc + e];
+            lo = x < lo ? x : lo;
+            hi = x > hi ? x : hi;
+        }
+        if (c->law != DV_ELEM_CONTACT || !dv_priv_contact_open((int)c->side, c->gap_m, lo, hi)) {
+            return false;
+        }
+    }
+    for (size_t f = 0; f < m->n_f; f++) {
+        g[f] = DV_R(0.0);
+    }
+    for (size_t e = 0; e < nc; e++) {
+        o->elem_x[e] = xl[nsub * nc + e];
+        o->elem_g[e] = DV_R(0.0);
+    }
+    return true;
+}
+
 /* contact_forces() for one element (the common case), in the same order of operations: the
  * force-free part of X at every sub-node first (independent of the forces, so it leaves the
  * sequential chain through the nodes), then node by node the earlier forces and the implicit
@@ -812,22 +843,8 @@ static bool contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
     dv_real_t *g = sv + ns + (cubic ? 4u : 2u);
     const dv_contact_desc_t *c = &m->contact[0];
     dv_real_t xl[DV_MAX_SUB + 1u];
-    dv_real_t xmin = DV_REAL_MAX, xmax = -DV_REAL_MAX;
     nodes_x_free(o, ns, cubic, sv, xl);
-    for (size_t f = 0; f < nf; f++) {
-        xmin = xl[f] < xmin ? xl[f] : xmin;
-        xmax = xl[f] > xmax ? xl[f] : xmax;
-    }
-    /* Open at every node without forces: then zero forces solve every node (the node's law
-     * gives 0 at X = the force-free X, and the solution is unique: the law rises with X and
-     * a node's own force lowers its X), and the node chain below would only add zeros to
-     * reach them. Same result, bit for bit, at a fraction of the cost. */
-    if (c->law == DV_ELEM_CONTACT && dv_priv_contact_open((int)c->side, c->gap_m, xmin, xmax)) {
-        for (size_t f = 0; f < nf; f++) {
-            g[f] = DV_R(0.0);
-        }
-        o->elem_x[0] = xl[nf - 1u];
-        o->elem_g[0] = DV_R(0.0);
+    if (all_open(o, g, xl)) {
         return true;
     }
     const dv_real_t kh = elem_kh(c);
@@ -861,7 +878,7 @@ static bool contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
 
 /* Sub-node contact forces g into sv[ns + nin ..], from x = sv[0..ns) and the input window
  * sv[ns .. ns + nin). Stick-slip elements read and advance the observer's element history.
- * True when every force is zero because the element stays open (contact_forces_1()). */
+ * True when every force is zero because every element stays open (all_open()). */
 static bool contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
 {
     const dv_model_t *m = o->m;
@@ -881,6 +898,9 @@ static bool contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
     dv_real_t kh[DV_MAX_CONTACT];
     dv_real_t xl[(DV_MAX_SUB + 1u) * DV_MAX_CONTACT];
     nodes_x_free(o, ns, cubic, sv, xl);
+    if (all_open(o, g, xl)) {
+        return true;
+    }
     for (size_t e = 0; e < nc; e++) {
         kh[e] = elem_kh(&m->contact[e]);
         xp[e] = o->elem_x[e];
