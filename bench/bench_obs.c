@@ -7,7 +7,8 @@
  * contact cases use the report's bumper (gap 0.1 mm, Delta 0.1 mm, kB 1.925e6 N/m, 8 sub-steps;
  * this record's force engages it in 6 of 8192 steps, so they mostly measure the open element)
  * and, as the worst case a firmware budgets for, obs_step_4dof_contact_engaged: the same bumper
- * at zero gap on both sides, which solves the contact chain in every step. */
+ * at zero gap on both sides, which solves the contact chain in every step. obs_block_4dof: the
+ * obs_step_4dof steps through dv_obs_update_block() (predictions and residuals stored). */
 #include "bench_util.h"
 
 #include "dynval/dv_model.h"
@@ -16,7 +17,7 @@
 enum { NREC = 8192, NBUF = 40000 };
 
 static dv_real_t mbuf[NBUF], mbuf2[NBUF], obuf[NBUF], obuf2[NBUF];
-static dv_real_t force[NREC], ymeas[NREC * 4], yout[NREC * 4];
+static dv_real_t force[NREC], ymeas[NREC * 4], yout[NREC * 4], yres[NREC * 4];
 
 static dv_input_hold_t g_hold = DV_HOLD_FOH;
 
@@ -95,7 +96,7 @@ int main(int argc, char **argv)
                                   "obs_step_4dof_contact16", "sim_record_8192",
                                   "sim_record_8192_contact", "obs_step_4dof_cubic",
                                   "obs_step_4dof_contact_cubic", "sim_record_8192_cubic",
-                                  "obs_step_4dof_contact_engaged"};
+                                  "obs_step_4dof_contact_engaged", "obs_block_4dof"};
     const int ncase = (int)(sizeof cases / sizeof cases[0]);
     if (argc == 2 && strcmp(argv[1], "--list") == 0) {
         for (int i = 0; i < ncase; i++) printf("%s\n", cases[i]);
@@ -141,7 +142,8 @@ int main(int argc, char **argv)
     }
     const int contact = which == 1 || which == 2 || which == 4 || which == 6 || which == 8;
     const uint16_t nsub = which == 2 ? 16 : 8;
-    const int is_step = which <= 2 || which == 5 || which == 6 || which == 8;
+    const int is_step = which <= 2 || which == 5 || which == 6 || which == 8 || which == 9;
+    const int block = which == 9; /* the same steps through dv_obs_update_block() */
     if (which >= 5 && which <= 7) g_hold = DV_HOLD_CUBIC;
     g_engaged = which == 8;
     dv_model_t m;
@@ -157,7 +159,11 @@ int main(int argc, char **argv)
         const double t0 = bench_now_ns();
         if (is_step) {
             dv_obs_reset(&o);
-            for (int k = 0; k < NREC; k++) dv_obs_step(&o, force[k], ymeas + 4 * k);
+            if (block) {
+                dv_obs_update_block(&o, force, ymeas, NREC, yout, yres);
+            } else {
+                for (int k = 0; k < NREC; k++) dv_obs_step(&o, force[k], ymeas + 4 * k);
+            }
             acc += (double)o.resid[3];
             t[r] = (bench_now_ns() - t0) / NREC;
         } else {

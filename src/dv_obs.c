@@ -1433,7 +1433,7 @@ dv_status_t dv_obs_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas)
     DV_ASSERT(o != NULL && o->m != NULL);
 #if DV_SIMD_X86
     /* the modal step, a tail call (it hands anything but a regular step to the slow path) */
-    if (o->simd == 2u && o->modal && o->started && y_meas != NULL) {
+    if (o->simd == 2u && o->modal && o->started) {
         return dv_priv_obs_step8x4_modal_avx512(o, u, y_meas);
     }
 #endif
@@ -1534,16 +1534,21 @@ static dv_status_t run_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y
     const size_t no = o->no;
     dv_status_t worst = DV_OK;
     for (size_t k = 0; k < n; k++) {
-        const dv_real_t *yk = y_meas != NULL ? y_meas + k * no : NULL;
-        dv_status_t st;
 #if DV_SIMD_X86
-        if (use_gain && o->simd == 2u && o->modal && o->started && yk != NULL) {
-            st = dv_priv_obs_step8x4_modal_avx512(o, u[k], yk);
-        } else
-#endif
-        {
-            st = (use_gain && fast_step(o, u[k], yk)) ? DV_OK : step(o, u[k], yk, use_gain);
+        /* the modal steps with the state in registers, up to a non-finite sample (or the end);
+         * open loop (y NULL) the same with or without use_gain */
+        if (o->simd == 2u && o->modal && o->started && (use_gain || y_meas == NULL)) {
+            k += dv_priv_obs_run8x4_modal_avx512(
+                o, u + k, y_meas != NULL ? y_meas + k * no : NULL, n - k,
+                y_pred != NULL ? y_pred + k * no : NULL, resid != NULL ? resid + k * no : NULL);
+            if (k == n) {
+                break;
+            }
         }
+#endif
+        const dv_real_t *yk = y_meas != NULL ? y_meas + k * no : NULL;
+        const dv_status_t st =
+            (use_gain && fast_step(o, u[k], yk)) ? DV_OK : step(o, u[k], yk, use_gain);
         if (st != DV_OK) {
             worst = st;
         }

@@ -149,36 +149,11 @@ DV_TGT_AVX2 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, 
     _mm256_maskstore_pd(xl + 8, m2, a2);
 }
 
-DV_TGT_AVX512 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u,
-                                                          const double *y)
+/* The modal prediction: C T q as sum_k M_k (q permuted by lane ^ k) (see make_modal()), the
+ * low half holding the state columns 0-3, the high half 4-7, plus the input window's terms. */
+DV_TGT_AVX512 static inline __attribute__((always_inline)) __m256d
+modal_pred(const double *fy, const double *fm, __m512d q, __m512d qs, __m512d up, __m512d uk)
 {
-    const __m256d ym = _mm256_loadu_pd(y);
-    const __m256d fin = _mm256_add_pd(_mm256_sub_pd(ym, ym), _mm256_set1_pd(u - u));
-    if (_mm256_movemask_pd(_mm256_cmp_pd(fin, _mm256_setzero_pd(), _CMP_NEQ_UQ)) != 0) {
-        return dv_priv_obs_step_slow(o, u, y); /* flags and counts the bad sample */
-    }
-    double *sv = o->sv;
-    const double *fx = o->f;
-    const double *fy = fx + 8u * (size_t)o->ncol_gain;
-    const double *fm = o->fm;
-    const __m512d q = _mm512_loadu_pd(sv);
-    const __m512d up = _mm512_set1_pd(sv[8]);
-    const __m512d uk = _mm512_set1_pd(u);
-    /* inputs and (with the gain) measurements, off the state chain */
-    __m512d a = _mm512_mul_pd(_mm512_loadu_pd(fx + 64), up);
-    a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 72), uk, a);
-    if (o->has_gain) {
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 80), _mm512_set1_pd(y[0]), a);
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 88), _mm512_set1_pd(y[1]), a);
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 96), _mm512_set1_pd(y[2]), a);
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 104), _mm512_set1_pd(y[3]), a);
-    }
-    /* q+ = diag * q + off * (q with each pair swapped) + inputs */
-    const __m512d qs = _mm512_permute_pd(q, 0x55);
-    __m512d qn = _mm512_fmadd_pd(_mm512_loadu_pd(fm), q, a);
-    qn = _mm512_fmadd_pd(_mm512_loadu_pd(fm + 8), qs, qn);
-    /* prediction: C T q as sum_k M_k (q permuted by lane ^ k) (see make_modal()); the low
-     * half holds the state columns 0-3, the high half 4-7 */
     const __m512d q2 = _mm512_permutex_pd(q, 0x4E), q3 = _mm512_permutex_pd(q, 0x1B);
     __m512d ya = _mm512_mul_pd(_mm512_loadu_pd(fm + 16), q);
     __m512d yb = _mm512_mul_pd(_mm512_loadu_pd(fm + 24), qs);
@@ -187,15 +162,137 @@ DV_TGT_AVX512 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u
     ya = _mm512_add_pd(ya, yb);
     __m256d yh = _mm256_add_pd(_mm512_castpd512_pd256(ya), _mm512_extractf64x4_pd(ya, 1));
     yh = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 32), _mm512_castpd512_pd256(up), yh);
-    yh = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 36), _mm512_castpd512_pd256(uk), yh);
+    return _mm256_fmadd_pd(_mm256_loadu_pd(fy + 36), _mm512_castpd512_pd256(uk), yh);
+}
+
+/* One modal step's arithmetic (dv_priv_obs_step8x4_modal_avx512() and the block loop share it,
+ * so both give the same bits): the prediction yh from q and the input window (up = u[k-1],
+ * uk = u[k]), and the next state from q, the inputs and, with the gain, the measurements y,
+ * or with y NULL the prediction itself (open loop: x+ = x- + L (yhat - yhat)). */
+DV_TGT_AVX512 static inline __attribute__((always_inline)) __m512d
+modal_core(const double *fx, const double *fy, const double *fm, bool gain, __m512d q,
+           __m512d up, __m512d uk, const double *y, __m256d *yh_out)
+{
+    const __m512d qs = _mm512_permute_pd(q, 0x55);
+    const bool open_gain = gain && y == NULL; /* the prediction feeds the state update */
+    double yp[4];
+    if (open_gain) {
+        *yh_out = modal_pred(fy, fm, q, qs, up, uk);
+        _mm256_storeu_pd(yp, *yh_out);
+        y = yp;
+    }
+    /* inputs and (with the gain) measurements */
+    __m512d a = _mm512_mul_pd(_mm512_loadu_pd(fx + 64), up);
+    a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 72), uk, a);
+    if (gain) {
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 80), _mm512_set1_pd(y[0]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 88), _mm512_set1_pd(y[1]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 96), _mm512_set1_pd(y[2]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 104), _mm512_set1_pd(y[3]), a);
+    }
+    /* q+ = diag * q + off * (q with each pair swapped) + inputs */
+    __m512d qn = _mm512_fmadd_pd(_mm512_loadu_pd(fm), q, a);
+    qn = _mm512_fmadd_pd(_mm512_loadu_pd(fm + 8), qs, qn);
+    if (!open_gain) {
+        *yh_out = modal_pred(fy, fm, q, qs, up, uk);
+    }
+    return qn;
+}
+
+/* u and, when given, the four measurements finite */
+DV_TGT_AVX512 static inline __attribute__((always_inline)) bool modal_finite(double u,
+                                                                          const double *y)
+{
+    __m256d fin = _mm256_set1_pd(u - u);
+    if (y != NULL) {
+        const __m256d ym = _mm256_loadu_pd(y);
+        fin = _mm256_add_pd(_mm256_sub_pd(ym, ym), fin);
+    }
+    return _mm256_movemask_pd(_mm256_cmp_pd(fin, _mm256_setzero_pd(), _CMP_NEQ_UQ)) == 0;
+}
+
+/* dv_priv_obs_step8x4_modal_avx512() with its y (NULL: open loop) and u checked */
+DV_TGT_AVX512 static inline __attribute__((always_inline)) void modal_step(dv_obs_t *o, double u,
+                                                                        const double *y)
+{
+    double *sv = o->sv;
+    const double *fx = o->f;
+    __m256d yh;
+    const __m512d qn = modal_core(fx, fx + 8u * (size_t)o->ncol_gain, o->fm, o->has_gain,
+                                  _mm512_loadu_pd(sv), _mm512_set1_pd(sv[8]),
+                                  _mm512_set1_pd(u), y, &yh);
     _mm512_storeu_pd(sv, qn);
     _mm256_storeu_pd(o->z + 8, yh);
-    _mm256_storeu_pd(o->resid, _mm256_sub_pd(ym, yh));
+    /* no measurement: the residual is the prediction's own, 0 */
+    _mm256_storeu_pd(o->resid, y != NULL ? _mm256_sub_pd(_mm256_loadu_pd(y), yh)
+                                         : _mm256_setzero_pd());
     sv[8] = u;
-    o->flags = 0u;
+    o->flags = y != NULL ? 0u : DV_OBS_FLAG_NO_MEAS;
     o->n_pred++;
     o->n_steps++;
+}
+
+/* the open-loop step apart, so the measured one keeps its straight code */
+DV_TGT_AVX512 __attribute__((noinline)) static dv_status_t modal_step_open(dv_obs_t *o, double u)
+{
+    if (!modal_finite(u, NULL)) {
+        return dv_priv_obs_step_slow(o, u, NULL); /* flags and counts the bad input */
+    }
+    modal_step(o, u, NULL);
     return DV_OK;
+}
+
+DV_TGT_AVX512 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u,
+                                                          const double *y)
+{
+    if (y == NULL) {
+        return modal_step_open(o, u);
+    }
+    if (!modal_finite(u, y)) {
+        return dv_priv_obs_step_slow(o, u, y); /* flags and counts the bad sample */
+    }
+    modal_step(o, u, y);
+    return DV_OK;
+}
+
+DV_TGT_AVX512 size_t dv_priv_obs_run8x4_modal_avx512(dv_obs_t *o, const double *u,
+                                                     const double *y, size_t n, double *y_pred,
+                                                     double *resid)
+{
+    double *sv = o->sv;
+    const double *fx = o->f;
+    const double *fy = fx + 8u * (size_t)o->ncol_gain;
+    const double *fm = o->fm;
+    const bool gain = o->has_gain;
+    __m512d q = _mm512_loadu_pd(sv);
+    double up = sv[8];
+    __m256d yh = _mm256_loadu_pd(o->z + 8), r = _mm256_loadu_pd(o->resid);
+    size_t k = 0;
+    for (; k < n; k++) {
+        const double *yk = y != NULL ? y + 4u * k : NULL;
+        if (!modal_finite(u[k], yk)) {
+            break; /* the caller steps this sample through the general path */
+        }
+        q = modal_core(fx, fy, fm, gain, q, _mm512_set1_pd(up), _mm512_set1_pd(u[k]), yk, &yh);
+        r = yk != NULL ? _mm256_sub_pd(_mm256_loadu_pd(yk), yh) : _mm256_setzero_pd();
+        if (y_pred != NULL) {
+            _mm256_storeu_pd(y_pred + 4u * k, yh);
+        }
+        if (resid != NULL) {
+            _mm256_storeu_pd(resid + 4u * k, r);
+        }
+        up = u[k];
+    }
+    if (k > 0u) {
+        _mm512_storeu_pd(sv, q);
+        _mm256_storeu_pd(o->z + 8, yh);
+        _mm256_storeu_pd(o->resid, r);
+        sv[8] = up;
+        o->flags = y != NULL ? 0u : DV_OBS_FLAG_NO_MEAS;
+        o->n_pred += k;
+        o->n_steps += k;
+    }
+    return k;
 }
 
 #else

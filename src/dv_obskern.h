@@ -33,10 +33,17 @@ void dv_priv_obs_kern8x4_open_avx2(size_t iy, size_t ny, const dv_real_t *fx,
 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, const double *sv,
                             double *xl);
 
-/* The same step in modal coordinates (o->modal, past the first sample, y given): q+ = Lam q +
- * inputs, with Lam's 2 x 2 blocks from o->fm, and the prediction from the C T rows in o->fm.
- * A non-finite u or y goes to dv_priv_obs_step_slow(); returns dv_obs_step()'s status. */
+/* The same step in modal coordinates (o->modal, past the first sample): q+ = Lam q + inputs,
+ * with Lam's 2 x 2 blocks from o->fm, and the prediction from the C T rows in o->fm; y NULL:
+ * open loop, as dv_obs_step(). A non-finite u or y goes to dv_priv_obs_step_slow(); returns
+ * dv_obs_step()'s status. */
 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u, const double *y);
+
+/* n such steps with the state in registers (the same arithmetic, bit for bit), predictions and
+ * residuals to y_pred / resid (4 per step; either may be NULL), y NULL for open loop. Stops
+ * at the first non-finite u[k] or y[k]; returns how many steps it made. */
+size_t dv_priv_obs_run8x4_modal_avx512(dv_obs_t *o, const double *u, const double *y, size_t n,
+                                       double *y_pred, double *resid);
 #endif
 
 #endif /* DV_OBSKERN_H */
