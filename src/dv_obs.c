@@ -800,15 +800,22 @@ static inline dv_real_t elem_force(const dv_contact_desc_t *c, dv_real_t kh, dv_
     return dv_priv_elem_g((int)c->law, (int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, x);
 }
 
-/* Every element a plain contact and open at all its sub-nodes at the force-free X (xl, node f
- * = i nc + e): then zero forces solve every node (each law gives 0 at the force-free X, and
+#if defined(__GNUC__) || defined(__clang__)
+#define DV_OBS_INLINE __attribute__((always_inline))
+#else
+#define DV_OBS_INLINE
+#endif
+
+/* Every element (nc of them; a constant 1 on the one-element path) a plain contact and open at
+ * all its sub-nodes at the force-free X (xl, node f = i nc + e): then zero forces solve every node (each law gives 0 at the force-free X, and
  * each node's fixed-point start, from the earlier nodes' zeros, is 0), and the node chain
  * would only add zeros to reach them. Sets the forces and element states as the chain would,
  * bit for bit, and returns true; false (nothing written) otherwise. */
-static bool all_open(dv_obs_t *o, dv_real_t *g, const dv_real_t *xl)
+static inline DV_OBS_INLINE bool all_open(dv_obs_t *o, dv_real_t *g, const dv_real_t *xl,
+                                          size_t nc)
 {
     const dv_model_t *m = o->m;
-    const size_t nc = m->n_contact, nsub = m->n_sub;
+    const size_t nsub = m->n_sub;
     for (size_t e = 0; e < nc; e++) {
         const dv_contact_desc_t *c = &m->contact[e];
         dv_real_t lo = DV_REAL_MAX, hi = -DV_REAL_MAX;
@@ -844,7 +851,7 @@ static bool contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
     const dv_contact_desc_t *c = &m->contact[0];
     dv_real_t xl[DV_MAX_SUB + 1u];
     nodes_x_free(o, ns, cubic, sv, xl);
-    if (all_open(o, g, xl)) {
+    if (all_open(o, g, xl, 1u)) {
         return true;
     }
     const dv_real_t kh = elem_kh(c);
@@ -898,7 +905,7 @@ static bool contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
     dv_real_t kh[DV_MAX_CONTACT];
     dv_real_t xl[(DV_MAX_SUB + 1u) * DV_MAX_CONTACT];
     nodes_x_free(o, ns, cubic, sv, xl);
-    if (all_open(o, g, xl)) {
+    if (all_open(o, g, xl, nc)) {
         return true;
     }
     for (size_t e = 0; e < nc; e++) {
