@@ -270,7 +270,8 @@ dv_status_t dv_obs_get(const dv_obs_t *o, dv_real_t *y_pred, dv_real_t *resid, s
 dv_status_t dv_obs_get_state(const dv_obs_t *o, dv_real_t *x, size_t len);
 
 /**
- * @brief Run @p n samples through dv_obs_step(), continuing from the current state.
+ * @brief Run @p n samples through dv_obs_step(), continuing from the current state (the same
+ *        results bit for bit; x86-64 with AVX-512 runs the linear 4-DOF steps in one loop).
  * @param[in,out] o       observer
  * @param[in]     u       n inputs
  * @param[in]     y_meas  n x no measured outputs, row-major, or NULL (prediction only)
