@@ -743,10 +743,9 @@ static dv_real_t stickslip_g(const dv_contact_desc_t *c, dv_real_t xp, dv_real_t
     return g > f ? f : (g < -f ? -f : g);
 }
 
-/* The force-free part of X at sub-node force f (rx x + the input window's share): what X would
- * be with no contact force at this or any earlier node of the step. */
-/* X at every sub-node without contact forces, xl[f] = rx[f, :] x + the input terms: column by
- * column (rx is column-major), in each node the same order of operations as a row dot. */
+/* The force-free X at every sub-node (what X would be with no contact force at this or any
+ * earlier node of the step), xl[f] = rx[f, :] x + the input window's share: column by column
+ * (rx is column-major), in each node the same order of operations as a row dot. */
 static void nodes_x_free(const dv_obs_t *o, size_t ns, bool cubic, const dv_real_t *sv,
                          dv_real_t *xl)
 {
@@ -807,10 +806,11 @@ static inline dv_real_t elem_force(const dv_contact_desc_t *c, dv_real_t kh, dv_
 #endif
 
 /* Every element (nc of them; a constant 1 on the one-element path) a plain contact and open at
- * all its sub-nodes at the force-free X (xl, node f = i nc + e): then zero forces solve every node (each law gives 0 at the force-free X, and
- * each node's fixed-point start, from the earlier nodes' zeros, is 0), and the node chain
- * would only add zeros to reach them. Sets the forces and element states as the chain would,
- * bit for bit, and returns true; false (nothing written) otherwise. */
+ * all its sub-nodes at the force-free X (xl, node f = i nc + e): then zero forces solve every
+ * node (each law gives 0 at the force-free X, and each node's fixed-point start, from the
+ * earlier nodes' zeros, is 0), and the node chain would only add zeros to reach them. Sets the
+ * forces and element states as the chain would, bit for bit, and returns true; false (nothing
+ * written) otherwise. */
 static inline DV_OBS_INLINE bool all_open(dv_obs_t *o, dv_real_t *g, const dv_real_t *xl,
                                           size_t nc)
 {
