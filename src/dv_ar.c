@@ -59,6 +59,27 @@ static void order_update(dv_real_t *a, uint32_t m, dv_real_t k)
     a[m - 1u] = k;
 }
 
+/* Order m with reflection coefficient k, if valid (|k| < 1 and a positive error variance
+ * err (1 - k^2)): the coefficients a order-updated, err, refl[m-1], sig[m-1] and ro->reached
+ * set. False (nothing changed) otherwise: the recursion stops at the order before. */
+static bool accept_order(dv_real_t k, uint32_t m, dv_real_t *err, dv_real_t *a, dv_real_t *refl,
+                         dv_real_t *sig, run_out_t *ro)
+{
+    if (!(DV_FABS(k) < DV_R(1.0))) {
+        return false;
+    }
+    const dv_real_t e2 = *err * (DV_R(1.0) - k * k);
+    if (!(e2 > DV_R(0.0))) {
+        return false;
+    }
+    order_update(a, m, k);
+    *err = e2;
+    refl[m - 1u] = k;
+    sig[m - 1u] = e2;
+    ro->reached = m;
+    return true;
+}
+
 /* r[m] - sum_{j=1}^{m-1} a[j-1] r[m-j], four partial sums (one chain is latency-bound). */
 static dv_real_t levinson_num(const dv_real_t *a, const dv_real_t *r, uint32_t m)
 {
@@ -120,19 +141,7 @@ static dv_status_t burg_lattice(uint32_t pmax, dv_real_t *work, size_t n, dv_rea
             break;
         }
         const dv_real_t k = DV_R(2.0) * sm[2] / den;
-        if (!(DV_FABS(k) < DV_R(1.0))) {
-            break;
-        }
-        dv_real_t e2 = err * (DV_R(1.0) - k * k);
-        if (!(e2 > DV_R(0.0))) {
-            break;
-        }
-        order_update(ak, m, k);
-        err = e2;
-        refl[m - 1u] = k;
-        sig[m - 1u] = err;
-        ro->reached = m;
-        if (m == pmax) {
+        if (!accept_order(k, m, &err, ak, refl, sig, ro) || m == pmax) {
             break;
         }
         /* stage m+1: sums of the stage-m errors f'[j] = f[j+1] - k b[j+1],
@@ -146,19 +155,7 @@ static dv_status_t burg_lattice(uint32_t pmax, dv_real_t *work, size_t n, dv_rea
             break;
         }
         const dv_real_t k2 = DV_R(2.0) * num2 / den2;
-        if (!(DV_FABS(k2) < DV_R(1.0))) {
-            break;
-        }
-        e2 = err * (DV_R(1.0) - k2 * k2);
-        if (!(e2 > DV_R(0.0))) {
-            break;
-        }
-        order_update(ak, m + 1u, k2);
-        err = e2;
-        refl[m] = k2;
-        sig[m] = err;
-        ro->reached = m + 1u;
-        if (m + 1u == pmax) {
+        if (!accept_order(k2, m + 1u, &err, ak, refl, sig, ro) || m + 1u == pmax) {
             break;
         }
         dv_priv_ar_burg2(f, b, len, k, k2, sm, kern);
@@ -359,19 +356,9 @@ static dv_status_t run(dv_ar_method_t method, uint32_t pmax, const dv_real_t *x,
         }
         dv_real_t err = r[0];
         for (uint32_t m = 1u; m <= pmax; m++) {
-            const dv_real_t k = levinson_num(ak, r, m) / err;
-            if (!(DV_FABS(k) < DV_R(1.0))) {
+            if (!accept_order(levinson_num(ak, r, m) / err, m, &err, ak, refl, sig, ro)) {
                 break;
             }
-            const dv_real_t e2 = err * (DV_R(1.0) - k * k);
-            if (!(e2 > DV_R(0.0))) {
-                break;
-            }
-            order_update(ak, m, k);
-            err = e2;
-            refl[m - 1u] = k;
-            sig[m - 1u] = err;
-            ro->reached = m;
         }
     } else {
         bool done = false;
