@@ -1126,37 +1126,26 @@ static void kernel_8x4_c(size_t nin, size_t iy, size_t ny, const dv_real_t *rest
     }
 }
 
-/* kernel_8x4_c(), or its AVX2 + FMA form when the CPU has it (chosen at init, o->simd). */
-static inline void kernel_8x4(const dv_obs_t *o, size_t nin, size_t ny, const dv_real_t *fx,
-                              const dv_real_t *fy, dv_real_t *sv, const dv_real_t *y,
-                              dv_real_t *yo, dv_real_t *resid)
+/* kernel_8x4_c(), or its AVX2 + FMA form when the CPU has it (chosen at init, o->simd). The
+ * measurement columns start at input column iy: nin, or 2 + nf in a contact step whose forces
+ * are all zero (nin = 2: the input window's columns only, the force columns skipped). */
+static inline void kernel_8x4(const dv_obs_t *o, size_t nin, size_t iy, size_t ny,
+                              const dv_real_t *fx, const dv_real_t *fy, dv_real_t *sv,
+                              const dv_real_t *y, dv_real_t *yo, dv_real_t *resid)
 {
 #if DV_SIMD_X86
     if (o->simd != 0u) {
-        dv_priv_obs_kern8x4_avx2(nin, ny, fx, fy, sv, y, yo, resid);
+        if (iy == nin) {
+            dv_priv_obs_kern8x4_avx2(nin, ny, fx, fy, sv, y, yo, resid);
+        } else {
+            dv_priv_obs_kern8x4_open_avx2(iy, ny, fx, fy, sv, y, yo, resid);
+        }
         return;
     }
 #else
     (void)o;
 #endif
-    kernel_8x4_c(nin, nin, ny, fx, fy, sv, y, yo, resid);
-}
-
-/* kernel_8x4() for a contact step whose forces are all zero: only the input window's two
- * columns, y from input column iy = 2 + nf on. */
-static inline void kernel_8x4_open(const dv_obs_t *o, size_t iy, size_t ny, const dv_real_t *fx,
-                                   const dv_real_t *fy, dv_real_t *sv, const dv_real_t *y,
-                                   dv_real_t *yo, dv_real_t *resid)
-{
-#if DV_SIMD_X86
-    if (o->simd != 0u) {
-        dv_priv_obs_kern8x4_open_avx2(iy, ny, fx, fy, sv, y, yo, resid);
-        return;
-    }
-#else
-    (void)o;
-#endif
-    kernel_8x4_c(2u, iy, ny, fx, fy, sv, y, yo, resid);
+    kernel_8x4_c(nin, iy, ny, fx, fy, sv, y, yo, resid);
 }
 
 /* End of a first sample: residual against y (a NaN channel: predicted only), the gain's
@@ -1308,7 +1297,7 @@ static void produce(dv_obs_t *o, const dv_real_t *y, uint32_t flags, bool use_ga
     }
     if (ns == 8u && no == 4u) {
         /* the 4-DOF, 4-channel case: constant sizes, one call */
-        kernel_8x4(o, nin + nf, ny, fx, fy, sv, ys, yhat, o->resid);
+        kernel_8x4(o, nin + nf, nin + nf, ny, fx, fy, sv, ys, yhat, o->resid);
     } else {
         dv_real_t *yc = sv + ns + nin + nf;
         for (size_t q = 0; q < ny; q++) {
@@ -1389,11 +1378,8 @@ static void contact_step_8x4(dv_obs_t *o, const dv_real_t *y)
     dv_real_t *sv = o->sv;
     const size_t ny = o->has_gain ? 4u : 0u;
     const dv_real_t *fy = o->f + 8u * (size_t)o->ncol_gain;
-    if (contact_forces(o, sv, 8u)) {
-        kernel_8x4_open(o, 2u + o->nf, ny, o->f, fy, sv, y, o->z + 8, o->resid);
-    } else {
-        kernel_8x4(o, 2u + o->nf, ny, o->f, fy, sv, y, o->z + 8, o->resid);
-    }
+    const size_t nfc = contact_forces(o, sv, 8u) ? 0u : o->nf;
+    kernel_8x4(o, 2u + nfc, 2u + o->nf, ny, o->f, fy, sv, y, o->z + 8, o->resid);
 }
 
 /* The regular step of the 4-DOF, 4-channel case (first-order hold, vector kernel, past the
@@ -1414,8 +1400,8 @@ static inline bool fast_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y)
     if (o->nf > 0u) {
         contact_step_8x4(o, y);
     } else {
-        kernel_8x4(o, 2u, o->has_gain ? 4u : 0u, o->f, o->f + 8u * (size_t)o->ncol_gain, sv, y,
-                   o->z + 8, o->resid);
+        kernel_8x4(o, 2u, 2u, o->has_gain ? 4u : 0u, o->f, o->f + 8u * (size_t)o->ncol_gain, sv,
+                   y, o->z + 8, o->resid);
     }
     sv[8] = u;
     o->flags = 0u;
