@@ -136,6 +136,37 @@ def test_dropbear_time_off_clock(tmp_path):
     assert e.value.line == 16 and e.value.column == "Time"
 
 
+def test_dropbear_bad_rows(tmp_path):
+    from dynval.io.dropbear import read_dropbear
+
+    rows = [f"0.1\t0.2\t0.3\t{i * 2e-4:.5E}" for i in range(10)]
+    p = _text(tmp_path, DROPBEAR_HEAD + rows + ["0.1\t0.2"])  # cut off mid-row
+    with pytest.raises(InputFileError, match="truncated file") as e:
+        read_dropbear(p)
+    assert e.value.line == 20
+    rows[4] = "0.1\tnan\t0.3\t8.00000E-4"
+    p = _text(tmp_path, DROPBEAR_HEAD + rows + ["0.1\t0.2"])
+    with pytest.raises(InputFileError, match="non-finite") as e:
+        read_dropbear(p)
+    assert e.value.line == 14 and e.value.column == "Accel"
+    rec = read_dropbear(p, lenient=True)  # the short last row dropped, the NaN kept
+    assert rec.n_samples == 10
+    assert int(np.isnan(rec.channel("accel").data).sum()) == 1
+    assert any("truncated last row dropped" in w for w in rec.warnings)
+    assert any("non-finite Accel" in w for w in rec.warnings)
+    rows[4] = "0.1\tnan\t0.3\t8.00000E-4"
+    rows[7] = "0.1\t0.2\t0.3\tinf"  # the time column must be finite even when lenient
+    p = _text(tmp_path, DROPBEAR_HEAD + rows)
+    with pytest.raises(InputFileError, match="non-finite") as e:
+        read_dropbear(p, lenient=True)
+    assert e.value.line == 17 and e.value.column == "Time"
+    rows[7] = "0.1\tabc\t0.3\t1.40000E-3"
+    p = _text(tmp_path, DROPBEAR_HEAD + rows)
+    with pytest.raises(InputFileError, match="not a number") as e:
+        read_dropbear(p, lenient=True)
+    assert e.value.line == 17 and e.value.column == "Accel"
+
+
 def test_dropbear_real_file(shared_data):
     p = shared_data / "real/dropbear-dataset8/Random Index Set Random Dwell/set0/trial data" \
         / "test0.txt"

@@ -8,14 +8,13 @@ into NaN (the core drops and counts them). Nothing is changed silently."""
 from __future__ import annotations
 
 import logging
-import math
 import re
 from pathlib import Path
 
 import numpy as np
 
 from dynval.errors import InputFileError
-from dynval.io.recording import Channel, Recording, file_sha256
+from dynval.io.recording import Channel, Recording, file_sha256, parse_row
 
 log = logging.getLogger(__name__)
 
@@ -76,25 +75,11 @@ def read_dropbear(path: Path | str, *, lenient: bool = False,
         text = lines[ln - 1]
         if not text.strip():
             continue
-        cells = text.split("\t")
-        if len(cells) != ncol:
-            msg = f"expected {ncol} cells, found {len(cells)}"
-            if lenient and ln == last and len(cells) < ncol:
-                warnings.append(f"{p}:{ln}: truncated last row dropped ({msg})")
-                log.warning(warnings[-1])
-                continue
-            raise InputFileError(p, msg + (" (truncated file?)" if ln == last else ""), ln)
-        for j, cell in enumerate(cells):
-            try:
-                v = float(cell)
-            except ValueError:
-                raise InputFileError(p, f"not a number: {cell!r}", ln, cols[j]) from None
-            if not math.isfinite(v):
-                if not lenient or j == ncol - 1:
-                    raise InputFileError(p, f"non-finite value {cell!r}", ln, cols[j])
-                warnings.append(f"{p}:{ln}: non-finite {cols[j]} kept as NaN")
-                log.warning(warnings[-1])
-            data[n, j] = v
+        row = parse_row(p, ln, text.split("\t"), cols, last=ln == last, lenient=lenient,
+                        warnings=warnings, required=ncol - 1)
+        if row is None:
+            continue
+        data[n] = row
         n += 1
     data = data[:n]
     if n < 2:
