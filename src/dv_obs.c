@@ -39,6 +39,13 @@ size_t dv_obs_scratch_len(const dv_model_t *m)
 static bool make_modal(dv_obs_t *o, dv_real_t *x);
 #endif
 
+/* dv_obs_step()'s dispatch from simd, modal and started (kept in one byte: the per-sample step
+ * reads one flag). Called wherever one of them changes. */
+static void set_ready(dv_obs_t *o)
+{
+    o->modal_ready = (o->simd == 2u && o->modal && o->started) ? (o->nf != 0u ? 2u : 1u) : 0u;
+}
+
 /* Fill the folded step matrix from the model and the gain (o->gain, used when has_gain).
  * Layout: the state rows first, column-major (ns rows, one column per entry of sv:
  * [x, u window, g, y]), then the output rows, column-major (no rows, columns
@@ -116,20 +123,28 @@ static void fold(dv_obs_t *o)
         }
     }
     o->modal = false;
+    o->rxq = NULL;
 #if DV_SIMD_X86
-    if (o->tq != NULL) { /* storage for the modal form: it may apply (see make_modal()) */
+    /* storage for the modal form: it may apply (see make_modal()); with a contact, only to
+     * the gap law (the step that skips an open element) */
+    if (o->tq != NULL && (nc == 0u || m->contact[0].law == DV_ELEM_CONTACT)) {
         o->modal = make_modal(o, o->sv);
     }
 #endif
+    set_ready(o);
 }
 
-/* ---- modal coordinates (x86-64 double, AVX-512: the linear 4-DOF step) -----------------
- * The state block F of the folded state rows (x+ = F x + ...) of the 8-state linear observer is
+/* ---- modal coordinates (x86-64 double, AVX-512: the 4-DOF step, linear or one gap element) --
+ * The state block F of the folded state rows (x+ = F x + ...) of the 8-state observer is
  * brought to real block-diagonal form, F = T Lam T^-1 with 2 x 2 blocks (a complex pair of
  * eigenvalues or two real ones), and the observer runs on q = T^-1 x: the state rows become
  * [Lam | T^-1 (input and y columns)], the output rows' state columns C T. Every kernel works
  * unchanged on these dense rows; the AVX-512 step also uses the blocks directly (two fused
- * multiply-adds for the state instead of eight), which halves the step. x = T q is formed only
+ * multiply-adds for the state instead of eight), which halves the step. With a gap element the
+ * contact's sub-node X rows are rewritten over q too (o->rxq), and a step that finds the element
+ * open at every node is the linear modal step (its force columns skipped, as in all_open());
+ * a step that engages it runs the node chain and the dense product on the same q-coordinate
+ * rows. x = T q is formed only
  * when asked for (dv_obs_get_state()). The eigenvalues come from dv_mat_eig_real(), each pair's
  * vectors from inverse iteration; F keeps the dense form when T is ill-conditioned (a repeated
  * or defective eigenvalue) or the blocks do not reproduce F to 1e-9 relative. */
@@ -205,7 +220,8 @@ static bool inv_iter(const double *f, double re, double im, double *t, size_t c)
 }
 
 /* F (the folded state rows' state block, column-major in o->f) to modal form: fills o->tq and
- * o->fm and rewrites o->f in q coordinates; x: the current state in x coordinates, rewritten
+ * o->fm (and after it the contact's X rows over q, o->rxq), rewrites o->f in q coordinates; x:
+ * the current state in x coordinates, rewritten
  * as q. Returns false, with nothing changed, when F keeps the dense form. */
 static bool make_modal(dv_obs_t *o, dv_real_t *x)
 {
@@ -340,6 +356,31 @@ static bool make_modal(dv_obs_t *o, dv_real_t *x)
     }
     for (size_t i = 0; i < 64u; i++) {
         o->tq[i] = t[i];
+    }
+    /* a contact's sub-node X rows: state columns rx T, the input window's two as they are; in
+     * blocks of 8 nodes (zero rows past nf: X = 0, open at any gap >= 0), each block 10
+     * columns of 8, the layout of the AVX-512 open check */
+    const size_t nf = o->nf;
+    if (nf > 0u) {
+        const double *rx = o->m->rx;
+        double *rq = o->fm + 48;
+        for (size_t b = 0; b < nf; b += 8u) {
+            for (size_t j = 0; j < n + 2u; j++) {
+                for (size_t l = 0; l < 8u; l++) {
+                    const size_t r = b + l;
+                    double s = 0.0;
+                    if (r < nf && j < n) {
+                        for (size_t k = 0; k < n; k++) {
+                            s += rx[k * nf + r] * t[k * n + j];
+                        }
+                    } else if (r < nf) {
+                        s = j == n ? o->m->rxa[r] : o->m->rxb[r];
+                    }
+                    rq[b * (n + 2u) + j * 8u + l] = s;
+                }
+            }
+        }
+        o->rxq = rq;
     }
     double q[8];
     for (size_t i = 0; i < n; i++) {
@@ -636,14 +677,14 @@ dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_
     }
     o->fast = ns == 8u && no == 4u && nin == 2u;
     o->simd = (uint8_t)dv_priv_simd_kern();
-    if (o->simd == 2u && DV_OBS_MODAL_LEN(m->n_dof, m->n_contact, no, nin) == 0u) {
-        o->simd = 1u; /* AVX-512 serves the linear 8 x 4 step (modal); AVX2 kernel otherwise */
+    if (o->simd == 2u && DV_OBS_MODAL_LEN(m->n_dof, m->n_contact, m->n_sub, no, nin) == 0u) {
+        o->simd = 1u; /* AVX-512 serves the 8 x 4 step in modal form; AVX2 kernel otherwise */
     }
     if (o->simd == 2u) {
         o->tq = p;
         p += ns * ns;
         o->fm = p;
-        p += 6u * ns;
+        p += 6u * ns + (ns + 2u) * ((nf + 7u) / 8u * 8u); /* then the modal X rows */
     }
     DV_ASSERT((size_t)(p - buf) <= len);
     for (size_t i = 0; i < ns * no; i++) {
@@ -724,8 +765,10 @@ void dv_obs_reset(dv_obs_t *o)
     o->n_pred = 0u;
     o->pend_flags = DV_OBS_FLAG_NO_MEAS;
     o->started = false;
+    set_ready(o);
     o->flags = 0u;
     o->n_steps = 0u;
+    o->contact_hot = false;
     o->n_bad_input = 0u;
     o->n_bad_meas = 0u;
     for (size_t e = 0; e < DV_MAX_CONTACT; e++) {
@@ -744,17 +787,23 @@ static dv_real_t stickslip_g(const dv_contact_desc_t *c, dv_real_t xp, dv_real_t
 }
 
 /* The force-free X at every sub-node (what X would be with no contact force at this or any
- * earlier node of the step), xl[f] = rx[f, :] x + the input window's share: column by column
- * (rx is column-major), in each node the same order of operations as a row dot. */
+ * earlier node of the step), xl[f] = rx[f, :] x + the input window's share: column by column,
+ * in each node the same order of operations as a row dot. The rows: the model's (column-major,
+ * over x) or with the modal form o->rxq (over q, in blocks of 8 nodes, the window's columns
+ * included; dv_obskern.h), node f of column j at rx[(f / 8) bs + j cs + f % 8]. */
 static void nodes_x_free(const dv_obs_t *o, size_t ns, bool cubic, const dv_real_t *sv,
                          dv_real_t *xl)
 {
     const dv_model_t *m = o->m;
     const size_t nf = m->n_f;
     const dv_real_t *win = sv + ns;
+    const bool modal = o->rxq != NULL;
+    const dv_real_t *rx = modal ? o->rxq : m->rx; /* the model's: read here, it may move */
+    const size_t bs = modal ? 8u * (ns + 2u) : 8u;
+    const size_t cs = modal ? 8u : nf;
 #if DV_SIMD_X86
     if (!cubic && o->simd != 0u) {
-        dv_priv_obs_xfree_avx2(m->rx, nf, ns, sv, xl);
+        dv_priv_obs_xfree_avx2(rx, nf, ns, bs, cs, sv, xl);
         return;
     }
 #endif
@@ -767,10 +816,9 @@ static void nodes_x_free(const dv_obs_t *o, size_t ns, bool cubic, const dv_real
         }
     }
     for (size_t j = 0; j < ns; j++) {
-        const dv_real_t *col = m->rx + j * nf;
         const dv_real_t v = sv[j];
         for (size_t f = 0; f < nf; f++) {
-            xl[f] += col[f] * v;
+            xl[f] += rx[f / 8u * bs + j * cs + f % 8u] * v;
         }
     }
 }
@@ -1175,6 +1223,7 @@ static void finish_first(dv_obs_t *o, const dv_real_t *y, bool correct)
         o->z[j] = sv[j];
     }
     o->started = true;
+    set_ready(o);
 }
 
 /* First sample (first-order hold): the state is at t0 already; output only, then correct. */
@@ -1378,7 +1427,9 @@ static void contact_step_8x4(dv_obs_t *o, const dv_real_t *y)
     dv_real_t *sv = o->sv;
     const size_t ny = o->has_gain ? 4u : 0u;
     const dv_real_t *fy = o->f + 8u * (size_t)o->ncol_gain;
-    const size_t nfc = contact_forces(o, sv, 8u) ? 0u : o->nf;
+    const bool open = contact_forces(o, sv, 8u);
+    const size_t nfc = open ? 0u : o->nf;
+    o->contact_hot = !open;
     kernel_8x4(o, 2u + nfc, 2u + o->nf, ny, o->f, fy, sv, y, o->z + 8, o->resid);
 }
 
@@ -1426,9 +1477,12 @@ dv_status_t dv_obs_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas)
 {
     DV_ASSERT(o != NULL && o->m != NULL);
 #if DV_SIMD_X86
-    /* the modal step, a tail call (it hands anything but a regular step to the slow path) */
-    if (o->simd == 2u && o->modal && o->started) {
+    /* the modal steps, tail calls (they hand anything but a regular step to the slow path) */
+    if (o->modal_ready == 1u) {
         return dv_priv_obs_step8x4_modal_avx512(o, u, y_meas);
+    }
+    if (o->modal_ready == 2u) {
+        return dv_priv_obs_step8x4_modal_contact_avx512(o, u, y_meas);
     }
 #endif
     return dv_priv_obs_step_slow(o, u, y_meas);
@@ -1531,7 +1585,7 @@ static dv_status_t run_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y
 #if DV_SIMD_X86
         /* the modal steps with the state in registers, up to a non-finite sample (or the end);
          * open loop (y NULL) the same with or without use_gain */
-        if (o->simd == 2u && o->modal && o->started && (use_gain || y_meas == NULL)) {
+        if (o->modal_ready != 0u && (use_gain || y_meas == NULL)) {
             k += dv_priv_obs_run8x4_modal_avx512(
                 o, u + k, y_meas != NULL ? y_meas + k * no : NULL, n - k,
                 y_pred != NULL ? y_pred + k * no : NULL, resid != NULL ? resid + k * no : NULL);

@@ -110,16 +110,17 @@ DV_TGT_AVX2 void dv_priv_obs_kern8x4_open_avx2(size_t iy, size_t ny, const doubl
     }
 }
 
-/* Up to 12 nodes in three vectors (the last one masked), column by column. */
-DV_TGT_AVX2 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, const double *sv,
-                                        double *xl)
+/* Up to 12 nodes in three vectors (the last one masked), column by column; node f of column j at
+ * rx[(f / 8) bs + j cs + f % 8]. */
+DV_TGT_AVX2 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, size_t bs,
+                                        size_t cs, const double *sv, double *xl)
 {
-    const double *ra = rx + ns * nf, *rb = ra + nf;
     if (nf > 12u) {
         for (size_t f = 0; f < nf; f++) {
-            double a = ra[f] * sv[ns] + rb[f] * sv[ns + 1u];
+            const double *r = rx + f / 8u * bs + f % 8u;
+            double a = r[ns * cs] * sv[ns] + r[(ns + 1u) * cs] * sv[ns + 1u];
             for (size_t j = 0; j < ns; j++) {
-                a += rx[j * nf + f] * sv[j];
+                a += r[j * cs] * sv[j];
             }
             xl[f] = a;
         }
@@ -130,19 +131,20 @@ DV_TGT_AVX2 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, 
     const __m256i m0 = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)nf), lane);
     const __m256i m1 = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)nf - 4), lane);
     const __m256i m2 = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)nf - 8), lane);
+    const double *r0 = rx, *r1 = rx + 4, *r2 = rx + bs;
     const __m256d w0 = _mm256_broadcast_sd(sv + ns), w1 = _mm256_broadcast_sd(sv + ns + 1u);
-    __m256d a0 = _mm256_mul_pd(_mm256_maskload_pd(ra, m0), w0);
-    __m256d a1 = _mm256_mul_pd(_mm256_maskload_pd(ra + 4, m1), w0);
-    __m256d a2 = _mm256_mul_pd(_mm256_maskload_pd(ra + 8, m2), w0);
-    a0 = _mm256_fmadd_pd(_mm256_maskload_pd(rb, m0), w1, a0);
-    a1 = _mm256_fmadd_pd(_mm256_maskload_pd(rb + 4, m1), w1, a1);
-    a2 = _mm256_fmadd_pd(_mm256_maskload_pd(rb + 8, m2), w1, a2);
+    const size_t ja = ns * cs, jb = (ns + 1u) * cs;
+    __m256d a0 = _mm256_mul_pd(_mm256_maskload_pd(r0 + ja, m0), w0);
+    __m256d a1 = _mm256_mul_pd(_mm256_maskload_pd(r1 + ja, m1), w0);
+    __m256d a2 = _mm256_mul_pd(_mm256_maskload_pd(r2 + ja, m2), w0);
+    a0 = _mm256_fmadd_pd(_mm256_maskload_pd(r0 + jb, m0), w1, a0);
+    a1 = _mm256_fmadd_pd(_mm256_maskload_pd(r1 + jb, m1), w1, a1);
+    a2 = _mm256_fmadd_pd(_mm256_maskload_pd(r2 + jb, m2), w1, a2);
     for (size_t j = 0; j < ns; j++) {
-        const double *c = rx + j * nf;
         const __m256d v = _mm256_broadcast_sd(sv + j);
-        a0 = _mm256_fmadd_pd(_mm256_maskload_pd(c, m0), v, a0);
-        a1 = _mm256_fmadd_pd(_mm256_maskload_pd(c + 4, m1), v, a1);
-        a2 = _mm256_fmadd_pd(_mm256_maskload_pd(c + 8, m2), v, a2);
+        a0 = _mm256_fmadd_pd(_mm256_maskload_pd(r0 + j * cs, m0), v, a0);
+        a1 = _mm256_fmadd_pd(_mm256_maskload_pd(r1 + j * cs, m1), v, a1);
+        a2 = _mm256_fmadd_pd(_mm256_maskload_pd(r2 + j * cs, m2), v, a2);
     }
     _mm256_maskstore_pd(xl, m0, a0);
     _mm256_maskstore_pd(xl + 4, m1, a1);
@@ -167,11 +169,12 @@ modal_pred(const double *fy, const double *fm, __m512d q, __m512d qs, __m512d up
 
 /* One modal step's arithmetic (dv_priv_obs_step8x4_modal_avx512() and the block loop share it,
  * so both give the same bits): the prediction yh from q and the input window (up = u[k-1],
- * uk = u[k]), and the next state from q, the inputs and, with the gain, the measurements y,
+ * uk = u[k]), and the next state from q, the inputs and, with the gain, the measurements y
+ * (their columns from fxy on: after the contact forces' columns, which an open step skips),
  * or with y NULL the prediction itself (open loop: x+ = x- + L (yhat - yhat)). */
 DV_TGT_AVX512 static inline __attribute__((always_inline)) __m512d
-modal_core(const double *fx, const double *fy, const double *fm, bool gain, __m512d q,
-           __m512d up, __m512d uk, const double *y, __m256d *yh_out)
+modal_core(const double *fx, const double *fxy, const double *fy, const double *fm, bool gain,
+           __m512d q, __m512d up, __m512d uk, const double *y, __m256d *yh_out)
 {
     const __m512d qs = _mm512_permute_pd(q, 0x55);
     const bool open_gain = gain && y == NULL; /* the prediction feeds the state update */
@@ -185,10 +188,10 @@ modal_core(const double *fx, const double *fy, const double *fm, bool gain, __m5
     __m512d a = _mm512_mul_pd(_mm512_loadu_pd(fx + 64), up);
     a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 72), uk, a);
     if (gain) {
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 80), _mm512_set1_pd(y[0]), a);
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 88), _mm512_set1_pd(y[1]), a);
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 96), _mm512_set1_pd(y[2]), a);
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 104), _mm512_set1_pd(y[3]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(fxy), _mm512_set1_pd(y[0]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(fxy + 8), _mm512_set1_pd(y[1]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(fxy + 16), _mm512_set1_pd(y[2]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(fxy + 24), _mm512_set1_pd(y[3]), a);
     }
     /* q+ = diag * q + off * (q with each pair swapped) + inputs */
     __m512d qn = _mm512_fmadd_pd(_mm512_loadu_pd(fm), q, a);
@@ -211,16 +214,82 @@ DV_TGT_AVX512 static inline __attribute__((always_inline)) bool modal_finite(dou
     return _mm256_movemask_pd(_mm256_cmp_pd(fin, _mm256_setzero_pd(), _CMP_NEQ_UQ)) == 0;
 }
 
-/* dv_priv_obs_step8x4_modal_avx512() with its y (NULL: open loop) and u checked */
-DV_TGT_AVX512 static inline __attribute__((always_inline)) void modal_step(dv_obs_t *o, double u,
-                                                                        const double *y)
+/* The contact element's X at 8 sub-nodes from a block of its modal rows (10 columns of 8: q, then
+ * u[k-1], u[k]); two partial sums (the open check is off the state's chain, but decides a
+ * branch). */
+DV_TGT_AVX512 static inline __attribute__((always_inline)) __m512d
+nodes_x(const double *rb, const double *q, __m512d up, __m512d uk)
+{
+    __m512d a = _mm512_mul_pd(_mm512_loadu_pd(rb + 64), up);
+    __m512d b = _mm512_mul_pd(_mm512_loadu_pd(rb + 72), uk);
+    for (size_t j = 0; j < 8u; j += 2u) {
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(rb + 8u * j), _mm512_set1_pd(q[j]), a);
+        b = _mm512_fmadd_pd(_mm512_loadu_pd(rb + 8u * j + 8u), _mm512_set1_pd(q[j + 1u]), b);
+    }
+    return _mm512_add_pd(a, b);
+}
+
+/* Lanes of x where the gap element is not open: X > gap on the positive side, X < -gap on the
+ * negative one, or NaN. (The padding rows give X = 0: open at any gap >= 0.) */
+DV_TGT_AVX512 static inline __attribute__((always_inline)) __mmask8
+shut_lanes(const dv_contact_desc_t *c, __m512d x)
+{
+    __mmask8 shut = 0;
+    if (((int)c->side & 1) != 0) {
+        shut |= _mm512_cmp_pd_mask(x, _mm512_set1_pd(c->gap_m), _CMP_NLE_UQ);
+    }
+    if (((int)c->side & 2) != 0) {
+        shut |= _mm512_cmp_pd_mask(x, _mm512_set1_pd(-c->gap_m), _CMP_NGE_UQ);
+    }
+    return shut;
+}
+
+/* With the contact element (o->nf > 0, at most 24 nodes; a gap law, one element): its X at every
+ * sub-node of the step from q and the input window (the rows o->rxq) all on the open side of
+ * the gap. Then the forces are all zero and the step is the linear one (dv_obs.c all_open():
+ * the node chain would only add zeros); the element's X at the last node is kept as there.
+ * False, with nothing written, when any node engages (or is NaN). */
+DV_TGT_AVX512 static inline __attribute__((always_inline)) bool
+modal_open(dv_obs_t *o, const double *q, __m512d up, __m512d uk)
+{
+    const dv_contact_desc_t *c = &o->m->contact[0];
+    const size_t nf = o->nf;
+    const double *rx = o->rxq;
+    __m512d x = nodes_x(rx, q, up, uk);
+    __mmask8 shut = shut_lanes(c, x);
+    if (nf > 8u) {
+        x = nodes_x(rx + 80, q, up, uk);
+        shut |= shut_lanes(c, x);
+        if (nf > 16u) {
+            x = nodes_x(rx + 160, q, up, uk);
+            shut |= shut_lanes(c, x);
+        }
+    }
+    if (shut != 0u) {
+        return false;
+    }
+    /* the last node: lane (nf - 1) % 8 of the last block */
+    const __m512d last = _mm512_maskz_compress_pd((__mmask8)(1u << ((nf - 1u) % 8u)), x);
+    o->elem_x[0] = _mm512_cvtsd_f64(last);
+    o->elem_g[0] = 0.0;
+    return true;
+}
+
+/* dv_priv_obs_step8x4_modal_avx512() with its y (NULL: open loop) and u checked; with the
+ * contact (a constant on each path, so the linear step keeps its straight code) only when the
+ * element stays open: false, with nothing changed, for a step that engages it. */
+DV_TGT_AVX512 static inline __attribute__((always_inline)) bool
+modal_step(dv_obs_t *o, double u, const double *y, bool contact)
 {
     double *sv = o->sv;
     const double *fx = o->f;
+    const __m512d up = _mm512_set1_pd(sv[8]), uk = _mm512_set1_pd(u);
+    if (contact && !modal_open(o, sv, up, uk)) {
+        return false;
+    }
     __m256d yh;
-    const __m512d qn = modal_core(fx, fx + 8u * (size_t)o->ncol_gain, o->fm, o->has_gain,
-                                  _mm512_loadu_pd(sv), _mm512_set1_pd(sv[8]),
-                                  _mm512_set1_pd(u), y, &yh);
+    const __m512d qn = modal_core(fx, fx + 80 + 8u * (size_t)o->nf, fx + 8u * (size_t)o->ncol_gain,
+                                  o->fm, o->has_gain, _mm512_loadu_pd(sv), up, uk, y, &yh);
     _mm512_storeu_pd(sv, qn);
     _mm256_storeu_pd(o->z + 8, yh);
     /* no measurement: the residual is the prediction's own, 0 */
@@ -230,15 +299,32 @@ DV_TGT_AVX512 static inline __attribute__((always_inline)) void modal_step(dv_ob
     o->flags = y != NULL ? 0u : DV_OBS_FLAG_NO_MEAS;
     o->n_pred++;
     o->n_steps++;
+    return true;
 }
 
-/* the open-loop step apart, so the measured one keeps its straight code */
+/* The open-loop and the contact steps apart, so the linear measured one keeps its straight
+ * code. The slow path takes a bad sample (flagged, counted there) and a step that engages the
+ * contact. */
 DV_TGT_AVX512 __attribute__((noinline)) static dv_status_t modal_step_open(dv_obs_t *o, double u)
 {
-    if (!modal_finite(u, NULL)) {
-        return dv_priv_obs_step_slow(o, u, NULL); /* flags and counts the bad input */
+    if (!modal_finite(u, NULL) || !modal_step(o, u, NULL, o->nf != 0u)) {
+        return dv_priv_obs_step_slow(o, u, NULL);
     }
-    modal_step(o, u, NULL);
+    return DV_OK;
+}
+
+/* While the contact stays engaged (o->contact_hot, kept by the direct path's contact step) the
+ * measured steps go to the slow path without the open check: with its 512-bit work the
+ * latency-bound node chain measured ~20 % slower on this host. */
+DV_TGT_AVX512 dv_status_t dv_priv_obs_step8x4_modal_contact_avx512(dv_obs_t *o, double u,
+                                                                  const double *y)
+{
+    if (y == NULL) {
+        return modal_step_open(o, u);
+    }
+    if (o->contact_hot || !modal_finite(u, y) || !modal_step(o, u, y, true)) {
+        return dv_priv_obs_step_slow(o, u, y);
+    }
     return DV_OK;
 }
 
@@ -251,7 +337,7 @@ DV_TGT_AVX512 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u
     if (!modal_finite(u, y)) {
         return dv_priv_obs_step_slow(o, u, y); /* flags and counts the bad sample */
     }
-    modal_step(o, u, y);
+    modal_step(o, u, y, false);
     return DV_OK;
 }
 
@@ -262,18 +348,28 @@ DV_TGT_AVX512 size_t dv_priv_obs_run8x4_modal_avx512(dv_obs_t *o, const double *
     double *sv = o->sv;
     const double *fx = o->f;
     const double *fy = fx + 8u * (size_t)o->ncol_gain;
+    const double *fxy = fx + 80 + 8u * (size_t)o->nf;
     const double *fm = o->fm;
     const bool gain = o->has_gain;
+    const bool contact = o->nf != 0u;
     __m512d q = _mm512_loadu_pd(sv);
     double up = sv[8];
     __m256d yh = _mm256_loadu_pd(o->z + 8), r = _mm256_loadu_pd(o->resid);
     size_t k = 0;
     for (; k < n; k++) {
         const double *yk = y != NULL ? y + 4u * k : NULL;
+        const __m512d upv = _mm512_set1_pd(up), ukv = _mm512_set1_pd(u[k]);
         if (!modal_finite(u[k], yk)) {
             break; /* the caller steps this sample through the general path */
         }
-        q = modal_core(fx, fy, fm, gain, q, _mm512_set1_pd(up), _mm512_set1_pd(u[k]), yk, &yh);
+        if (contact) { /* as dv_obs_step(): the caller's step while engaged or engaging */
+            double qa[8];
+            _mm512_storeu_pd(qa, q);
+            if ((yk != NULL && o->contact_hot) || !modal_open(o, qa, upv, ukv)) {
+                break;
+            }
+        }
+        q = modal_core(fx, fxy, fy, fm, gain, q, upv, ukv, yk, &yh);
         r = yk != NULL ? _mm256_sub_pd(_mm256_loadu_pd(yk), yh) : _mm256_setzero_pd();
         if (y_pred != NULL) {
             _mm256_storeu_pd(y_pred + 4u * k, yh);

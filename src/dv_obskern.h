@@ -28,20 +28,27 @@ void dv_priv_obs_kern8x4_open_avx2(size_t iy, size_t ny, const dv_real_t *fx,
                                    dv_real_t *yo, dv_real_t *resid);
 
 /* The force-free X at every contact sub-node (dv_obs.c nodes_x_free(), first-order hold):
- * xl = [rx | rxa | rxb] [x; u[k-1]; u[k]], rx column-major nf x ns followed by the columns rxa
- * and rxb (the model's layout), the vector [x; u window] = sv[0 .. ns + 2). */
-void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, const double *sv,
-                            double *xl);
+ * xl = R [x; u[k-1]; u[k]], the vector = sv[0 .. ns + 2), node f of column j of R at
+ * rx[(f / 8) bs + j cs + f % 8]: the model's column-major rows (bs 8, cs nf) or the modal form's
+ * blocks of 8 nodes (bs 8 (ns + 2), cs 8). */
+void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, size_t bs, size_t cs,
+                            const double *sv, double *xl);
 
 /* The same step in modal coordinates (o->modal, past the first sample): q+ = Lam q + inputs,
  * with Lam's 2 x 2 blocks from o->fm, and the prediction from the C T rows in o->fm; y NULL:
- * open loop, as dv_obs_step(). A non-finite u or y goes to dv_priv_obs_step_slow(); returns
- * dv_obs_step()'s status. */
+ * open loop, as dv_obs_step(). A non-finite u or y goes to dv_priv_obs_step_slow(). Returns
+ * dv_obs_step()'s status. With a contact element (the next entry) the step is taken here only
+ * when the element stays open at every sub-node (then the forces are zero); a step that
+ * engages it goes to dv_priv_obs_step_slow() too. */
 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u, const double *y);
+
+/* The same for a model with one gap element (o->nf > 0, o->modal_ready 2). */
+dv_status_t dv_priv_obs_step8x4_modal_contact_avx512(dv_obs_t *o, double u, const double *y);
 
 /* n such steps with the state in registers (the same arithmetic, bit for bit), predictions and
  * residuals to y_pred / resid (4 per step; either may be NULL), y NULL for open loop. Stops
- * at the first non-finite u[k] or y[k]; returns how many steps it made. */
+ * at the first non-finite u[k] or y[k], or step that engages the contact; returns how many
+ * steps it made. */
 size_t dv_priv_obs_run8x4_modal_avx512(dv_obs_t *o, const double *u, const double *y, size_t n,
                                        double *y_pred, double *resid);
 #endif

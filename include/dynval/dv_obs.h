@@ -56,15 +56,19 @@ typedef struct {
     dv_real_t r_meas[DV_MAX_OUT];     /**< measurement noise variance per output, > 0 */
 } dv_obs_noise_t;
 
-/** Storage of the modal form of the linear 4-DOF, 4-output step (dv_obs.c), in elements:
- *  T (64) and the kernel's blocks and output rows (48); x86-64 double builds only, where the
- *  AVX-512 step uses it (the condition of DV_SIMD_X86 in src/dv_priv.h). */
+/** Storage of the modal form of the 4-DOF, 4-output step (dv_obs.c), in elements: T (64), the
+ *  kernel's blocks and output rows (48), and with one contact element (at most 24 sub-nodes)
+ *  its sub-node X rows in modal coordinates (ns + 2 columns, in blocks of 8 rows);
+ *  x86-64 double builds only, where the AVX-512 step uses it (the condition of DV_SIMD_X86 in
+ *  src/dv_priv.h). */
 #if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
     !defined(DV_NO_SIMD)
-#define DV_OBS_MODAL_LEN(n, nc, nout, nin)                                                      \
-    (((n) == 4u && (nc) == 0u && (nout) == 4u && (nin) == 2u) ? 112u : 0u)
+#define DV_OBS_MODAL_LEN(n, nc, nsub, nout, nin)                                                \
+    (((n) == 4u && (nc) <= 1u && DV_MODEL_NF(nc, nsub) <= 24u && (nout) == 4u && (nin) == 2u) \
+         ? 112u + (DV_MODEL_NS(n) + 2u) * ((DV_MODEL_NF(nc, nsub) + 7u) / 8u * 8u)            \
+         : 0u)
 #else
-#define DV_OBS_MODAL_LEN(n, nc, nout, nin) 0u
+#define DV_OBS_MODAL_LEN(n, nc, nsub, nout, nin) 0u
 #endif
 
 /** Persistent storage of an observer with @p nin input samples per step
@@ -75,7 +79,8 @@ typedef struct {
     ((DV_MODEL_NS(n) + (nout)) *                                                              \
          ((DV_MODEL_NS(n) + (nin) + DV_MODEL_NF(nc, nsub)) + (nout) + 1u) +                   \
      DV_MODEL_NS(n) + (nin) + DV_MODEL_NF(nc, nsub) + 2u * (nout) +                           \
-     DV_MODEL_NS(n) * (nout) + ((nin) - 2u) / 2u * (nout) + DV_OBS_MODAL_LEN(n, nc, nout, nin))
+     DV_MODEL_NS(n) * (nout) + ((nin) - 2u) / 2u * (nout) +                                   \
+     DV_OBS_MODAL_LEN(n, nc, nsub, nout, nin))
 
 /** Init-time scratch of dv_obs_init_ex() with a noise model (the exponential for the process
  *  noise and the DARE), in elements; dead once init returns (see DV_MODEL_SCRATCH_LEN_HOLD()).
@@ -113,6 +118,9 @@ typedef struct {
                               linear step; AVX2 kernel where the modal form does not apply) */
     bool fast;           /**< 8 states, 4 outputs, first-order hold: the direct step path */
     bool modal;          /**< the state is kept as q = T^-1 x, the folded rows in that basis */
+    bool contact_hot;    /**< the last step engaged a contact: the direct path checks the next */
+    uint8_t modal_ready; /**< dv_obs_step()'s dispatch: 1 the linear modal step, 2 the modal
+                              step with a contact, 0 neither (simd 2, modal and started) */
     uint32_t flags;      /**< DV_OBS_FLAG_* of the last step */
     uint64_t n_steps;    /**< accepted steps */
     uint64_t n_bad_input; /**< steps refused for a NaN/Inf input */
@@ -129,6 +137,8 @@ typedef struct {
     dv_real_t *gain;     /**< L, ns x no row-major */
     dv_real_t *tq;       /**< modal: T, ns x ns row-major (x = T q); NULL where it never applies */
     dv_real_t *fm;       /**< modal: the block diagonal, the blocks' off-diagonal, C T rows */
+    const dv_real_t *rxq; /**< modal with a contact: its sub-node X rows over [q, u window]
+                               (nf rows, column-major); NULL: the model's rows over x */
     dv_real_t elem_x[DV_MAX_CONTACT]; /**< stick-slip elements: X at the last sub-node, m */
     dv_real_t elem_g[DV_MAX_CONTACT]; /**< stick-slip elements: force at the last sub-node, N */
 } dv_obs_t;

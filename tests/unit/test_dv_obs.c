@@ -127,16 +127,19 @@ static void test_obs_vector_kernels_match_portable(void **state)
     dv_obs_t ot, o;
     dv_obs_noise_t nz;
     noise_model(&nz);
-    for (int contact = 0; contact < 2; contact++) {
+    // contact 2: the bumper on both sides (the negative side's open check too)
+    for (int contact = 0; contact < 3; contact++) {
         for (int gain = 0; gain < 2; gain++) {
             mt_lanl_desc(&d);
             for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
             if (contact) mt_add_bumper(&d, 1e-4, 8);
+            if (contact == 2) d.contact[0].side = DV_CONTACT_BOTH;
             assert_int_equal(dv_model_init(&mt, &d, DT, mbuf2, NBUF), DV_OK);
             assert_int_equal(dv_obs_init(&ot, &mt, NULL, obuf2, NBUF), DV_OK);
             assert_int_equal(dv_obs_simulate(&ot, force_r, NS, ytrue), DV_OK);
             mt_lanl_desc(&d);
             if (contact) mt_add_bumper(&d, 1e-4, 8);
+            if (contact == 2) d.contact[0].side = DV_CONTACT_BOTH;
             assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
             assert_int_equal(dv_obs_init(&o, &m, gain ? &nz : NULL, obuf, NBUF), DV_OK);
             const unsigned simd = o.simd;
@@ -738,10 +741,11 @@ static void test_obs_model_kept_for_steps_only(void **state)
 
 // The block calls (dv_obs_update_block, dv_obs_simulate) equal the per-sample steps bit for
 // bit, through NaN samples in the middle of a block and open loop with the gain folded in
-// (with AVX-512 the modal form: the block loop keeps the state in registers).
-static void test_obs_block_equals_steps(void **state)
+// (with AVX-512 the modal form: the block loop keeps the state in registers). With the bumper
+// (contact 1) the steps alternate between the open modal step, the engaged node chain and the
+// direct step that follows an engaged one.
+static void block_equals_steps_case(int contact)
 {
-    (void)state;
     load_force();
     dv_model_desc_t d;
     dv_model_t m;
@@ -750,10 +754,12 @@ static void test_obs_block_equals_steps(void **state)
     noise_model(&nz);
     mt_lanl_desc(&d);
     for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
+    if (contact) mt_add_bumper(&d, 1e-4, 8);
     assert_int_equal(dv_model_init(&m, &d, DT, mbuf2, NBUF), DV_OK);
     assert_int_equal(dv_obs_init(&o, &m, NULL, obuf2, NBUF), DV_OK);
     assert_int_equal(dv_obs_simulate(&o, force_r, NS, ytrue), DV_OK);
     mt_lanl_desc(&d);
+    if (contact) mt_add_bumper(&d, 1e-4, 8);
     assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
     assert_int_equal(dv_obs_init(&o, &m, &nz, obuf, NBUF), DV_OK);
     assert_int_equal(dv_obs_init(&o2, &m, &nz, obuf2, NBUF), DV_OK);
@@ -791,7 +797,14 @@ static void test_obs_block_equals_steps(void **state)
         for (int q = 0; q < 4; q++) assert_true(res2[4 * k + q] == 0);
     }
     assert_memory_equal(ypred, yp2, NS * 4 * sizeof(dv_real_t));
-    fprintf(stderr, "block == steps (modal form: %d)\n", (int)o.modal);
+    fprintf(stderr, "block == steps (contact %d, modal form: %d)\n", contact, (int)o.modal);
+}
+
+static void test_obs_block_equals_steps(void **state)
+{
+    (void)state;
+    block_equals_steps_case(0);
+    block_equals_steps_case(1);
 }
 
 int main(void)
