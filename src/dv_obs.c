@@ -797,13 +797,25 @@ static void nodes_x_free(const dv_obs_t *o, size_t ns, bool cubic, const dv_real
     const dv_model_t *m = o->m;
     const size_t nf = m->n_f;
     const dv_real_t *win = sv + ns;
-    const bool modal = o->rxq != NULL;
-    const dv_real_t *rx = modal ? o->rxq : m->rx; /* the model's: read here, it may move */
-    const size_t bs = modal ? 8u * (ns + 2u) : 8u;
-    const size_t cs = modal ? 8u : nf;
+    const dv_real_t *rx = m->rx; /* the model's: read here, it may move */
 #if DV_SIMD_X86
+    const bool modal = o->rxq != NULL;
+    if (modal) {
+        rx = o->rxq;
+    }
     if (!cubic && o->simd != 0u) {
-        dv_priv_obs_xfree_avx2(rx, nf, ns, bs, cs, sv, xl);
+        dv_priv_obs_xfree_avx2(rx, nf, ns, modal ? 8u * (ns + 2u) : 8u, modal ? 8u : nf, sv, xl);
+        return;
+    }
+    if (modal) { /* the portable kernel on the modal rows (a test's comparison) */
+        for (size_t f = 0; f < nf; f++) {
+            const dv_real_t *r = rx + f / 8u * 8u * (ns + 2u) + f % 8u;
+            dv_real_t a = r[ns * 8u] * win[0] + r[(ns + 1u) * 8u] * win[1];
+            for (size_t j = 0; j < ns; j++) {
+                a += r[j * 8u] * sv[j];
+            }
+            xl[f] = a;
+        }
         return;
     }
 #endif
@@ -816,9 +828,10 @@ static void nodes_x_free(const dv_obs_t *o, size_t ns, bool cubic, const dv_real
         }
     }
     for (size_t j = 0; j < ns; j++) {
+        const dv_real_t *col = rx + j * nf;
         const dv_real_t v = sv[j];
         for (size_t f = 0; f < nf; f++) {
-            xl[f] += rx[f / 8u * bs + j * cs + f % 8u] * v;
+            xl[f] += col[f] * v;
         }
     }
 }
