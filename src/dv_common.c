@@ -6,7 +6,10 @@ uint32_t dv_priv_simd_kern(void)
 #if DV_SIMD_X86
     /* libgcc/compiler-rt check CPUID and that the OS saves the wide registers (XGETBV). */
     __builtin_cpu_init();
-    if (__builtin_cpu_supports("avx512f")) {
+    /* F for every AVX-512 kernel; DQ and VL for the observer's (every AVX-512 x86-64 CPU
+     * since Skylake-SP has all three) */
+    if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+        __builtin_cpu_supports("avx512vl")) {
         return 2u;
     }
     if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {

@@ -871,10 +871,10 @@ static inline dv_real_t elem_force(const dv_contact_desc_t *c, dv_real_t kh, dv_
  * all its sub-nodes at the force-free X (xl, node f = i nc + e): then zero forces solve every
  * node (each law gives 0 at the force-free X, and each node's fixed-point start, from the
  * earlier nodes' zeros, is 0), and the node chain would only add zeros to reach them. Sets the
- * forces and element states as the chain would, bit for bit, and returns true; false (nothing
- * written) otherwise. */
-static inline DV_OBS_INLINE bool all_open(dv_obs_t *o, dv_real_t *g, const dv_real_t *xl,
-                                          size_t nc)
+ * forces as the chain would, bit for bit (the gap law keeps no element history: elem_x, elem_g
+ * are the stick-slip law's), and returns true; false (nothing written) otherwise. */
+static inline DV_OBS_INLINE bool all_open(const dv_obs_t *o, dv_real_t *g, const dv_real_t *xl,
+                                                size_t nc)
 {
     const dv_model_t *m = o->m;
     const size_t nsub = m->n_sub;
@@ -892,10 +892,6 @@ static inline DV_OBS_INLINE bool all_open(dv_obs_t *o, dv_real_t *g, const dv_re
     }
     for (size_t f = 0; f < m->n_f; f++) {
         g[f] = DV_R(0.0);
-    }
-    for (size_t e = 0; e < nc; e++) {
-        o->elem_x[e] = xl[nsub * nc + e];
-        o->elem_g[e] = DV_R(0.0);
     }
     return true;
 }

@@ -11,7 +11,7 @@
 #include <immintrin.h>
 
 #define DV_TGT_AVX2 __attribute__((target("avx2,fma")))
-#define DV_TGT_AVX512 __attribute__((target("avx512f,avx2,fma")))
+#define DV_TGT_AVX512 __attribute__((target("avx512f,avx512dq,avx512vl,avx2,fma")))
 
 /* always inlined into the entry points below, so the common sizes get fixed trip counts */
 /* The next step reads the state back one element at a time (broadcast loads); scalar stores
@@ -202,16 +202,16 @@ modal_core(const double *fx, const double *fxy, const double *fy, const double *
     return qn;
 }
 
-/* u and, when given, the four measurements finite */
+/* u and, when given, the four measurements finite: one class test each (NaN or Inf). */
 DV_TGT_AVX512 static inline __attribute__((always_inline)) bool modal_finite(double u,
                                                                           const double *y)
 {
-    __m256d fin = _mm256_set1_pd(u - u);
-    if (y != NULL) {
-        const __m256d ym = _mm256_loadu_pd(y);
-        fin = _mm256_add_pd(_mm256_sub_pd(ym, ym), fin);
+    enum { NAN_INF = 0x01 | 0x08 | 0x10 | 0x80 }; /* QNaN, +Inf, -Inf, SNaN */
+    const __mmask8 bu = _mm_fpclass_sd_mask(_mm_set_sd(u), NAN_INF);
+    if (y == NULL) {
+        return bu == 0u;
     }
-    return _mm256_movemask_pd(_mm256_cmp_pd(fin, _mm256_setzero_pd(), _CMP_NEQ_UQ)) == 0;
+    return _kortestz_mask8_u8(bu, _mm256_fpclass_pd_mask(_mm256_loadu_pd(y), NAN_INF)) != 0u;
 }
 
 /* The contact element's X at 8 sub-nodes from a block of its modal rows (10 columns of 8: q, then
@@ -247,10 +247,10 @@ shut_lanes(const dv_contact_desc_t *c, __m512d x)
 /* With the contact element (o->nf > 0, at most 24 nodes; a gap law, one element): its X at every
  * sub-node of the step from q and the input window (the rows o->rxq) all on the open side of
  * the gap. Then the forces are all zero and the step is the linear one (dv_obs.c all_open():
- * the node chain would only add zeros); the element's X at the last node is kept as there.
- * False, with nothing written, when any node engages (or is NaN). */
+ * the node chain would only add zeros; the gap law keeps no element history). False when any
+ * node engages (or is NaN). */
 DV_TGT_AVX512 static inline __attribute__((always_inline)) bool
-modal_open(dv_obs_t *o, const double *q, __m512d up, __m512d uk)
+modal_open(const dv_obs_t *o, const double *q, __m512d up, __m512d uk)
 {
     const dv_contact_desc_t *c = &o->m->contact[0];
     const size_t nf = o->nf;
@@ -265,14 +265,7 @@ modal_open(dv_obs_t *o, const double *q, __m512d up, __m512d uk)
             shut |= shut_lanes(c, x);
         }
     }
-    if (shut != 0u) {
-        return false;
-    }
-    /* the last node: lane (nf - 1) % 8 of the last block */
-    const __m512d last = _mm512_maskz_compress_pd((__mmask8)(1u << ((nf - 1u) % 8u)), x);
-    o->elem_x[0] = _mm512_cvtsd_f64(last);
-    o->elem_g[0] = 0.0;
-    return true;
+    return shut == 0u;
 }
 
 /* dv_priv_obs_step8x4_modal_avx512() with its y (NULL: open loop) and u checked; with the

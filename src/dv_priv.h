@@ -91,8 +91,9 @@ void dv_priv_stats_fill(dv_stats_t *out, const dv_priv_cm_t *cm, uint64_t count,
 #define DV_SIMD_X86 0
 #endif
 
-/* The vector unit this CPU offers the kernels: 0 portable C, 1 AVX2 + FMA, 2 AVX-512F (always 0
- * without DV_SIMD_X86). Asked at init (or once per block call), kept by the caller. */
+/* The vector unit this CPU offers the kernels: 0 portable C, 1 AVX2 + FMA, 2 AVX-512 F, DQ and
+ * VL (always 0 without DV_SIMD_X86). Asked at init (or once per block call), kept by the
+ * caller. */
 uint32_t dv_priv_simd_kern(void);
 
 /* ---- AR kernels (src/dv_arkern.c); kern from dv_priv_simd_kern(). ---- */
