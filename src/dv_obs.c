@@ -615,6 +615,14 @@ static bool noise_ok(const dv_model_t *m, const dv_obs_noise_t *noise)
     return true;
 }
 
+/* p moved up to the next 64-byte boundary when al (at most 7 elements: the buffer holds doubles
+ * at least), else p. */
+static dv_real_t *align64(dv_real_t *p, bool al)
+{
+    const uintptr_t mis = (uintptr_t)p % 64u;
+    return (al && mis != 0u) ? p + (64u - mis) / sizeof(dv_real_t) : p;
+}
+
 dv_status_t dv_obs_init(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_t *noise,
                         dv_real_t *buf, size_t len)
 {
@@ -660,13 +668,23 @@ dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_
     o->nin = (uint16_t)nin;
     o->ncol_open = (uint16_t)(ns + nin + nf);
     o->ncol_gain = (uint16_t)(ns + nin + nf + no);
-    dv_real_t *p = buf;
+    o->fast = ns == 8u && no == 4u && nin == 2u;
+    o->simd = (uint8_t)dv_priv_simd_kern();
+    if (o->simd == 2u && DV_OBS_MODAL_LEN(m->n_dof, m->n_contact, m->n_sub, no, nin) == 0u) {
+        o->simd = 1u; /* AVX-512 serves the 8 x 4 step in modal form; AVX2 kernel otherwise */
+    }
+    /* the modal step's vectors on 64-byte lines (its storage has the slack): a 64-byte load or
+     * store across two lines costs two, and the step makes about twenty */
+    const bool al = o->simd == 2u;
+    dv_real_t *p = align64(buf, al);
     o->sv = p;
     p += o->ncol_gain;
+    p = align64(p, al);
     o->z = p;
     p += o->nrows;
     o->resid = p;
     p += no;
+    p = align64(p, al);
     o->f = p;
     p += ns * (size_t)o->ncol_gain + no * (size_t)o->ncol_open;
     o->gain = p;
@@ -675,12 +693,8 @@ dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_
         o->ypend = p;
         p += no;
     }
-    o->fast = ns == 8u && no == 4u && nin == 2u;
-    o->simd = (uint8_t)dv_priv_simd_kern();
-    if (o->simd == 2u && DV_OBS_MODAL_LEN(m->n_dof, m->n_contact, m->n_sub, no, nin) == 0u) {
-        o->simd = 1u; /* AVX-512 serves the 8 x 4 step in modal form; AVX2 kernel otherwise */
-    }
     if (o->simd == 2u) {
+        p = align64(p, true);
         o->tq = p;
         p += ns * ns;
         o->fm = p;

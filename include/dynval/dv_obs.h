@@ -57,15 +57,16 @@ typedef struct {
 } dv_obs_noise_t;
 
 /** Storage of the modal form of the 4-DOF, 4-output step (dv_obs.c), in elements: T (64), the
- *  kernel's blocks and output rows (48), and with one contact element (at most 24 sub-nodes)
- *  its sub-node X rows in modal coordinates (ns + 2 columns, in blocks of 8 rows);
+ *  kernel's blocks and output rows (48), with one contact element (at most 24 sub-nodes) its
+ *  sub-node X rows in modal coordinates (ns + 2 columns, in blocks of 8 rows), and 28 of slack
+ *  to put the step's vectors on 64-byte lines;
  *  x86-64 double builds only, where the AVX-512 step uses it (the condition of DV_SIMD_X86 in
  *  src/dv_priv.h). */
 #if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
     !defined(DV_NO_SIMD)
 #define DV_OBS_MODAL_LEN(n, nc, nsub, nout, nin)                                                \
     (((n) == 4u && (nc) <= 1u && DV_MODEL_NF(nc, nsub) <= 24u && (nout) == 4u && (nin) == 2u) \
-         ? 112u + (DV_MODEL_NS(n) + 2u) * ((DV_MODEL_NF(nc, nsub) + 7u) / 8u * 8u)            \
+         ? 140u + (DV_MODEL_NS(n) + 2u) * ((DV_MODEL_NF(nc, nsub) + 7u) / 8u * 8u)            \
          : 0u)
 #else
 #define DV_OBS_MODAL_LEN(n, nc, nsub, nout, nin) 0u

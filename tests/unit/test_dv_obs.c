@@ -807,6 +807,57 @@ static void test_obs_block_equals_steps(void **state)
     block_equals_steps_case(1);
 }
 
+// The observer's storage at any element offset from a 64-byte line (the modal step puts its
+// vectors on lines inside the slack of its storage; other builds ignore the offset): the same
+// results bit for bit at offsets 0..7, with the linear model and with the bumper, and nothing
+// written outside the exact persistent length (guards before and after).
+static void test_obs_storage_at_any_offset(void **state)
+{
+    (void)state;
+    load_force();
+    static dv_real_t pbig[NBUF + 8];
+    dv_real_t *po8 = pbig + (64u - (uintptr_t)pbig % 64u) % 64u / sizeof(dv_real_t); // a line
+    static dv_real_t yref[NS * 4], rref[NS * 4];
+    const size_t nk = 1024;
+    for (int contact = 0; contact < 2; contact++) {
+        dv_model_desc_t d;
+        dv_model_t mt, m;
+        dv_obs_t ot, o;
+        dv_obs_noise_t nz;
+        noise_model(&nz);
+        mt_lanl_desc(&d);
+        if (contact) mt_add_bumper(&d, 1e-4, 8);
+        for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
+        assert_int_equal(dv_model_init(&mt, &d, DT, mbuf2, NBUF), DV_OK);
+        assert_int_equal(dv_obs_init(&ot, &mt, NULL, obuf2, NBUF), DV_OK);
+        assert_int_equal(dv_obs_simulate(&ot, force_r, nk, ytrue), DV_OK);
+        mt_lanl_desc(&d);
+        if (contact) mt_add_bumper(&d, 1e-4, 8);
+        assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
+        const size_t oper = dv_obs_persistent_len(&m), oscr = dv_obs_scratch_len(&m);
+        for (size_t off = 0; off < 8u; off++) {
+            fill(po8, off + oper + GUARD, (dv_real_t)-7.0);
+            assert_int_equal(dv_obs_init_ex(&o, &m, &nz, po8 + off, oper, scr, oscr), DV_OK);
+            assert_int_equal(dv_obs_update_block(&o, force_r, ytrue, nk, ypred, res), DV_OK);
+            for (size_t k = 0; k < nk; k++) { // and the per-sample steps
+                assert_int_equal(dv_obs_step(&o, force_r[k], ytrue + 4 * k), DV_OK);
+            }
+            for (size_t i = 0; i < off; i++) assert_true(po8[i] == (dv_real_t)-7.0);
+            for (size_t i = 0; i < GUARD; i++) assert_true(po8[off + oper + i] == (dv_real_t)-7.0);
+            if (off == 0) {
+                memcpy(yref, ypred, nk * 4 * sizeof(dv_real_t));
+                memcpy(rref, res, nk * 4 * sizeof(dv_real_t));
+            } else {
+                assert_memory_equal(ypred, yref, nk * 4 * sizeof(dv_real_t));
+                assert_memory_equal(res, rref, nk * 4 * sizeof(dv_real_t));
+            }
+        }
+        assert_true(rms(rref, nk * 4) > 0);
+        fprintf(stderr, "storage at offsets 0..7 (contact %d, modal form %d): same results\n",
+                contact, (int)o.modal);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -822,6 +873,7 @@ int main(void)
         cmocka_unit_test(test_obs_nan_input_holds_state),
         cmocka_unit_test(test_obs_simulate_equals_steps),
         cmocka_unit_test(test_obs_block_equals_steps),
+        cmocka_unit_test(test_obs_storage_at_any_offset),
         cmocka_unit_test(test_obs_set_gain_roundtrip_and_open_loop),
         cmocka_unit_test(test_obs_bad_init),
         cmocka_unit_test(test_obs_cubic_latency_and_alignment),
