@@ -8,7 +8,11 @@
  * this record's force engages it in 6 of 8192 steps, so they mostly measure the open element)
  * and, as the worst case a firmware budgets for, obs_step_4dof_contact_engaged: the same bumper
  * at zero gap on both sides, which solves the contact chain in every step. obs_block_4dof: the
- * obs_step_4dof steps through dv_obs_update_block() (predictions and residuals stored). */
+ * obs_step_4dof steps through dv_obs_update_block() (predictions and residuals stored).
+ * obs_step_4dof_contact_lanl: the contact model's steps on data it did not make, the independent
+ * simulation of the report's structure with a bumper (../shared/data/synthetic/lanl4dof-bumper,
+ * test_high_01: its force and four accelerations); listed only when the environment variable
+ * DV_BENCH_DATA names that data directory (bench/run.py sets it when ../shared is there). */
 #include "bench_util.h"
 
 #include "dynval/dv_model.h"
@@ -22,6 +26,35 @@ static dv_real_t force[NREC], ymeas[NREC * 4], yout[NREC * 4], yres[NREC * 4];
 static dv_input_hold_t g_hold = DV_HOLD_FOH;
 
 static int g_engaged; /* the worst case: a bumper at zero gap on both sides, engaged every step */
+
+/* The bumper test's force and accelerations into force / ymeas (NREC rows); 0 on success. */
+static int load_lanl(void)
+{
+    const char *dir = getenv("DV_BENCH_DATA");
+    char path[1024];
+    if (dir == NULL ||
+        snprintf(path, sizeof path, "%s/synthetic/lanl4dof-bumper/test_high_01.csv", dir) >=
+            (int)sizeof path) {
+        return -1;
+    }
+    FILE *f = fopen(path, "r");
+    if (f == NULL) {
+        return -1;
+    }
+    char head[256];
+    int k = 0;
+    if (fgets(head, sizeof head, f) != NULL) {
+        double t, v[5];
+        while (k < NREC && fscanf(f, "%lf,%lf,%lf,%lf,%lf,%lf", &t, &v[0], &v[1], &v[2], &v[3],
+                                  &v[4]) == 6) {
+            force[k] = (dv_real_t)v[0];
+            for (int q = 0; q < 4; q++) ymeas[4 * k + q] = (dv_real_t)v[q + 1];
+            k++;
+        }
+    }
+    fclose(f);
+    return k == NREC ? 0 : -1;
+}
 
 static void lanl(dv_model_desc_t *d, int contact, uint16_t nsub, double kscale)
 {
@@ -96,10 +129,13 @@ int main(int argc, char **argv)
                                   "obs_step_4dof_contact16", "sim_record_8192",
                                   "sim_record_8192_contact", "obs_step_4dof_cubic",
                                   "obs_step_4dof_contact_cubic", "sim_record_8192_cubic",
-                                  "obs_step_4dof_contact_engaged", "obs_block_4dof"};
+                                  "obs_step_4dof_contact_engaged", "obs_block_4dof",
+                                  "obs_step_4dof_contact_lanl"};
     const int ncase = (int)(sizeof cases / sizeof cases[0]);
     if (argc == 2 && strcmp(argv[1], "--list") == 0) {
-        for (int i = 0; i < ncase; i++) printf("%s\n", cases[i]);
+        for (int i = 0; i < ncase; i++) {
+            if (i != 10 || load_lanl() == 0) printf("%s\n", cases[i]);
+        }
         return 0;
     }
     if (argc == 2 && strcmp(argv[1], "--sizes") == 0) {
@@ -140,15 +176,17 @@ int main(int argc, char **argv)
         fprintf(stderr, "unknown case %s\n", cs);
         return 2;
     }
-    const int contact = which == 1 || which == 2 || which == 4 || which == 6 || which == 8;
+    const int contact = which == 1 || which == 2 || which == 4 || which == 6 || which == 8 ||
+                        which == 10;
     const uint16_t nsub = which == 2 ? 16 : 8;
-    const int is_step = which <= 2 || which == 5 || which == 6 || which == 8 || which == 9;
+    const int is_step = which <= 2 || which == 5 || which == 6 || which == 8 || which == 9 ||
+                        which == 10;
     const int block = which == 9; /* the same steps through dv_obs_update_block() */
     if (which >= 5 && which <= 7) g_hold = DV_HOLD_CUBIC;
     g_engaged = which == 8;
     dv_model_t m;
     dv_obs_t o;
-    if (setup(&m, &o, contact, nsub, is_step) != 0) {
+    if (setup(&m, &o, contact, nsub, is_step) != 0 || (which == 10 && load_lanl() != 0)) {
         fprintf(stderr, "setup failed\n");
         return 1;
     }
