@@ -929,24 +929,36 @@ static bool contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
     const dv_real_t kh = elem_kh(c);
     dv_real_t xp = o->elem_x[0];
     dv_real_t gp = o->elem_g[0];
+    /* the chain from one node's force to the next is the latency of the whole step: the last
+     * two forces stay in registers (gp, g2), and X at the node is one multiply-add from the
+     * previous force, X = lin + s gp: the first node X = xl (s = 0); the second lin = xl +
+     * S_f,0 g_0, s = S_ff, with DV_MODEL_FP_ITERS fixed-point iterations from g_0; later nodes
+     * one iteration from the line through the previous two forces, 2 gp - g2, folded into lin
+     * and s (see dv_model.h) */
+    dv_real_t g2 = DV_R(0.0);
     for (size_t f = 0; f < nf; f++) {
         const dv_real_t *srow = m->smat + f * nf;
         dv_real_t lin = xl[f];
-        for (size_t j = 0; j < f; j++) {
-            lin += srow[j] * g[j];
+        dv_real_t sl = DV_R(0.0);
+        if (f == 1u) {
+            lin += srow[0] * gp;
+            sl = srow[1];
+        } else if (f >= 2u) {
+            for (size_t j = 0; j + 2u < f; j++) {
+                lin += srow[j] * g[j];
+            }
+            lin += (srow[f - 2u] - srow[f]) * g2;
+            sl = srow[f - 1u] + DV_R(2.0) * srow[f];
         }
-        /* implicit in the node's own force: fixed-point iterations, a fixed number, from the
-         * previous node's force (second node) or the line through the previous two (later
-         * nodes: one iteration; see dv_model.h) */
         const uint32_t iters = f == 1u ? DV_MODEL_FP_ITERS : 1u;
-        dv_real_t cur = f == 0u ? DV_R(0.0)
-                                : (f == 1u ? g[0] : DV_R(2.0) * g[f - 1u] - g[f - 2u]);
+        dv_real_t cur = gp;
         dv_real_t xr = lin;
         for (uint32_t it = 0; it < iters; it++) {
-            xr = lin + srow[f] * cur;
+            xr = lin + sl * cur;
             cur = elem_force(c, kh, xp, gp, xr);
         }
         g[f] = cur;
+        g2 = gp;
         xp = xr;
         gp = cur;
     }
