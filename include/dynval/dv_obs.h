@@ -116,10 +116,11 @@ typedef struct {
     bool has_gain;       /**< L != 0 */
     bool started;        /**< the first sample has been seen */
     uint8_t simd;        /**< 8 x 4 step kernel: 0 portable, 1 AVX2 + FMA, 2 AVX-512 (the modal
-                              linear step; AVX2 kernel where the modal form does not apply) */
+                              step; AVX2 kernel where the modal form does not apply) */
     bool fast;           /**< 8 states, 4 outputs, first-order hold: the direct step path */
     bool modal;          /**< the state is kept as q = T^-1 x, the folded rows in that basis */
-    bool contact_hot;    /**< the last step engaged a contact: the direct path checks the next */
+    bool contact_hot;    /**< the last direct-path contact step engaged: the next measured
+                              step skips the AVX-512 open check (dv_obskern.c) */
     uint8_t modal_ready; /**< dv_obs_step()'s dispatch: 1 the linear modal step, 2 the modal
                               step with a contact, 0 neither (simd 2, modal and started) */
     uint32_t flags;      /**< DV_OBS_FLAG_* of the last step */
@@ -138,8 +139,9 @@ typedef struct {
     dv_real_t *gain;     /**< L, ns x no row-major */
     dv_real_t *tq;       /**< modal: T, ns x ns row-major (x = T q); NULL where it never applies */
     dv_real_t *fm;       /**< modal: the block diagonal, the blocks' off-diagonal, C T rows */
-    const dv_real_t *rxq; /**< modal with a contact: its sub-node X rows over [q, u window]
-                               (nf rows, column-major); NULL: the model's rows over x */
+    const dv_real_t *rxq; /**< modal with a contact: its sub-node X rows over [q, u window],
+                               in blocks of 8 nodes (10 columns of 8 each); NULL: the model's
+                               rows over x */
     dv_real_t elem_x[DV_MAX_CONTACT]; /**< stick-slip elements: X at the last sub-node, m */
     dv_real_t elem_g[DV_MAX_CONTACT]; /**< stick-slip elements: force at the last sub-node, N */
 } dv_obs_t;
