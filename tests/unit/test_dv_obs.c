@@ -39,6 +39,20 @@ static double rms(const dv_real_t *x, size_t n)
     return sqrt(s / n);
 }
 
+// Measurements from a truth whose stories 2-4 are 5 % stiffer than the nominal model d (force
+// force_r, nk samples, into ytrue): residuals the gain has work to do on. Its own storage.
+static void stiffer_truth(const dv_model_desc_t *d, size_t nk)
+{
+    static dv_real_t tmbuf[NBUF], tobuf[NBUF];
+    dv_model_desc_t dt = *d;
+    dv_model_t mt;
+    dv_obs_t ot;
+    for (int i = 1; i < 4; i++) dt.k_n_per_m[i] *= (dv_real_t)1.05;
+    assert_int_equal(dv_model_init(&mt, &dt, DT, tmbuf, NBUF), DV_OK);
+    assert_int_equal(dv_obs_init(&ot, &mt, NULL, tobuf, NBUF), DV_OK);
+    assert_int_equal(dv_obs_simulate(&ot, force_r, nk, ytrue), DV_OK);
+}
+
 static void test_obs_kalman_gain_matches_scipy_dare(void **state)
 {
     (void)state;
@@ -93,15 +107,11 @@ static void test_obs_gain_tracks_perturbed_model(void **state)
     (void)state;
     load_force();
     dv_model_desc_t d;
-    dv_model_t mt, m;
-    dv_obs_t ot, o;
+    dv_model_t m;
+    dv_obs_t o;
     dv_obs_noise_t nz;
     mt_lanl_desc(&d);
-    for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
-    assert_int_equal(dv_model_init(&mt, &d, DT, mbuf2, NBUF), DV_OK);
-    assert_int_equal(dv_obs_init(&ot, &mt, NULL, obuf2, NBUF), DV_OK);
-    assert_int_equal(dv_obs_simulate(&ot, force_r, NS, ytrue), DV_OK);
-    mt_lanl_desc(&d);
+    stiffer_truth(&d, NS);
     assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
     noise_model(&nz);
     assert_int_equal(dv_obs_init(&o, &m, NULL, obuf, NBUF), DV_OK);
@@ -123,23 +133,17 @@ static void test_obs_vector_kernels_match_portable(void **state)
     (void)state;
     load_force();
     dv_model_desc_t d;
-    dv_model_t mt, m;
-    dv_obs_t ot, o;
+    dv_model_t m;
+    dv_obs_t o;
     dv_obs_noise_t nz;
     noise_model(&nz);
     // contact 2: the bumper on both sides (the negative side's open check too)
     for (int contact = 0; contact < 3; contact++) {
         for (int gain = 0; gain < 2; gain++) {
             mt_lanl_desc(&d);
-            for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
             if (contact) mt_add_bumper(&d, 1e-4, 8);
             if (contact == 2) d.contact[0].side = DV_CONTACT_BOTH;
-            assert_int_equal(dv_model_init(&mt, &d, DT, mbuf2, NBUF), DV_OK);
-            assert_int_equal(dv_obs_init(&ot, &mt, NULL, obuf2, NBUF), DV_OK);
-            assert_int_equal(dv_obs_simulate(&ot, force_r, NS, ytrue), DV_OK);
-            mt_lanl_desc(&d);
-            if (contact) mt_add_bumper(&d, 1e-4, 8);
-            if (contact == 2) d.contact[0].side = DV_CONTACT_BOTH;
+            stiffer_truth(&d, NS);
             assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
             assert_int_equal(dv_obs_init(&o, &m, gain ? &nz : NULL, obuf, NBUF), DV_OK);
             const unsigned simd = o.simd;
@@ -213,17 +217,13 @@ static void test_obs_state_same_in_modal_and_dense_form(void **state)
     (void)state;
     load_force();
     dv_model_desc_t d;
-    dv_model_t mt, m4, m5;
-    dv_obs_t ot, o4, o5;
+    dv_model_t m4, m5;
+    dv_obs_t o4, o5;
     dv_obs_noise_t nz;
     noise_model(&nz);
     mt_lanl_desc(&d);
-    for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
-    assert_int_equal(dv_model_init(&mt, &d, DT, mbuf2, NBUF), DV_OK);
-    assert_int_equal(dv_obs_init(&ot, &mt, NULL, obuf2, NBUF), DV_OK);
-    assert_int_equal(dv_obs_simulate(&ot, force_r, NS, ytrue), DV_OK);
+    stiffer_truth(&d, NS);
     static dv_real_t mbuf5[NBUF], obuf5[NBUF], y5[NS * 5];
-    mt_lanl_desc(&d);
     assert_int_equal(dv_model_init(&m4, &d, DT, mbuf, NBUF), DV_OK);
     assert_int_equal(dv_obs_init(&o4, &m4, &nz, obuf, NBUF), DV_OK);
     d.n_out = 5;
@@ -602,20 +602,14 @@ static void test_obs_init_scratch_is_transient(void **state)
     load_force();
     for (int hold = 0; hold < 2; hold++) {
         dv_model_desc_t d;
-        dv_model_t mt, m, m2;
-        dv_obs_t ot, o, o2;
+        dv_model_t m, m2;
+        dv_obs_t o, o2;
         dv_obs_noise_t nz;
         const size_t nk = 1024;
         mt_lanl_desc(&d);
         mt_add_bumper(&d, 5e-4, 8);
         d.input_hold = hold ? DV_HOLD_CUBIC : DV_HOLD_FOH;
-        for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
-        assert_int_equal(dv_model_init(&mt, &d, DT, mbuf2, NBUF), DV_OK);
-        assert_int_equal(dv_obs_init(&ot, &mt, NULL, obuf2, NBUF), DV_OK);
-        assert_int_equal(dv_obs_simulate(&ot, force_r, nk, ytrue), DV_OK);
-        mt_lanl_desc(&d);
-        mt_add_bumper(&d, 5e-4, 8);
-        d.input_hold = hold ? DV_HOLD_CUBIC : DV_HOLD_FOH;
+        stiffer_truth(&d, nk);
         noise_model(&nz);
         const size_t nin = DV_MODEL_HOLD_NIN(hold);
         const size_t mper = dv_model_persistent_len(&d), mscr = dv_model_scratch_len(&d);
@@ -678,22 +672,15 @@ static void test_obs_model_kept_for_steps_only(void **state)
     load_force();
     for (int hold = 0; hold < 2; hold++) {
         dv_model_desc_t d;
-        dv_model_t mt, m, m2;
-        dv_obs_t ot, o, o2;
+        dv_model_t m, m2;
+        dv_obs_t o, o2;
         dv_obs_noise_t nz;
         const size_t nk = 1024, n0 = 16;
         const size_t nin = DV_MODEL_HOLD_NIN(hold);
-        // measurements from a stiffer truth, so the gain has work to do
         mt_lanl_desc(&d);
         mt_add_bumper(&d, 5e-4, 8);
         d.input_hold = hold ? DV_HOLD_CUBIC : DV_HOLD_FOH;
-        for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
-        assert_int_equal(dv_model_init(&mt, &d, DT, mbuf, NBUF), DV_OK);
-        assert_int_equal(dv_obs_init(&ot, &mt, NULL, obuf, NBUF), DV_OK);
-        assert_int_equal(dv_obs_simulate(&ot, force_r, nk, ytrue), DV_OK);
-        mt_lanl_desc(&d);
-        mt_add_bumper(&d, 5e-4, 8);
-        d.input_hold = hold ? DV_HOLD_CUBIC : DV_HOLD_FOH;
+        stiffer_truth(&d, nk);
         noise_model(&nz);
         const size_t mper = dv_model_persistent_len(&d);
         const size_t mstep = DV_MODEL_STEP_LEN_HOLD(4u, 1u, 8u, 4u, nin);
@@ -753,13 +740,8 @@ static void block_equals_steps_case(int contact)
     dv_obs_noise_t nz;
     noise_model(&nz);
     mt_lanl_desc(&d);
-    for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
     if (contact) mt_add_bumper(&d, 1e-4, 8);
-    assert_int_equal(dv_model_init(&m, &d, DT, mbuf2, NBUF), DV_OK);
-    assert_int_equal(dv_obs_init(&o, &m, NULL, obuf2, NBUF), DV_OK);
-    assert_int_equal(dv_obs_simulate(&o, force_r, NS, ytrue), DV_OK);
-    mt_lanl_desc(&d);
-    if (contact) mt_add_bumper(&d, 1e-4, 8);
+    stiffer_truth(&d, NS);
     assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
     assert_int_equal(dv_obs_init(&o, &m, &nz, obuf, NBUF), DV_OK);
     assert_int_equal(dv_obs_init(&o2, &m, &nz, obuf2, NBUF), DV_OK);
@@ -821,18 +803,13 @@ static void test_obs_storage_at_any_offset(void **state)
     const size_t nk = 1024;
     for (int contact = 0; contact < 2; contact++) {
         dv_model_desc_t d;
-        dv_model_t mt, m;
-        dv_obs_t ot, o;
+        dv_model_t m;
+        dv_obs_t o;
         dv_obs_noise_t nz;
         noise_model(&nz);
         mt_lanl_desc(&d);
         if (contact) mt_add_bumper(&d, 1e-4, 8);
-        for (int i = 1; i < 4; i++) d.k_n_per_m[i] *= (dv_real_t)1.05;
-        assert_int_equal(dv_model_init(&mt, &d, DT, mbuf2, NBUF), DV_OK);
-        assert_int_equal(dv_obs_init(&ot, &mt, NULL, obuf2, NBUF), DV_OK);
-        assert_int_equal(dv_obs_simulate(&ot, force_r, nk, ytrue), DV_OK);
-        mt_lanl_desc(&d);
-        if (contact) mt_add_bumper(&d, 1e-4, 8);
+        stiffer_truth(&d, nk);
         assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
         const size_t oper = dv_obs_persistent_len(&m), oscr = dv_obs_scratch_len(&m);
         for (size_t off = 0; off < 8u; off++) {
