@@ -43,18 +43,26 @@ typedef struct {
     dv_real_t r0;
 } run_out_t;
 
-/* Order-update a <- [a - k * reverse(a), k] (m-1 -> m), in place: a[j] and a[m-2-j] are
- * updated as a pair from their old values. */
+/* v[0..n] <- v - k * reverse(v), in place: v[j] and v[n-j] are updated as a pair from their
+ * old values (the step of every Levinson/Burg order update). */
+static void reflect_update(dv_real_t *v, uint32_t n, dv_real_t k)
+{
+    uint32_t lo = 0u, hi = n;
+    for (; lo < hi; lo++, hi--) {
+        const dv_real_t vl = v[lo], vh = v[hi];
+        v[lo] = vl - k * vh;
+        v[hi] = vh - k * vl;
+    }
+    if (lo == hi) {
+        v[lo] = v[lo] - k * v[lo];
+    }
+}
+
+/* Order-update a <- [a - k * reverse(a), k] (m-1 -> m), in place. */
 static void order_update(dv_real_t *a, uint32_t m, dv_real_t k)
 {
-    uint32_t lo = 0u, hi = m >= 2u ? m - 2u : 0u;
-    for (; m >= 2u && lo < hi; lo++, hi--) {
-        const dv_real_t al = a[lo], ah = a[hi];
-        a[lo] = al - k * ah;
-        a[hi] = ah - k * al;
-    }
-    if (m >= 2u && lo == hi) {
-        a[lo] = a[lo] - k * a[lo];
+    if (m >= 2u) {
+        reflect_update(a, m - 2u, k);
     }
     a[m - 1u] = k;
 }
@@ -285,30 +293,14 @@ static bool burg_corr(uint32_t p, const dv_real_t *y, size_t n, dv_real_t mean, 
         if (m < p) {
             const dv_real_t up = dv_priv_ar_dot(cr, rs + 2, m, kern);
             const dv_real_t um = dv_priv_ar_dot(c, rs + 1, m, kern);
-            uint32_t lo = 0u, hi = m;
-            for (; lo < hi; lo++, hi--) {
-                const dv_real_t ul = u[lo], uh = u[hi];
-                u[lo] = ul - k * uh;
-                u[hi] = uh - k * ul;
-            }
-            if (lo == hi) {
-                u[lo] -= k * u[lo];
-            }
+            reflect_update(u, m, k);
             u[m + 1u] = up - k * um;
             edge_stage(fy, gy + (p - m), p, k);
             edge_stage(fz, gz + (p - m), p, k);
         }
         /* c' = [c, 0] - k [0, reverse(c)]: pairs (j, m-j) from their old values */
         c[m] = DV_R(0.0);
-        uint32_t lo = 0u, hi = m;
-        for (; lo < hi; lo++, hi--) {
-            const dv_real_t cl = c[lo], ch = c[hi];
-            c[lo] = cl - k * ch;
-            c[hi] = ch - k * cl;
-        }
-        if (lo == hi) {
-            c[lo] -= k * c[lo];
-        }
+        reflect_update(c, m, k);
         sabs = DV_R(0.0);
         for (uint32_t j = 0u; j <= m; j++) {
             cr[j] = c[m - j];
