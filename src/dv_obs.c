@@ -803,8 +803,9 @@ static dv_real_t stickslip_g(const dv_contact_desc_t *c, dv_real_t xp, dv_real_t
 /* The force-free X at every sub-node (what X would be with no contact force at this or any
  * earlier node of the step), xl[f] = rx[f, :] x + the input window's share: column by column,
  * in each node the same order of operations as a row dot. The rows: the model's (column-major,
- * over x) or with the modal form o->rxq (over q, in blocks of 8 nodes, the window's columns
- * included; dv_obskern.h), node f of column j at rx[(f / 8) bs + j cs + f % 8]. */
+ * over x: node f of column j at rx[j nf + f]) or with the modal form o->rxq (over q, the
+ * window's columns included, in blocks of 8 nodes: node f of column j at
+ * rxq[(f / 8) 8 (ns + 2) + 8 j + f % 8]). */
 static void nodes_x_free(const dv_obs_t *o, size_t ns, bool cubic, const dv_real_t *sv,
                          dv_real_t *xl)
 {
