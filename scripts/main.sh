@@ -6,6 +6,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
+export PATH="$(pwd)/.venv/bin:$PATH"   # the project virtual environment
 out=${DV_OUT:-out}
 mkdir -p "$out"
 echo

@@ -34,6 +34,8 @@ preset() { # configure, build and ctest one CMake preset
 }
 
 [ "${DV_SKIP_SETUP:-0}" = 1 ] || scripts/setup.sh || exit 1
+# the project virtual environment (scripts/setup.sh) first: python3, pytest, dynval
+export PATH="$ROOT/.venv/bin:$PATH"
 
 step "C float, gcc Debug (dev)" preset dev
 step "C double, gcc Release (f64)" preset f64
