@@ -36,14 +36,14 @@ if [ ! -x "$VENV/bin/python" ]; then
     "$PYTHON" -m venv "$VENV"
     "$VENV/bin/python" -m pip install -q --disable-pip-version-check --upgrade pip
 fi
-PIP=("$VENV/bin/python" -m pip install -q --disable-pip-version-check)
+PIP=("$VENV/bin/python" -m pip install -q --disable-pip-version-check -c requirements-lock.txt)
 
 # reinstall only what changed: the stamps hold a hash of the inputs of each install
 src_hash() { # content hash of the source files under the given paths
     find "$@" -type f -not -path '*/build/*' -not -path '*/__pycache__/*' -not -path '*/_lib/*' \
         -not -path '*/tests/*' -not -name '*.so' -print0 | sort -z | xargs -0 sha256sum | sha256sum | cut -c1-16
 }
-req_hash=$(sha256sum requirements-dev.txt gateway/pyproject.toml | sha256sum | cut -c1-16)
+req_hash=$(sha256sum requirements-dev.txt requirements-lock.txt gateway/pyproject.toml | sha256sum | cut -c1-16)
 if [ "$(cat "$VENV/.dv-req" 2>/dev/null)" != "$req_hash" ]; then
     echo "setup: python test tools (requirements-dev.txt)"
     "${PIP[@]}" -r requirements-dev.txt
