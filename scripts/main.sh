@@ -18,3 +18,15 @@ dynval inspect "$out/run/bumper_test_high_01.mcap"
 echo
 echo "== dynval residual: the declared model against each test (NRMSE per channel)"
 dynval residual data/lanl4dof-sim/clean/declared_model.json data/lanl4dof-sim/clean data/lanl4dof-sim/bumper
+echo
+echo "== dynval discover: what does the declared model lack? (JSON + HTML report per folder)"
+reports=()
+for folder in clean bumper; do
+    dynval discover data/lanl4dof-sim/$folder/declared_model.json data/lanl4dof-sim/$folder \
+        --json "$out/discover-$folder.json" --html "$out/discover-$folder.html" \
+        --model-out "$out/discover-$folder-model.json"
+    reports+=("$folder=$out/discover-$folder.json")
+done
+echo
+echo "== verdict"
+python3 scripts/main_summary.py "$out" "${reports[@]}"
