@@ -33,7 +33,7 @@ ELEMENTS = {
 
 def main() -> int:
     rng = np.random.default_rng(7)
-    u = np.convolve(rng.standard_normal(4096), np.ones(4) / 4, mode="same") * 12.0
+    u = np.convolve(rng.standard_normal(4096), np.ones(4) / 4, mode="same") * 60.0
     for name, els in ELEMENTS.items():
         for kind in ("force", "ground_acc"):
             for interp in ("foh", "cubic", "bandlimited"):
