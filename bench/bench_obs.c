@@ -74,13 +74,13 @@ static void lanl(dv_model_desc_t *d, int contact, uint16_t nsub, double kscale)
         d->out[i].index = (uint16_t)i;
     }
     if (contact) {
-        d->n_contact = 1;
-        d->contact[0].dof_a = 2;
-        d->contact[0].dof_b = 3;
-        d->contact[0].side = g_engaged ? DV_CONTACT_BOTH : DV_CONTACT_POS;
-        d->contact[0].gap_m = (dv_real_t)(g_engaged ? 0.0 : 1e-4);
-        d->contact[0].delta_m = (dv_real_t)1e-4;
-        d->contact[0].kb_n_per_m = (dv_real_t)1.925e6;
+        d->n_elem = 1;
+        d->elem[0].dof_a = 2;
+        d->elem[0].dof_b = 3;
+        d->elem[0].side = g_engaged ? DV_SIDE_BOTH : DV_SIDE_POS;
+        d->elem[0].gap_m = (dv_real_t)(g_engaged ? 0.0 : 1e-4);
+        d->elem[0].delta_m = (dv_real_t)1e-4;
+        d->elem[0].kb_n_per_m = (dv_real_t)1.925e6;
         d->n_sub = nsub;
     }
 }

@@ -344,7 +344,7 @@ static void obs_setup(struct sim_core *c)
     d.input_kind = DV_INPUT_FORCE;
     d.input_dof = (uint16_t)p[SIM_MODEL_INPUT_DOF];
     d.input_hold = p[SIM_MODEL_HOLD] == (float)DV_HOLD_CUBIC ? DV_HOLD_CUBIC : DV_HOLD_FOH;
-    d.n_contact = 0;
+    d.n_elem = 0;
     /* measured channels: every channel but the force channel, in order, = acc of DOF 0.. */
     uint16_t n_out = 0;
     for (unsigned ch = 0; ch < cfg->n_chan && n_out < n_dof && n_out < DV_MAX_OUT; ch++) {

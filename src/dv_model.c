@@ -1,17 +1,10 @@
 /* Lumped-mass chain model: eigen-solution, damping and the first-order-hold discretisation,
  * all built once at init into the caller's buffer. See dv_model.h for the equations. */
 #include "dynval/dv_model.h"
+#include "dv_elem_law.h"
 #include "dv_priv.h"
 
 #define TWO_PI_R DV_R(6.283185307179586)
-
-dv_real_t dv_contact_force(const dv_contact_desc_t *c, dv_real_t x_m)
-{
-    if (c == NULL) {
-        return DV_R(0.0);
-    }
-    return dv_priv_elem_g((int)c->law, (int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, x_m);
-}
 
 dv_status_t dv_model_desc_default(dv_model_desc_t *d)
 {
@@ -24,8 +17,8 @@ dv_status_t dv_model_desc_default(dv_model_desc_t *d)
     d->input_kind = DV_INPUT_FORCE;
     d->n_sub = 8u;
     d->input_hold = DV_HOLD_FOH;
-    for (size_t c = 0; c < DV_MAX_CONTACT; c++) {
-        d->contact[c].side = DV_CONTACT_POS;
+    for (size_t c = 0; c < DV_MAX_ELEM; c++) {
+        d->elem[c].side = DV_SIDE_POS;
     }
     return DV_OK;
 }
@@ -33,8 +26,8 @@ dv_status_t dv_model_desc_default(dv_model_desc_t *d)
 static bool desc_sizes_ok(const dv_model_desc_t *d)
 {
     return d != NULL && d->n_dof >= 1u && d->n_dof <= DV_MAX_DOF && d->n_out >= 1u &&
-           d->n_out <= DV_MAX_OUT && d->n_contact <= DV_MAX_CONTACT &&
-           (d->n_contact == 0u || (d->n_sub >= 1u && d->n_sub <= DV_MAX_SUB)) &&
+           d->n_out <= DV_MAX_OUT && d->n_elem <= DV_MAX_ELEM &&
+           (d->n_elem == 0u || (d->n_sub >= 1u && d->n_sub <= DV_MAX_SUB)) &&
            (d->input_hold == DV_HOLD_FOH || d->input_hold == DV_HOLD_CUBIC);
 }
 
@@ -53,7 +46,7 @@ static size_t model_len(const dv_model_desc_t *d, int which)
         return 0u;
     }
     const size_t n = d->n_dof;
-    const size_t nc = d->n_contact;
+    const size_t nc = d->n_elem;
     const size_t nsub = nc > 0u ? d->n_sub : 1u;
     const size_t no = d->n_out;
     const size_t nin = DV_MODEL_HOLD_NIN((int)d->input_hold);
@@ -121,7 +114,7 @@ static dv_real_t *take_from(dv_real_t **p, dv_real_t *old, size_t count)
  * the start of the model's storage at init, a caller's buffer in dv_model_keep_step_only(). */
 static void lay_step_part(dv_model_t *m, dv_real_t **p)
 {
-    const size_t ns = m->n_state, no = m->n_out, nc = m->n_contact, nf = m->n_f;
+    const size_t ns = m->n_state, no = m->n_out, nc = m->n_elem, nf = m->n_f;
     m->cy = take_from(p, m->cy, no * ns);
     m->d0 = take_from(p, m->d0, no);
     m->d1 = take_from(p, m->d1, no);
@@ -192,19 +185,10 @@ static dv_status_t validate(const dv_model_desc_t *d, dv_real_t dt_s)
     if (d->input_kind == DV_INPUT_FORCE && d->input_dof >= n) {
         return DV_EINVAL;
     }
-    for (size_t c = 0; c < d->n_contact; c++) {
-        const dv_contact_desc_t *e = &d->contact[c];
+    for (size_t c = 0; c < d->n_elem; c++) {
+        const dv_elem_desc_t *e = &d->elem[c];
         if ((e->dof_a >= n && e->dof_a != (uint16_t)DV_GROUND) || e->dof_b >= n ||
-            e->dof_a == e->dof_b || !fin(e->gap_m) || !fin(e->delta_m) ||
-            !fin(e->kb_n_per_m) || e->gap_m < DV_R(0.0) || e->delta_m < DV_R(0.0) ||
-            e->kb_n_per_m < DV_R(0.0) ||
-            (e->side != DV_CONTACT_POS && e->side != DV_CONTACT_NEG &&
-             e->side != DV_CONTACT_BOTH) ||
-            (e->law != DV_ELEM_CONTACT && e->law != DV_ELEM_FRICTION &&
-             e->law != DV_ELEM_CUBIC && e->law != DV_ELEM_VV &&
-             e->law != DV_ELEM_STICKSLIP) ||
-            ((e->law == DV_ELEM_FRICTION || e->law == DV_ELEM_STICKSLIP) &&
-             !(e->delta_m > DV_R(0.0)))) {
+            e->dof_a == e->dof_b || dv_elem_check(e) != DV_OK) {
             return DV_EINVAL;
         }
     }
@@ -214,13 +198,13 @@ static dv_status_t validate(const dv_model_desc_t *d, dv_real_t dt_s)
         case DV_OUT_ACC:
         case DV_OUT_VEL:
         case DV_OUT_DISP:
-        case DV_OUT_ELEM_FORCE:
+        case DV_OUT_SPRING_FORCE:
             if (y->index >= n) {
                 return DV_EINVAL;
             }
             break;
-        case DV_OUT_CONTACT_FORCE:
-            if (y->index >= d->n_contact) {
+        case DV_OUT_ELEM_FORCE:
+            if (y->index >= d->n_elem) {
                 return DV_EINVAL;
             }
             break;
@@ -339,12 +323,12 @@ static void poly_sub(const dv_real_t *c, size_t i, size_t nsub, dv_real_t *out)
 /* X of contact c for a state-sized vector z: z[b] - z[a]. */
 /* The element's argument from a state-like vector z (2n): X = x_b - x_a, or V = v_b - v_a
  * for the velocity laws (rows n..2n). */
-static size_t cx_off(const dv_contact_desc_t *e, size_t n)
+static size_t cx_off(const dv_elem_desc_t *e, size_t n)
 {
-    return dv_priv_elem_on_velocity((int)e->law) ? n : 0u;
+    return dv_priv_elem_on_velocity(e->law) ? n : 0u;
 }
 
-static dv_real_t cx_dot(const dv_contact_desc_t *e, const dv_real_t *z, size_t n)
+static dv_real_t cx_dot(const dv_elem_desc_t *e, const dv_real_t *z, size_t n)
 {
     const size_t o = cx_off(e, n);
     const dv_real_t za = e->dof_a == (uint16_t)DV_GROUND ? DV_R(0.0) : z[o + e->dof_a];
@@ -384,7 +368,7 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
     }
     const size_t n = d->n_dof;
     const size_t ns = 2u * n;
-    const size_t nc = d->n_contact;
+    const size_t nc = d->n_elem;
     const size_t nsub = nc > 0u ? d->n_sub : 1u;
     const size_t nf = (nsub + 1u) * nc;
     const size_t no = d->n_out;
@@ -395,7 +379,7 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
     m->n_dof = (uint16_t)n;
     m->n_state = (uint16_t)ns;
     m->n_out = (uint16_t)no;
-    m->n_contact = (uint16_t)nc;
+    m->n_elem = (uint16_t)nc;
     m->n_sub = (uint16_t)nsub;
     m->n_f = (uint16_t)nf;
     m->input_kind = d->input_kind;
@@ -557,9 +541,9 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
         }
     }
     for (size_t e = 0; e < nc; e++) {
-        const dv_contact_desc_t *ce = &d->contact[e];
-        m->contact[e] = *ce;
-        m->contact_dx[e] = (ce->dof_a == (uint16_t)DV_GROUND &&
+        const dv_elem_desc_t *ce = &d->elem[e];
+        m->elem[e] = *ce;
+        m->elem_dx[e] = (ce->dof_a == (uint16_t)DV_GROUND &&
                             d->input_kind == DV_INPUT_GROUND_DISP)
                                ? DV_R(-1.0)
                                : DV_R(0.0);
@@ -632,7 +616,7 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
         case DV_OUT_DISP:
             cy[idx] = DV_R(1.0);
             break;
-        case DV_OUT_ELEM_FORCE:
+        case DV_OUT_SPRING_FORCE:
             cy[idx] = d->k_n_per_m[idx];
             if (idx > 0u) {
                 cy[idx - 1u] = -d->k_n_per_m[idx];
@@ -640,7 +624,7 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
                 m->d0[o] = -d->k_n_per_m[0];
             }
             break;
-        case DV_OUT_CONTACT_FORCE:
+        case DV_OUT_ELEM_FORCE:
             ey[idx] = DV_R(1.0);
             break;
         default: /* DV_OUT_REACTION: 1^T K x_rel + 1^T C v_rel + ground contacts */
@@ -655,7 +639,7 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
                 cy[n + j] = cs;
             }
             for (size_t e = 0; e < nc; e++) {
-                ey[e] = d->contact[e].dof_a == (uint16_t)DV_GROUND ? DV_R(1.0) : DV_R(0.0);
+                ey[e] = d->elem[e].dof_a == (uint16_t)DV_GROUND ? DV_R(1.0) : DV_R(0.0);
             }
             if (d->input_kind == DV_INPUT_GROUND_DISP) {
                 m->d0[o] = -k1sum - c1sum / dt_s;
@@ -720,12 +704,11 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
             ke[i] = k[i];
         }
         for (size_t e = 0; e < nc; e++) {
-            const dv_contact_desc_t *ce = &d->contact[e];
+            const dv_elem_desc_t *ce = &d->elem[e];
             if (ce->law != DV_ELEM_CONTACT && ce->law != DV_ELEM_STICKSLIP) {
                 continue; /* only these laws add a bounded stiffness */
             }
-            const dv_real_t kb = ce->law == DV_ELEM_STICKSLIP ? ce->kb_n_per_m / ce->delta_m
-                                                                : ce->kb_n_per_m;
+            const dv_real_t kb = dv_elem_stiffness_bound(ce);
             ke[ce->dof_b * n + ce->dof_b] += kb;
             if (ce->dof_a != (uint16_t)DV_GROUND) {
                 ke[ce->dof_a * n + ce->dof_a] += kb;
@@ -738,13 +721,13 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
         if (st != DV_OK) {
             return DV_EUNSTABLE;
         }
-        m->w_contact_max = DV_SQRT(le[n - 1u] > DV_R(0.0) ? le[n - 1u] : DV_R(0.0));
+        m->w_elem_max = DV_SQRT(le[n - 1u] > DV_R(0.0) ? le[n - 1u] : DV_R(0.0));
         const dv_real_t h = dt_s / (dv_real_t)nsub;
-        if (m->w_contact_max * h > (dv_real_t)DV_MODEL_CONTACT_MAX_WH) {
+        if (m->w_elem_max * h > (dv_real_t)DV_MODEL_ELEM_MAX_WH) {
             return DV_EUNSTABLE;
         }
         for (size_t e = 0; e < nc; e++) {
-            const dv_contact_desc_t *ce = &d->contact[e];
+            const dv_elem_desc_t *ce = &d->elem[e];
             if (ce->law == DV_ELEM_FRICTION) {
                 /* the regularised law's largest slope F / eps acts like a damper */
                 dv_real_t inv_m = DV_R(1.0) / m->mass_kg[ce->dof_b];
@@ -752,7 +735,7 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
                     inv_m += DV_R(1.0) / m->mass_kg[ce->dof_a];
                 }
                 if (ce->kb_n_per_m / ce->delta_m * h * inv_m >
-                    (dv_real_t)DV_MODEL_CONTACT_MAX_WH) {
+                    (dv_real_t)DV_MODEL_ELEM_MAX_WH) {
                     return DV_EUNSTABLE;
                 }
             }
@@ -786,11 +769,11 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
         for (size_t j = 0; j < ns; j++) {
             row[j] = DV_R(0.0);
         }
-        const size_t off = cx_off(&m->contact[e], n);
-        if (m->contact[e].dof_a != (uint16_t)DV_GROUND) {
-            row[off + m->contact[e].dof_a] = DV_R(-1.0);
+        const size_t off = cx_off(&m->elem[e], n);
+        if (m->elem[e].dof_a != (uint16_t)DV_GROUND) {
+            row[off + m->elem[e].dof_a] = DV_R(-1.0);
         }
-        row[off + m->contact[e].dof_b] = DV_R(1.0);
+        row[off + m->elem[e].dof_b] = DV_R(1.0);
         for (size_t i = 0; i <= nsub; i++) {
             const size_t f = i * nc + e;
             for (size_t j = 0; j < ns; j++) {
@@ -816,13 +799,13 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
         const dv_real_t fi = (dv_real_t)i / (dv_real_t)nsub;
         for (size_t e = 0; e < nc; e++) {
             const size_t f = i * nc + e;
-            if (dv_priv_elem_on_velocity((int)m->contact[e].law)) {
+            if (dv_priv_elem_on_velocity(m->elem[e].law)) {
                 /* V sees the ground velocity u' = (u[k+1] - u[k]) / T of the linear hold */
-                m->rxa[f] = cx_dot(&m->contact[e], za, n) - m->contact_dx[e] / dt_s;
-                m->rxb[f] = cx_dot(&m->contact[e], zb, n) + m->contact_dx[e] / dt_s;
+                m->rxa[f] = cx_dot(&m->elem[e], za, n) - m->elem_dx[e] / dt_s;
+                m->rxb[f] = cx_dot(&m->elem[e], zb, n) + m->elem_dx[e] / dt_s;
             } else {
-                m->rxa[f] = cx_dot(&m->contact[e], za, n) + m->contact_dx[e] * (DV_R(1.0) - fi);
-                m->rxb[f] = cx_dot(&m->contact[e], zb, n) + m->contact_dx[e] * fi;
+                m->rxa[f] = cx_dot(&m->elem[e], za, n) + m->elem_dx[e] * (DV_R(1.0) - fi);
+                m->rxb[f] = cx_dot(&m->elem[e], zb, n) + m->elem_dx[e] * fi;
             }
         }
         if (i == nsub) {
@@ -878,9 +861,9 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
                     const dv_real_t ud = (cu[1] + si * (DV_R(2.0) * cu[2] +
                                                         DV_R(3.0) * si * cu[3])) / dt_s;
                     m->rxu[f * 4u + j] =
-                        cx_dot(&m->contact[e], za, n) +
-                        m->contact_dx[e] *
-                            (dv_priv_elem_on_velocity((int)m->contact[e].law) ? ud : ui);
+                        cx_dot(&m->elem[e], za, n) +
+                        m->elem_dx[e] *
+                            (dv_priv_elem_on_velocity(m->elem[e].law) ? ud : ui);
                 }
                 if (i == nsub) {
                     break;
@@ -938,7 +921,7 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
                     z[r] = zn[r];
                 }
                 for (size_t e = 0; e < nc; e++) {
-                    m->smat[(i * nc + e) * nf + col] = cx_dot(&m->contact[e], z, n);
+                    m->smat[(i * nc + e) * nf + col] = cx_dot(&m->elem[e], z, n);
                 }
             }
             for (size_t r = 0; r < ns; r++) {
@@ -959,7 +942,7 @@ dv_status_t dv_model_keep_step_only(dv_model_t *m, dv_real_t *buf, size_t len)
     if (m == NULL || m->cy == NULL || buf == NULL) {
         return DV_EINVAL;
     }
-    if (len < DV_MODEL_STEP_LEN_HOLD((size_t)m->n_dof, (size_t)m->n_contact, (size_t)m->n_sub,
+    if (len < DV_MODEL_STEP_LEN_HOLD((size_t)m->n_dof, (size_t)m->n_elem, (size_t)m->n_sub,
                                      (size_t)m->n_out, (size_t)m->n_in)) {
         return DV_ESIZE;
     }
@@ -1006,7 +989,7 @@ dv_status_t dv_model_get_mat(const dv_model_t *m, dv_model_mat_id_t which, dv_ma
     case DV_MODEL_MAT_C: *view = (dv_mat_t){n, n, m->cmat}; break;
     case DV_MODEL_MAT_MODES: *view = (dv_mat_t){n, n, m->modes}; break;
     case DV_MODEL_MAT_A: *view = (dv_mat_t){ns, ns, m->ac}; break;
-    case DV_MODEL_MAT_B: *view = (dv_mat_t){ns, (uint16_t)(2u + m->n_contact), m->bc}; break;
+    case DV_MODEL_MAT_B: *view = (dv_mat_t){ns, (uint16_t)(2u + m->n_elem), m->bc}; break;
     case DV_MODEL_MAT_AD: *view = (dv_mat_t){ns, ns, m->ad}; break;
     case DV_MODEL_MAT_PA: *view = (dv_mat_t){ns, 1u, m->pa}; break;
     case DV_MODEL_MAT_PB: *view = (dv_mat_t){ns, 1u, m->pb}; break;

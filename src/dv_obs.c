@@ -1,6 +1,7 @@
 /* Fixed-step observer: one folded column-major product per sample, contact forces resolved
  * at the sub-nodes with a fixed number of fixed-point iterations, DARE by doubling at init. */
 #include "dynval/dv_obs.h"
+#include "dv_elem_law.h"
 #include "dv_priv.h"
 #include "dv_obskern.h"
 
@@ -11,7 +12,7 @@ static size_t obs_len(const dv_model_t *m, int which)
         return 0u;
     }
     const size_t n = m->n_dof;
-    const size_t nc = m->n_contact;
+    const size_t nc = m->n_elem;
     const size_t nsub = m->n_sub;
     const size_t no = m->n_out;
     const size_t nin = m->n_in == 4u ? 4u : 2u;
@@ -59,7 +60,7 @@ static void fold(dv_obs_t *o)
     const size_t ns = o->ns;
     const size_t no = o->no;
     const size_t nf = o->nf;
-    const size_t nc = m->n_contact;
+    const size_t nc = m->n_elem;
     const size_t nco = o->ncol_open;
     const size_t nin = o->nin;
     const bool cubic = nin == 4u;
@@ -127,7 +128,7 @@ static void fold(dv_obs_t *o)
 #if DV_SIMD_X86
     /* storage for the modal form: it may apply (see make_modal()); with a contact, only to
      * the gap law (the step that skips an open element) */
-    if (o->tq != NULL && (nc == 0u || m->contact[0].law == DV_ELEM_CONTACT)) {
+    if (o->tq != NULL && (nc == 0u || m->elem[0].law == DV_ELEM_CONTACT)) {
         o->modal = make_modal(o, o->sv);
     }
 #endif
@@ -670,7 +671,7 @@ dv_status_t dv_obs_init_ex(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_
     o->ncol_gain = (uint16_t)(ns + nin + nf + no);
     o->fast = ns == 8u && no == 4u && nin == 2u;
     o->simd = (uint8_t)dv_priv_simd_kern();
-    if (o->simd == 2u && DV_OBS_MODAL_LEN(m->n_dof, m->n_contact, m->n_sub, no, nin) == 0u) {
+    if (o->simd == 2u && DV_OBS_MODAL_LEN(m->n_dof, m->n_elem, m->n_sub, no, nin) == 0u) {
         o->simd = 1u; /* AVX-512 serves the 8 x 4 step in modal form; AVX2 kernel otherwise */
     }
     /* the modal step's vectors on 64-byte lines (its storage has the slack): a 64-byte load or
@@ -785,19 +786,10 @@ void dv_obs_reset(dv_obs_t *o)
     o->contact_hot = false;
     o->n_bad_input = 0u;
     o->n_bad_meas = 0u;
-    for (size_t e = 0; e < DV_MAX_CONTACT; e++) {
+    for (size_t e = 0; e < DV_MAX_ELEM; e++) {
         o->elem_x[e] = DV_R(0.0);
         o->elem_g[e] = DV_R(0.0);
     }
-}
-
-/* Stick-slip (Jenkins) force from the previous sub-node's (X, g) */
-static dv_real_t stickslip_g(const dv_contact_desc_t *c, dv_real_t xp, dv_real_t gp,
-                             dv_real_t x)
-{
-    const dv_real_t f = c->kb_n_per_m;
-    const dv_real_t g = gp + f / c->delta_m * (x - xp);
-    return g > f ? f : (g < -f ? -f : g);
 }
 
 /* The force-free X at every sub-node (what X would be with no contact force at this or any
@@ -851,30 +843,6 @@ static void nodes_x_free(const dv_obs_t *o, size_t ns, bool cubic, const dv_real
     }
 }
 
-/* kB / (2 delta) of a gap element (the constant of its transition), 0 for the other laws. */
-static inline dv_real_t elem_kh(const dv_contact_desc_t *c)
-{
-    return c->law == DV_ELEM_CONTACT ? dv_priv_contact_kh(c->kb_n_per_m, c->delta_m) : DV_R(0.0);
-}
-
-/* The force of element c at X = x: every law evaluation of the observer goes through here.
- * (xp, gp): the element's X and force at the previous sub-node (stick-slip history); kh from
- * elem_kh(). */
-#if defined(__GNUC__)
-__attribute__((always_inline)) /* -Os would call it, and the law's helpers, per evaluation */
-#endif
-static inline dv_real_t elem_force(const dv_contact_desc_t *c, dv_real_t kh, dv_real_t xp,
-                                   dv_real_t gp, dv_real_t x)
-{
-    if (c->law == DV_ELEM_CONTACT) {
-        return dv_priv_contact_gk((int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, kh, x);
-    }
-    if (c->law == DV_ELEM_STICKSLIP) {
-        return stickslip_g(c, xp, gp, x);
-    }
-    return dv_priv_elem_g((int)c->law, (int)c->side, c->gap_m, c->delta_m, c->kb_n_per_m, x);
-}
-
 /* forced inline where speed is measured (x86 double); firmware builds keep the flash */
 #if DV_SIMD_X86
 #define DV_OBS_INLINE __attribute__((always_inline))
@@ -894,14 +862,14 @@ static inline DV_OBS_INLINE bool all_open(const dv_obs_t *o, dv_real_t *g, const
     const dv_model_t *m = o->m;
     const size_t nsub = m->n_sub;
     for (size_t e = 0; e < nc; e++) {
-        const dv_contact_desc_t *c = &m->contact[e];
+        const dv_elem_desc_t *c = &m->elem[e];
         dv_real_t lo = DV_REAL_MAX, hi = -DV_REAL_MAX;
         for (size_t i = 0; i <= nsub; i++) {
             const dv_real_t x = xl[i * nc + e];
             lo = x < lo ? x : lo;
             hi = x > hi ? x : hi;
         }
-        if (c->law != DV_ELEM_CONTACT || !dv_priv_contact_open((int)c->side, c->gap_m, lo, hi)) {
+        if (c->law != DV_ELEM_CONTACT || !dv_priv_gap_open((int)c->side, c->gap_m, lo, hi)) {
             return false;
         }
     }
@@ -921,13 +889,13 @@ static bool contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
     const size_t nf = m->n_f;
     const bool cubic = m->n_in == 4u;
     dv_real_t *g = sv + ns + (cubic ? 4u : 2u);
-    const dv_contact_desc_t *c = &m->contact[0];
+    const dv_elem_desc_t *c = &m->elem[0];
     dv_real_t xl[DV_MAX_SUB + 1u];
     nodes_x_free(o, ns, cubic, sv, xl);
     if (all_open(o, g, xl, 1u)) {
         return true;
     }
-    const dv_real_t kh = elem_kh(c);
+    const dv_real_t kh = dv_priv_elem_kh(c);
     dv_real_t xp = o->elem_x[0];
     dv_real_t gp = o->elem_g[0];
     /* the chain from one node's force to the next is the latency of the whole step: the last
@@ -956,7 +924,7 @@ static bool contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
         dv_real_t xr = lin;
         for (uint32_t it = 0; it < iters; it++) {
             xr = lin + sl * cur;
-            cur = elem_force(c, kh, xp, gp, xr);
+            cur = dv_priv_elem_force(c, kh, xp, gp, xr);
         }
         g[f] = cur;
         g2 = gp;
@@ -974,7 +942,7 @@ static bool contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
 static bool contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
 {
     const dv_model_t *m = o->m;
-    const size_t nc = m->n_contact;
+    const size_t nc = m->n_elem;
     if (nc == 1u) {
         return contact_forces_1(o, sv, ns);
     }
@@ -982,19 +950,19 @@ static bool contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
     const size_t nsub = m->n_sub;
     const bool cubic = m->n_in == 4u;
     dv_real_t *g = sv + ns + (cubic ? 4u : 2u);
-    dv_real_t lin[DV_MAX_CONTACT];
-    dv_real_t cur[DV_MAX_CONTACT];
-    dv_real_t xp[DV_MAX_CONTACT];
-    dv_real_t gp[DV_MAX_CONTACT];
-    dv_real_t xn[DV_MAX_CONTACT];
-    dv_real_t kh[DV_MAX_CONTACT];
-    dv_real_t xl[(DV_MAX_SUB + 1u) * DV_MAX_CONTACT];
+    dv_real_t lin[DV_MAX_ELEM];
+    dv_real_t cur[DV_MAX_ELEM];
+    dv_real_t xp[DV_MAX_ELEM];
+    dv_real_t gp[DV_MAX_ELEM];
+    dv_real_t xn[DV_MAX_ELEM];
+    dv_real_t kh[DV_MAX_ELEM];
+    dv_real_t xl[(DV_MAX_SUB + 1u) * DV_MAX_ELEM];
     nodes_x_free(o, ns, cubic, sv, xl);
     if (all_open(o, g, xl, nc)) {
         return true;
     }
     for (size_t e = 0; e < nc; e++) {
-        kh[e] = elem_kh(&m->contact[e]);
+        kh[e] = dv_priv_elem_kh(&m->elem[e]);
         xp[e] = o->elem_x[e];
         gp[e] = o->elem_g[e];
         xn[e] = xp[e];
@@ -1024,7 +992,7 @@ static bool contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
                     xr += srow[e2] * cur[e2];
                 }
                 xn[e] = xr;
-                g[f0 + e] = elem_force(&m->contact[e], kh[e], xp[e], gp[e], xr);
+                g[f0 + e] = dv_priv_elem_force(&m->elem[e], kh[e], xp[e], gp[e], xr);
             }
             for (size_t e = 0; e < nc; e++) {
                 cur[e] = g[f0 + e];
@@ -1268,7 +1236,7 @@ static void step_first(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool correc
     const dv_model_t *m = o->m;
     const size_t ns = o->ns;
     const size_t no = o->no;
-    const size_t nc = m->n_contact;
+    const size_t nc = m->n_elem;
     dv_real_t *sv = o->sv;
     dv_real_t *yhat = o->z + ns;
     sv[ns] = u;
@@ -1295,19 +1263,19 @@ static void step_first_cubic(dv_obs_t *o, const dv_real_t *y, bool correct)
     const dv_model_t *m = o->m;
     const size_t ns = o->ns;
     const size_t no = o->no;
-    const size_t nc = m->n_contact;
+    const size_t nc = m->n_elem;
     dv_real_t *sv = o->sv;
     const dv_real_t *win = sv + ns;
     dv_real_t *yhat = o->z + ns;
-    dv_real_t g[DV_MAX_CONTACT];
+    dv_real_t g[DV_MAX_ELEM];
     for (size_t e = 0; e < nc; e++) {
-        const dv_contact_desc_t *c = &m->contact[e];
+        const dv_elem_desc_t *c = &m->elem[e];
         /* velocity laws: at rest, the ground's velocity at t0 is left out (first sample) */
-        const bool vel = dv_priv_elem_on_velocity((int)c->law);
+        const bool vel = dv_priv_elem_on_velocity(c->law);
         const size_t off = vel ? (size_t)m->n_dof : 0u;
         const dv_real_t xa = c->dof_a == (uint16_t)DV_GROUND ? DV_R(0.0) : sv[off + c->dof_a];
-        const dv_real_t x = sv[off + c->dof_b] - xa + (vel ? DV_R(0.0) : m->contact_dx[e] * win[2]);
-        g[e] = elem_force(c, elem_kh(c), o->elem_x[e], o->elem_g[e], x); /* history: at rest */
+        const dv_real_t x = sv[off + c->dof_b] - xa + (vel ? DV_R(0.0) : m->elem_dx[e] * win[2]);
+        g[e] = dv_priv_elem_force(c, dv_priv_elem_kh(c), o->elem_x[e], o->elem_g[e], x); /* history: at rest */
     }
     for (size_t q = 0; q < no; q++) {
         dv_real_t s = DV_R(0.0);
@@ -1543,9 +1511,9 @@ static dv_status_t flush(dv_obs_t *o, bool use_gain)
     for (size_t i = 0; i < keep; i++) {
         save[i] = sv[i];
     }
-    dv_real_t sx[DV_MAX_CONTACT];
-    dv_real_t sg[DV_MAX_CONTACT];
-    for (size_t e = 0; e < DV_MAX_CONTACT; e++) {
+    dv_real_t sx[DV_MAX_ELEM];
+    dv_real_t sg[DV_MAX_ELEM];
+    for (size_t e = 0; e < DV_MAX_ELEM; e++) {
         sx[e] = o->elem_x[e];
         sg[e] = o->elem_g[e];
     }
@@ -1563,7 +1531,7 @@ static dv_status_t flush(dv_obs_t *o, bool use_gain)
     for (size_t i = 0; i < keep; i++) {
         sv[i] = save[i];
     }
-    for (size_t e = 0; e < DV_MAX_CONTACT; e++) {
+    for (size_t e = 0; e < DV_MAX_ELEM; e++) {
         o->elem_x[e] = sx[e];
         o->elem_g[e] = sg[e];
     }

@@ -229,16 +229,17 @@ nodes_x(const double *rb, const double *q, __m512d up, __m512d uk)
     return _mm512_add_pd(a, b);
 }
 
-/* Lanes of x where the gap element is not open: X > gap on the positive side, X < -gap on the
- * negative one, or NaN. (The padding rows give X = 0: open at any gap >= 0.) */
+/* Lanes of x where the gap element is not open: the vector form of dv_priv_gap_open()
+ * (dv_elem_law.h), X > gap on the positive side, X < -gap on the negative one, or NaN.
+ * (The padding rows give X = 0: open at any gap >= 0.) */
 DV_TGT_AVX512 static inline __attribute__((always_inline)) __mmask8
-shut_lanes(const dv_contact_desc_t *c, __m512d x)
+shut_lanes(const dv_elem_desc_t *c, __m512d x)
 {
     __mmask8 shut = 0;
-    if (((int)c->side & 1) != 0) {
+    if (((int)c->side & (int)DV_SIDE_POS) != 0) {
         shut |= _mm512_cmp_pd_mask(x, _mm512_set1_pd(c->gap_m), _CMP_NLE_UQ);
     }
-    if (((int)c->side & 2) != 0) {
+    if (((int)c->side & (int)DV_SIDE_NEG) != 0) {
         shut |= _mm512_cmp_pd_mask(x, _mm512_set1_pd(-c->gap_m), _CMP_NGE_UQ);
     }
     return shut;
@@ -252,7 +253,7 @@ shut_lanes(const dv_contact_desc_t *c, __m512d x)
 DV_TGT_AVX512 static inline __attribute__((always_inline)) bool
 modal_open(const dv_obs_t *o, const double *q, __m512d up, __m512d uk)
 {
-    const dv_contact_desc_t *c = &o->m->contact[0];
+    const dv_elem_desc_t *c = &o->m->elem[0];
     const size_t nf = o->nf;
     const double *rx = o->rxq;
     __m512d x = nodes_x(rx, q, up, uk);

@@ -117,61 +117,6 @@ dv_real_t dv_priv_ar_dot(const dv_real_t *a, const dv_real_t *b, size_t n, uint3
 void dv_priv_ar_fir(const dv_real_t *c, size_t p, dv_real_t c0, const dv_real_t *x, size_t n,
                     dv_real_t *e, uint32_t kern);
 
-/* Small helpers forced inline (the contact law sits in the observer's per-step loop; -Os would
- * otherwise call them). */
-#if defined(__GNUC__)
-#define DV_PRIV_INLINE static inline __attribute__((always_inline))
-#else
-#define DV_PRIV_INLINE static inline
-#endif
-
-/* Contact force law of dv_model.h, one side: s = X - gap; 0, then kB s^2 / (2 delta) on the
- * transition, then kB (s - delta / 2). Continuous force and tangent stiffness. Written without
- * branches, kh = kB / (2 delta) given (callers evaluating the law many times compute it once):
- * kh min(max(s, 0), delta)^2 + kB max(s - delta, 0). */
-DV_PRIV_INLINE dv_real_t dv_priv_contact_g1k(dv_real_t s, dv_real_t delta, dv_real_t kb,
-                                            dv_real_t kh)
-{
-    const dv_real_t pos = s > DV_R(0.0) ? s : DV_R(0.0);
-    const dv_real_t sc = pos < delta ? pos : delta;
-    const dv_real_t over = s - delta > DV_R(0.0) ? s - delta : DV_R(0.0);
-    return kh * sc * sc + kb * over;
-}
-
-/* Both sides: side bit 1 = positive (X > gap), bit 2 = negative (X < -gap, mirrored). */
-DV_PRIV_INLINE dv_real_t dv_priv_contact_gk(int side, dv_real_t gap, dv_real_t delta,
-                                           dv_real_t kb, dv_real_t kh, dv_real_t x)
-{
-    dv_real_t g = DV_R(0.0);
-    if ((side & 1) != 0) {
-        g += dv_priv_contact_g1k(x - gap, delta, kb, kh);
-    }
-    if ((side & 2) != 0) {
-        g -= dv_priv_contact_g1k(-x - gap, delta, kb, kh);
-    }
-    return g;
-}
-
-/* dv_priv_contact_gk() is exactly 0 for every X in [xmin, xmax] (no side engaged). */
-static inline bool dv_priv_contact_open(int side, dv_real_t gap, dv_real_t xmin, dv_real_t xmax)
-{
-    return ((side & 1) == 0 || xmax <= gap) && ((side & 2) == 0 || xmin >= -gap);
-}
-
-/* kh of dv_priv_contact_g1k(): kB / (2 delta); 0 for delta = 0 (plain bilinear: no transition,
- * and no 0 x Inf). */
-static inline dv_real_t dv_priv_contact_kh(dv_real_t kb, dv_real_t delta)
-{
-    return delta > DV_R(0.0) ? kb / (DV_R(2.0) * delta) : DV_R(0.0);
-}
-
-/* dv_priv_contact_gk() with kh formed here. */
-static inline dv_real_t dv_priv_contact_g(int side, dv_real_t gap, dv_real_t delta,
-                                          dv_real_t kb, dv_real_t x)
-{
-    return dv_priv_contact_gk(side, gap, delta, kb, dv_priv_contact_kh(kb, delta), x);
-}
-
 /* Two Burg stages in one pass on aligned errors f[0..len), b[0..len) (f[j] = f(i),
  * b[j] = b(i-1)); one stage with k is b[j] -= k f[j]; f[j] = f[j+1] - k b[j+1] (old values),
  * j < len-1; first k1, then k2. Leaves len-2 values and returns the sums the next two stages need, over
@@ -184,33 +129,6 @@ void dv_priv_ar_burg2(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_r
 /* dv_priv_all_finite with the AR kernels' vector units (block residual pre-check). */
 bool dv_priv_ar_all_finite(const dv_real_t *x, size_t n, uint32_t kern);
 
-
-/* Element laws of dv_model.h (dv_elem_law_t values): 1 friction and 3 v|v| act on the
- * relative velocity, 0 contact and 2 cubic on the relative displacement. */
-static inline bool dv_priv_elem_on_velocity(int law)
-{
-    return law == 1 || law == 3;
-}
-
-static inline dv_real_t dv_priv_elem_g(int law, int side, dv_real_t gap, dv_real_t delta,
-                                       dv_real_t kb, dv_real_t x)
-{
-    switch (law) {
-    case 1:
-        return kb * x / DV_SQRT(x * x + delta * delta);
-    case 2:
-        return kb * x * x * x;
-    case 3:
-        return kb * x * DV_FABS(x);
-    case 4: {
-        /* stick-slip without history: the virgin curve clip((F / z) X, -F, F) */
-        const dv_real_t g = kb / delta * x;
-        return g > kb ? kb : (g < -kb ? -kb : g);
-    }
-    default:
-        return dv_priv_contact_g(side, gap, delta, kb, x);
-    }
-}
 
 /* sum_{i<n} x_i with independent partial sums (AR record mean). */
 dv_real_t dv_priv_ar_sum(const dv_real_t *x, size_t n, uint32_t kern);

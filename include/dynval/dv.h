@@ -19,6 +19,7 @@
 #include "dynval/dv_arstats.h"
 
 #include "dynval/dv_mat.h"
+#include "dynval/dv_elem.h"
 #include "dynval/dv_model.h"
 #include "dynval/dv_obs.h"
 

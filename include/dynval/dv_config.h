@@ -35,9 +35,9 @@ DV_STATIC_ASSERT(DV_AR_MAX_ORDER >= 64u && DV_AR_MAX_ORDER <= 1024u, ar_max_orde
 #define DV_MAX_DOF 8u
 #endif
 
-/* Contact (gap) elements per model: the report has one bumper; 4 covers both sides of two. */
-#ifndef DV_MAX_CONTACT
-#define DV_MAX_CONTACT 4u
+/* Nonlinear elements per model (dv_elem.h): the report has one bumper; 4 covers both sides of two. */
+#ifndef DV_MAX_ELEM
+#define DV_MAX_ELEM 4u
 #endif
 
 /* Output channels per model: accelerations of every DOF plus velocities/forces of 8 more. */
@@ -52,7 +52,7 @@ DV_STATIC_ASSERT(DV_AR_MAX_ORDER >= 64u && DV_AR_MAX_ORDER <= 1024u, ar_max_orde
 #endif
 
 DV_STATIC_ASSERT(DV_MAX_DOF >= 8u && DV_MAX_DOF <= 32u, max_dof_in_range);
-DV_STATIC_ASSERT(DV_MAX_CONTACT >= 1u && DV_MAX_CONTACT <= 16u, max_contact_in_range);
+DV_STATIC_ASSERT(DV_MAX_ELEM >= 1u && DV_MAX_ELEM <= 16u, max_elem_in_range);
 DV_STATIC_ASSERT(DV_MAX_OUT >= 4u && DV_MAX_OUT <= 64u, max_out_in_range);
 DV_STATIC_ASSERT(DV_MAX_SUB >= 1u && DV_MAX_SUB <= 64u, max_sub_in_range);
 

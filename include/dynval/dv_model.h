@@ -1,9 +1,9 @@
 /**
  * @file dv_model.h
- * @brief n-DOF lumped-mass chain with contact elements (report Section 4.1, eq. 1-7, 45-46),
+ * @brief n-DOF lumped-mass chain with nonlinear elements (report Section 4.1, eq. 1-7, 45-46),
  *        built at init: eigen-solution, damping, and an exact first-order-hold discretisation.
  *
- * Equations of motion (eq. 1-2): M x'' + C x' + K x = f(t) + f_contact(x).
+ * Equations of motion (eq. 1-2): M x'' + C x' + K x = f(t) + f_elem(x, x').
  * - Chain: DOF i (0-based) has mass m_i > 0. Story spring k_0 ties DOF 0 to the ground
  *   (k_0 = 0 leaves the chain free, with a rigid-body mode), k_i (i >= 1) ties DOF i-1 to
  *   DOF i. K is the tridiagonal matrix of eq. 2.
@@ -21,42 +21,21 @@
  *   absolute and the ground elements see x - x_g: f = K 1 u + C 1 u'. u' is the slope of the
  *   first-order-hold interpolant (exact for it); outputs that depend on u' use the slope of the
  *   interval that ends at the sample.
- * - Contact element c between DOF a and DOF b (or the ground, a = DV_GROUND), relative
- *   displacement X = x_b - x_a (x_ground = 0, or u for DV_INPUT_GROUND_DISP, and 0 in the
- *   relative coordinates of DV_INPUT_GROUND_ACC). Force law, side DV_CONTACT_POS, s = X - gap:
- *       g(X) = 0                               s <= 0
- *       g(X) = kB s^2 / (2 delta)              0 < s < delta
- *       g(X) = kB (s - delta / 2)              s >= delta
- *   i.e. the tangent stiffness dg/dX rises linearly from 0 to kB over [gap, gap + delta]
- *   (eq. 6-7, on top of the story spring, kc = k_b): force and stiffness are continuous.
- *   delta = 0 gives a plain bilinear spring g = kB max(s, 0). DV_CONTACT_NEG mirrors it:
- *   g(X) = -g_pos(-X) (engages when X < -gap); DV_CONTACT_BOTH is the sum of the two.
- *   The element pushes DOF a by +g and DOF b by -g (it resists X growing past the gap).
- * - Other element laws (dv_contact_desc_t.law; same sub-node machinery, same sign: +g on DOF
- *   a, -g on DOF b; V = v_b - v_a, the relative velocity, with v_ground = u' for
- *   DV_INPUT_GROUND_DISP and 0 in the relative coordinates of DV_INPUT_GROUND_ACC):
- *     DV_ELEM_FRICTION: regularised Coulomb friction, g(V) = F V / sqrt(V^2 + eps^2) with
- *       F = kb_n_per_m (the slip force, N) and eps = delta_m (m/s, > 0): g -> F sign(V) for
- *       |V| >> eps. init refuses F / eps * h * (1/m_a + 1/m_b) > DV_MODEL_CONTACT_MAX_WH
- *       (h the sub-step), which keeps the fixed-point iterations contracting.
- *     DV_ELEM_CUBIC: cubic spring, g(X) = k3 X^3 with k3 = kb_n_per_m (N/m^3). Its tangent
- *       stiffness grows with X^2 and is not checked at init: keep 3 k3 X^2 of the same order
- *       as the contact limit (the fixed-point iterations lose accuracy beyond).
- *     DV_ELEM_VV: quadratic (velocity-squared) damper, g(V) = c2 V |V| with c2 = kb_n_per_m
- *       (N s^2/m^2).
- *     DV_ELEM_STICKSLIP: elasto-plastic (Jenkins) friction on X, a stick spring of stiffness
- *       F / z in series with a slider that slips at F = kb_n_per_m (N), z = delta_m (the slip
- *       displacement, m, > 0): at each sub-node g = clip(g_prev + (F / z) (X - X_prev), -F, F)
- *       with (X_prev, g_prev) of the previous sub-node (the observer keeps them across steps,
- *       dv_obs_t; zero after reset). Rate-independent hysteresis: stick, then slip at +-F.
- *       Its stick stiffness F / z counts in the contact-stiffness check at init.
- *       dv_contact_force() gives its virgin curve clip((F / z) X, -F, F).
- *   gap_m and side are ignored by these laws (side must still be a valid value).
+ * - Elements (dv_elem.h: the laws and their parameters) between DOF a and DOF b or the ground
+ *   (a = DV_GROUND), on X = x_b - x_a or V = v_b - v_a, with x_ground = 0 (or u, and
+ *   v_ground = u', for DV_INPUT_GROUND_DISP; 0 in the relative coordinates of
+ *   DV_INPUT_GROUND_ACC). Each pushes DOF a by +g and DOF b by -g. init checks the sub-step
+ *   against the stiffest element: with every element at its dv_elem_stiffness_bound() (contact
+ *   kB, stick-slip F / z) the highest natural frequency w must keep w h <= DV_MODEL_ELEM_MAX_WH
+ *   (h = T / n_sub); a friction element's slope F / eps must keep F / eps h (1/m_a + 1/m_b)
+ *   under the same bound (the fixed-point iterations contract). The cubic law's tangent
+ *   stiffness 3 k3 X^2 is not checked: keep it of the order of that limit. The observer keeps
+ *   the stick-slip law's history (dv_obs_t; zero after reset).
  *
  * Discretisation, sample period T: the linear part is exact for an input linear between
  * samples (first-order hold), from the exponential of the augmented matrix
  * [[A T, B T, 0], [0, 0, I], [0, 0, 0]] = [[Ad, G0, G1], ...], giving
- * x[k+1] = Ad x[k] + (G0 - G1) u[k] + G1 u[k+1]. The contact forces are extra inputs with
+ * x[k+1] = Ad x[k] + (G0 - G1) u[k] + G1 u[k+1]. The element forces are extra inputs with
  * the same hold on n_sub sub-intervals of h = T / n_sub: at each sub-node the relative
  * displacements are predicted exactly from the state, the input and the earlier sub-node
  * forces, and the implicit force at the node is resolved by fixed-point iterations, a fixed
@@ -64,8 +43,8 @@
  * from the first node's force), one at each later node, started from the line through the two
  * previous nodes' forces (that start is already O(h^2) close, the order of the scheme; a second
  * iteration changes the error by a few per cent). The end state adds all sub-node forces through
- * precomputed columns. Error: O((w_c h)^2) in the contact force's effect, w_c the contact
- * stiffened frequency; init refuses w_max h > DV_MODEL_CONTACT_MAX_WH.
+ * precomputed columns. Error: O((w_c h)^2) in the element force's effect, w_c the element
+ * stiffened frequency; init refuses w_max h > DV_MODEL_ELEM_MAX_WH.
  *
  * Input hold (desc.input_hold). DV_HOLD_FOH (default): u linear between samples, as above.
  * DV_HOLD_CUBIC: over the interval [t_k, t_k+1] u is the cubic (Lagrange) interpolant through
@@ -79,7 +58,7 @@
  * (top row: Ad and G_p = int_0^1 e^{A T (1 - s)} B T s^p / p! ds, p = 0..3), giving
  * x[k+1] = Ad x[k] + sum_{j=0..3} Pu_j u[k-1+j]. u' (ground displacement) is the derivative
  * of the cubic; outputs that need u' at t_k use the interval that ends at t_k. The sub-step
- * contact scheme sees the same cubic input. The input is 0 before the first sample (the
+ * element scheme sees the same cubic input. The input is 0 before the first sample (the
  * structure at rest). The price is one sample of latency in the observer (dv_obs.h): the
  * state at t_k and the prediction of y[k] need u[k+1].
  */
@@ -87,6 +66,7 @@
 #define DV_MODEL_H
 
 #include "dynval/dv_types.h"
+#include "dynval/dv_elem.h"
 #include "dynval/dv_config.h"
 #include "dynval/dv_mat.h"
 
@@ -94,15 +74,15 @@
 extern "C" {
 #endif
 
-/** DOF index that stands for the ground in a contact element. */
+/** DOF index that stands for the ground in an element. */
 enum { DV_GROUND = 65535 };
 
-/** Fixed-point iterations that resolve the implicit contact force at a step's second sub-node
+/** Fixed-point iterations that resolve the implicit element force at a step's second sub-node
  *  (the later nodes take one, from an extrapolated start: see the file comment). */
 #define DV_MODEL_FP_ITERS 2u
 
-/** Largest (highest natural frequency with all contacts engaged, rad/s) x (dt / n_sub). */
-#define DV_MODEL_CONTACT_MAX_WH 1.0
+/** Largest (highest natural frequency with every element at its stiffness bound, rad/s) x (dt / n_sub). */
+#define DV_MODEL_ELEM_MAX_WH 1.0
 
 /** How the damping matrix is given. */
 typedef enum {
@@ -124,47 +104,20 @@ typedef enum {
     DV_HOLD_CUBIC = 1 /**< cubic through 4 samples (Lagrange); one sample of latency */
 } dv_input_hold_t;
 
-/** Which side(s) of a contact engage. */
-typedef enum {
-    DV_CONTACT_POS = 1, /**< engages for X > gap */
-    DV_CONTACT_NEG = 2, /**< engages for X < -gap */
-    DV_CONTACT_BOTH = 3 /**< both */
-} dv_contact_side_t;
-
 /** Output channel kinds. */
 typedef enum {
     DV_OUT_ACC = 0,       /**< acceleration of DOF index, m/s^2 (absolute) */
     DV_OUT_VEL = 1,       /**< velocity of DOF index, m/s */
     DV_OUT_DISP = 2,      /**< displacement of DOF index, m */
-    DV_OUT_ELEM_FORCE = 3, /**< story spring index: k_i (x_i - x_{i-1}), N (x_{-1} = ground) */
-    DV_OUT_CONTACT_FORCE = 4, /**< contact element index: g(X), N */
+    DV_OUT_SPRING_FORCE = 3, /**< story spring index: k_i (x_i - x_{i-1}), N (x_{-1} = ground) */
+    DV_OUT_ELEM_FORCE = 4, /**< element index: its force g, N (dv_elem.h) */
     DV_OUT_REACTION = 5   /**< force of the structure on the ground, N (index ignored) */
 } dv_out_kind_t;
-
-/** Force law of an element (see the file comment). */
-typedef enum {
-    DV_ELEM_CONTACT = 0,  /**< gap/bumper on X (the default, zero-initialised) */
-    DV_ELEM_FRICTION = 1, /**< regularised Coulomb friction on V */
-    DV_ELEM_CUBIC = 2,    /**< cubic spring on X */
-    DV_ELEM_VV = 3,       /**< velocity-squared damper on V */
-    DV_ELEM_STICKSLIP = 4 /**< elasto-plastic (Jenkins) friction on X, with history */
-} dv_elem_law_t;
-
-/** @brief One contact element (or, by law, a friction, cubic or v|v| element). */
-typedef struct {
-    uint16_t dof_a;          /**< first DOF (0-based), or DV_GROUND */
-    uint16_t dof_b;          /**< second DOF (0-based), X = x_b - x_a; not the ground */
-    dv_contact_side_t side;  /**< DV_CONTACT_POS / NEG / BOTH */
-    dv_real_t gap_m;         /**< gap, m, >= 0 */
-    dv_real_t delta_m;       /**< transition width, m, >= 0 (0: plain bilinear) */
-    dv_real_t kb_n_per_m;    /**< contact stiffness kB, N/m, >= 0 (other laws: see above) */
-    dv_elem_law_t law;       /**< DV_ELEM_CONTACT (0) unless set */
-} dv_contact_desc_t;
 
 /** @brief One output channel. */
 typedef struct {
     dv_out_kind_t kind; /**< what */
-    uint16_t index;     /**< DOF, story or contact index (0-based) */
+    uint16_t index;     /**< DOF, story or element index (0-based) */
 } dv_out_desc_t;
 
 /** @brief Declarative model description (plain data; fill it, then dv_model_init()). */
@@ -179,9 +132,9 @@ typedef struct {
     dv_real_t c_n_s_per_m[DV_MAX_DOF * DV_MAX_DOF]; /**< DV_DAMP_MATRIX: n x n, stride n */
     dv_input_kind_t input_kind;              /**< what u is */
     uint16_t input_dof;                      /**< DV_INPUT_FORCE: the loaded DOF */
-    uint16_t n_contact;                      /**< 0..DV_MAX_CONTACT */
-    dv_contact_desc_t contact[DV_MAX_CONTACT]; /**< contact elements */
-    uint16_t n_sub;                          /**< contact sub-steps per sample, 1..DV_MAX_SUB */
+    uint16_t n_elem;                      /**< 0..DV_MAX_ELEM */
+    dv_elem_desc_t elem[DV_MAX_ELEM];   /**< nonlinear elements */
+    uint16_t n_sub;                          /**< element sub-steps per sample, 1..DV_MAX_SUB */
     uint16_t n_out;                          /**< 1..DV_MAX_OUT */
     dv_out_desc_t out[DV_MAX_OUT];           /**< output channels, in order */
     dv_input_hold_t input_hold;              /**< DV_HOLD_FOH (default) or DV_HOLD_CUBIC */
@@ -189,7 +142,7 @@ typedef struct {
 
 /** State size (2 n: displacements then velocities). */
 #define DV_MODEL_NS(n) (2u * (n))
-/** Sub-node contact forces per step. */
+/** Sub-node element forces per step. */
 #define DV_MODEL_NF(nc, nsub) (((nsub) + 1u) * (nc))
 /** Size of the augmented matrix exponentiated at init (first-order hold). */
 #define DV_MODEL_NAUG(n, nc) (2u * (n) + 4u + 2u * (nc))
@@ -201,7 +154,7 @@ typedef struct {
 /**
  * Persistent storage of a model with @p nin input samples per step (DV_MODEL_HOLD_NIN()), in
  * elements: the matrices the model keeps for its lifetime (K, C, modes, A, Ad, B, the hold,
- * output and contact sub-node matrices), for @p n DOF, @p nc contacts, @p nsub sub-steps and
+ * output and element sub-node matrices), for @p n DOF, @p nc elements, @p nsub sub-steps and
  * @p nout outputs (nc = 0 needs no sub-step storage). Only this much of the caller's storage
  * is used after dv_model_init()/dv_model_init_ex() returns.
  */
@@ -212,7 +165,7 @@ typedef struct {
      ((nin) - 2u) * (DV_MODEL_NS(n) + (nout) + DV_MODEL_NF(nc, nsub)) * 2u)
 
 /**
- * The part of the persistent storage a bound observer's steps still read (output, contact
+ * The part of the persistent storage a bound observer's steps still read (output, element
  * sub-node and, cubic, hold matrices), in elements: the first this many elements of the
  * model's storage. After dv_model_keep_step_only() only these stay in use.
  */
@@ -252,9 +205,9 @@ typedef struct {
     uint16_t n_dof;       /**< n */
     uint16_t n_state;     /**< 2 n */
     uint16_t n_out;       /**< outputs */
-    uint16_t n_contact;   /**< contacts */
-    uint16_t n_sub;       /**< sub-steps (1 without contacts) */
-    uint16_t n_f;         /**< sub-node contact forces per step, (n_sub + 1) n_contact */
+    uint16_t n_elem;   /**< elements */
+    uint16_t n_sub;       /**< sub-steps (1 without elements) */
+    uint16_t n_f;         /**< sub-node element forces per step, (n_sub + 1) n_elem */
     dv_input_kind_t input_kind; /**< input */
     dv_input_hold_t input_hold; /**< input hold */
     uint16_t n_in;        /**< input samples per step: 2 (FOH) or 4 (cubic) */
@@ -264,22 +217,22 @@ typedef struct {
     dv_real_t zeta[DV_MAX_DOF];     /**< modal damping ratios of C (diagonal of Phi^T C Phi) */
     dv_real_t rayleigh_a;           /**< Rayleigh a, 1/s (DV_DAMP_RAYLEIGH, else 0) */
     dv_real_t rayleigh_b;           /**< Rayleigh b, s (DV_DAMP_RAYLEIGH, else 0) */
-    dv_real_t w_contact_max;        /**< highest natural frequency, contacts engaged, rad/s */
-    dv_contact_desc_t contact[DV_MAX_CONTACT]; /**< copies of the contact elements */
-    dv_real_t contact_dx[DV_MAX_CONTACT];      /**< dX/du, or dV/du' for the velocity laws
+    dv_real_t w_elem_max;        /**< highest natural frequency, elements at their stiffness bound, rad/s */
+    dv_elem_desc_t elem[DV_MAX_ELEM];   /**< copies of the elements */
+    dv_real_t elem_dx[DV_MAX_ELEM];      /**< dX/du, or dV/du' for the velocity laws
                                                     (-1: ground end follows u) */
     dv_real_t *kmat;  /**< K, n x n */
     dv_real_t *cmat;  /**< C, n x n */
     dv_real_t *modes; /**< Phi, n x n, mass-normalised, column k = mode k */
     dv_real_t *ac;    /**< continuous A, 2n x 2n */
-    dv_real_t *bc;    /**< continuous B, 2n x (2 + nc): u, u' (ground disp), contact forces */
+    dv_real_t *bc;    /**< continuous B, 2n x (2 + nc): u, u' (ground disp), element forces */
     dv_real_t *ad;    /**< Ad = exp(A T), 2n x 2n */
     dv_real_t *pa;    /**< 2n: coefficient of u[k] in x[k+1] */
     dv_real_t *pb;    /**< 2n: coefficient of u[k+1] in x[k+1] */
     dv_real_t *cy;    /**< nout x 2n output matrix */
     dv_real_t *d0;    /**< nout: coefficient of u[k] in y[k] */
     dv_real_t *d1;    /**< nout: coefficient of u[k-1] in y[k] */
-    dv_real_t *ey;    /**< nout x nc: coefficient of the contact forces in y[k] */
+    dv_real_t *ey;    /**< nout x nc: coefficient of the element forces in y[k] */
     dv_real_t *rx;    /**< nf x 2n, column-major (followed by rxa, rxb: the columns of
                            [x[k], u[k], u[k+1]]): sub-node X from x[k] */
     dv_real_t *rxa;   /**< nf: sub-node X from u[k] */
@@ -309,7 +262,7 @@ typedef enum {
 } dv_model_mat_id_t;
 
 /**
- * @brief Fill @p d with a neutral description: zeros, n_sub = 8, DV_CONTACT_POS sides,
+ * @brief Fill @p d with a neutral description: zeros, n_sub = 8, DV_SIDE_POS sides,
  *        DV_DAMP_MODAL, DV_INPUT_FORCE at DOF 0, DV_HOLD_FOH. The caller then sets n_dof,
  *        masses, ...
  * @retval DV_OK     done
@@ -348,16 +301,16 @@ size_t dv_model_scratch_len(const dv_model_desc_t *d);
  *                   scratch, free for the caller again when this returns
  * @param[in]  len   elements in @p buf
  * @retval DV_OK        built
- * @retval DV_EINVAL    NULL pointer; n_dof, n_out, n_contact or n_sub out of range; an
+ * @retval DV_EINVAL    NULL pointer; n_dof, n_out, n_elem or n_sub out of range; an
  *                      unknown input_hold; a mass
  *                      <= 0; a negative stiffness, gap, delta or kB; a negative modal ratio;
- *                      a non-finite number; a bad DOF/story/contact index; Rayleigh modes
+ *                      a non-finite number; a bad DOF/story/element index; Rayleigh modes
  *                      equal or with zero frequency; an asymmetric damping matrix; dt_s <= 0
  * @retval DV_ESIZE     @p len too small
  * @retval DV_EUNSTABLE the damping matrix is not positive semi-definite (e.g. a negative
  *                      Rayleigh b that makes a mode's ratio negative), the discretisation is
- *                      not finite, or the sample period is too long for the contact stiffness
- *                      (w_contact_max * dt_s / n_sub > DV_MODEL_CONTACT_MAX_WH)
+ *                      not finite, or the sample period is too long for the element stiffness
+ *                      (w_elem_max * dt_s / n_sub > DV_MODEL_ELEM_MAX_WH)
  */
 dv_status_t dv_model_init(dv_model_t *m, const dv_model_desc_t *d, dv_real_t dt_s,
                           dv_real_t *buf, size_t len);
@@ -430,13 +383,6 @@ dv_status_t dv_model_get_mat(const dv_model_t *m, dv_model_mat_id_t which, dv_ma
 dv_status_t dv_model_rayleigh(dv_real_t w_r, dv_real_t zeta_r, dv_real_t w_s, dv_real_t zeta_s,
                               dv_real_t *a, dv_real_t *b);
 
-/**
- * @brief The element's force law documented above (N), for tests and bindings: g(X) for
- *        the contact and cubic laws, g(V) for friction and the v|v| damper (@p x_m is then
- *        the relative velocity V, m/s).
- * @return g; 0 when @p c is NULL
- */
-dv_real_t dv_contact_force(const dv_contact_desc_t *c, dv_real_t x_m);
 
 #ifdef __cplusplus
 }

@@ -142,8 +142,8 @@ typedef struct {
     const dv_real_t *rxq; /**< modal with a contact: its sub-node X rows over [q, u window],
                                in blocks of 8 nodes (10 columns of 8 each); NULL: the model's
                                rows over x */
-    dv_real_t elem_x[DV_MAX_CONTACT]; /**< stick-slip elements: X at the last sub-node, m */
-    dv_real_t elem_g[DV_MAX_CONTACT]; /**< stick-slip elements: force at the last sub-node, N */
+    dv_real_t elem_x[DV_MAX_ELEM]; /**< stick-slip elements: X at the last sub-node, m */
+    dv_real_t elem_g[DV_MAX_ELEM]; /**< stick-slip elements: force at the last sub-node, N */
 } dv_obs_t;
 
 /**

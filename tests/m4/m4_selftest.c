@@ -409,13 +409,13 @@ static void lanl_desc(dv_model_desc_t *d)
 
 static void add_bumper(dv_model_desc_t *d, float delta, uint16_t nsub)
 {
-    d->n_contact = 1;
-    d->contact[0].dof_a = 2;
-    d->contact[0].dof_b = 3;
-    d->contact[0].side = DV_CONTACT_POS;
-    d->contact[0].gap_m = 1.0e-4f;
-    d->contact[0].delta_m = delta;
-    d->contact[0].kb_n_per_m = 1.925e6f;
+    d->n_elem = 1;
+    d->elem[0].dof_a = 2;
+    d->elem[0].dof_b = 3;
+    d->elem[0].side = DV_SIDE_POS;
+    d->elem[0].gap_m = 1.0e-4f;
+    d->elem[0].delta_m = delta;
+    d->elem[0].kb_n_per_m = 1.925e6f;
     d->n_sub = nsub;
 }
 
@@ -483,7 +483,7 @@ static void observer(void)
     lanl_desc(&d);
     add_bumper(&d, 5.0e-4f, 8);
     d.n_out = 5;
-    d.out[4].kind = DV_OUT_CONTACT_FORCE;
+    d.out[4].kind = DV_OUT_ELEM_FORCE;
     d.out[4].index = 0;
     check_eq("model.bump05.init", dv_model_init(&m, &d, dt, mbuf, MBUF), DV_OK);
     check_eq("obs.bump05.init", dv_obs_init(&o, &m, NULL, obuf, MBUF), DV_OK);

@@ -58,7 +58,7 @@ static dv_real_t noise(void) /* xorshift32, uniform in [-1, 1) */
 
 /* engaged: the bumper at zero gap on both sides, so every step solves the contact chain (the
  * worst case a firmware budgets for; the instruction-count image only) */
-static void lanl_desc(dv_model_desc_t *d, uint16_t n_contact, int engaged)
+static void lanl_desc(dv_model_desc_t *d, uint16_t n_elem, int engaged)
 {
     static const float m[4] = {6.54f, 6.66f, 6.86f, 6.80f};
     static const float k[4] = {10.0f, 399790.0f, 399790.0f, 399790.0f};
@@ -76,17 +76,17 @@ static void lanl_desc(dv_model_desc_t *d, uint16_t n_contact, int engaged)
     d->input_kind = DV_INPUT_FORCE;
     d->input_dof = 0;
     d->n_out = N_OUT;
-    d->n_contact = n_contact;
-    d->contact[0].dof_a = 2;
-    d->contact[0].dof_b = 3;
-    d->contact[0].side = engaged ? DV_CONTACT_BOTH : DV_CONTACT_POS;
-    d->contact[0].gap_m = engaged ? 0.0f : 1.0e-4f;
-    d->contact[0].delta_m = 5.0e-4f;
-    d->contact[0].kb_n_per_m = 1.925e6f;
+    d->n_elem = n_elem;
+    d->elem[0].dof_a = 2;
+    d->elem[0].dof_b = 3;
+    d->elem[0].side = engaged ? DV_SIDE_BOTH : DV_SIDE_POS;
+    d->elem[0].gap_m = engaged ? 0.0f : 1.0e-4f;
+    d->elem[0].delta_m = 5.0e-4f;
+    d->elem[0].kb_n_per_m = 1.925e6f;
     d->n_sub = N_SUB;
 }
 
-static int init_all(uint16_t n_contact, int engaged)
+static int init_all(uint16_t n_elem, int engaged)
 {
     const dv_chan_config_t cfg = {WIN, SEG_LEN, N_SEG, DV_R(1.0) / DV_R(640.0), true};
     dv_ar_model_t am;
@@ -102,7 +102,7 @@ static int init_all(uint16_t n_contact, int engaged)
         ok &= dv_ar_resid_init(&ram_ar[c], &am, ram_ar_buf[c], DV_AR_RESID_BUF_LEN(AR_P)) == DV_OK;
     }
     dv_model_desc_t d;
-    lanl_desc(&d, n_contact, engaged);
+    lanl_desc(&d, n_elem, engaged);
     dv_obs_noise_t nz;
     for (unsigned i = 0; i < DV_MAX_DOF; i++) {
         nz.q_force_n2[i] = DV_R(1.0);

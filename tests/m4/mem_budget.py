@@ -29,7 +29,7 @@ ROOT = Path(__file__).resolve().parents[2]
 B = ROOT / "build" / "m4"
 QEMU = ["qemu-system-arm", "-M", "mps2-an386", "-cpu", "cortex-m4", "-nographic", "-monitor",
         "none", "-serial", "none", "-semihosting-config", "enable=on,target=native"]
-CFG = dict(n_ch=5, win=64, seg_len=64, n_seg=64, ar_p=32, n_dof=4, n_contact=1, n_sub=8, n_out=4)
+CFG = dict(n_ch=5, win=64, seg_len=64, n_seg=64, ar_p=32, n_dof=4, n_elem=1, n_sub=8, n_out=4)
 RUNTIME = "toolchain runtime (newlib libm/libc, libgcc)"
 APP = "application + start-up (not the library)"
 

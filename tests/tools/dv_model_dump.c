@@ -53,14 +53,14 @@ int main(int argc, char **argv)
     }
     d.n_sub = 1;
     if (argc == 6) {
-        d.n_contact = 1;
+        d.n_elem = 1;
         d.n_sub = 8;
-        d.contact[0].dof_a = 2;
-        d.contact[0].dof_b = 3;
-        d.contact[0].side = DV_CONTACT_POS;
-        d.contact[0].gap_m = (dv_real_t)atof(argv[3]);
-        d.contact[0].delta_m = (dv_real_t)atof(argv[4]);
-        d.contact[0].kb_n_per_m = (dv_real_t)atof(argv[5]);
+        d.elem[0].dof_a = 2;
+        d.elem[0].dof_b = 3;
+        d.elem[0].side = DV_SIDE_POS;
+        d.elem[0].gap_m = (dv_real_t)atof(argv[3]);
+        d.elem[0].delta_m = (dv_real_t)atof(argv[4]);
+        d.elem[0].kb_n_per_m = (dv_real_t)atof(argv[5]);
     }
     dv_model_t m;
     dv_obs_t o;

@@ -41,13 +41,13 @@ static inline void mt_lanl_desc(dv_model_desc_t *d)
 /* The report's bumper between floors 2 and 3 (DOF 2 and 3, X = x3 - x2), positive side. */
 static inline void mt_add_bumper(dv_model_desc_t *d, double delta, uint16_t nsub)
 {
-    d->n_contact = 1;
-    d->contact[0].dof_a = 2;
-    d->contact[0].dof_b = 3;
-    d->contact[0].side = DV_CONTACT_POS;
-    d->contact[0].gap_m = (dv_real_t)MT_GAP;
-    d->contact[0].delta_m = (dv_real_t)delta;
-    d->contact[0].kb_n_per_m = (dv_real_t)MT_KB;
+    d->n_elem = 1;
+    d->elem[0].dof_a = 2;
+    d->elem[0].dof_b = 3;
+    d->elem[0].side = DV_SIDE_POS;
+    d->elem[0].gap_m = (dv_real_t)MT_GAP;
+    d->elem[0].delta_m = (dv_real_t)delta;
+    d->elem[0].kb_n_per_m = (dv_real_t)MT_KB;
     d->n_sub = nsub;
 }
 

@@ -46,7 +46,7 @@ static double law(int lw, double p_delta, double p_kb, double a)
 
 /* Stick-slip history: the force of each stick-slip element is a state gz[e] of the
  * reference, dg/dt = (F / z) V while it sticks (|g| < F, or V drives it back), else 0. */
-static double gz[DV_MAX_CONTACT], gdot[DV_MAX_CONTACT], gzt[DV_MAX_CONTACT];
+static double gz[DV_MAX_ELEM], gdot[DV_MAX_ELEM], gzt[DV_MAX_ELEM];
 
 /* acc = M^-1 (f e_in - C v - K x - elements), elements pushing a by +g and b by -g */
 static void rhs(const dv_model_t *m, const double *kk, const double *cc, double f,
@@ -54,8 +54,8 @@ static void rhs(const dv_model_t *m, const double *kk, const double *cc, double 
 {
     const size_t n = m->n_dof;
     double fe[DV_MAX_DOF] = {0};
-    for (size_t e = 0; e < m->n_contact; e++) {
-        const dv_contact_desc_t *c = &m->contact[e];
+    for (size_t e = 0; e < m->n_elem; e++) {
+        const dv_elem_desc_t *c = &m->elem[e];
         const int vel = c->law == DV_ELEM_FRICTION || c->law == DV_ELEM_VV;
         const double *z = vel ? v : x;
         const double za = c->dof_a == (uint16_t)DV_GROUND ? 0.0 : z[c->dof_a];
@@ -101,8 +101,8 @@ static void reference(const dv_model_t *m)
     double k3x[DV_MAX_DOF], k3v[DV_MAX_DOF], k4x[DV_MAX_DOF], k4v[DV_MAX_DOF];
     double xt[DV_MAX_DOF], vt[DV_MAX_DOF], a[DV_MAX_DOF];
     const double h = 1.0 / (MT_FS * FINE);
-    double g1[DV_MAX_CONTACT], g2[DV_MAX_CONTACT], g3[DV_MAX_CONTACT], g4[DV_MAX_CONTACT];
-    const size_t nc = m->n_contact;
+    double g1[DV_MAX_ELEM], g2[DV_MAX_ELEM], g3[DV_MAX_ELEM], g4[DV_MAX_ELEM];
+    const size_t nc = m->n_elem;
     for (size_t e = 0; e < nc; e++) gz[e] = gzt[e] = 0.0;
     rhs(m, kk, cc, (double)eu[0], x, v, a);
     for (size_t i = 0; i < n; i++) eref[i] = a[i];
@@ -146,7 +146,7 @@ static void reference(const dv_model_t *m)
             for (size_t e = 0; e < nc; e++) {
                 g4[e] = gdot[e];
                 gz[e] += h / 6 * (g1[e] + 2 * g2[e] + 2 * g3[e] + g4[e]);
-                const double fs = (double)m->contact[e].kb_n_per_m;
+                const double fs = (double)m->elem[e].kb_n_per_m;
                 gz[e] = gz[e] > fs ? fs : (gz[e] < -fs ? -fs : gz[e]);
             }
             for (size_t i = 0; i < n; i++) {
@@ -171,14 +171,14 @@ static void run_case(int lw, uint16_t a, uint16_t b, double delta, double kb, do
     dv_obs_t o;
     make_force(amp);
     mt_lanl_desc(&d);
-    d.n_contact = 1;
+    d.n_elem = 1;
     d.n_sub = 8;
-    d.contact[0].dof_a = a;
-    d.contact[0].dof_b = b;
-    d.contact[0].side = DV_CONTACT_POS;
-    d.contact[0].delta_m = (dv_real_t)delta;
-    d.contact[0].kb_n_per_m = (dv_real_t)kb;
-    d.contact[0].law = (dv_elem_law_t)lw;
+    d.elem[0].dof_a = a;
+    d.elem[0].dof_b = b;
+    d.elem[0].side = DV_SIDE_POS;
+    d.elem[0].delta_m = (dv_real_t)delta;
+    d.elem[0].kb_n_per_m = (dv_real_t)kb;
+    d.elem[0].law = (dv_elem_law_t)lw;
     assert_true(dv_model_buf_len(&d) <= NBE);
     assert_int_equal(dv_model_init(&m, &d, (dv_real_t)(1.0 / MT_FS), ebuf, NBE), DV_OK);
     assert_true(dv_obs_buf_len(&m) <= NBE);
@@ -196,7 +196,7 @@ static void run_case(int lw, uint16_t a, uint16_t b, double delta, double kb, do
         worst = fmax(worst, sqrt(se / sr));
     }
     *err = worst;
-    d.n_contact = 0; /* the same model without the element */
+    d.n_elem = 0; /* the same model without the element */
     assert_int_equal(dv_model_init(&m, &d, (dv_real_t)(1.0 / MT_FS), ebuf, NBE), DV_OK);
     assert_int_equal(dv_obs_init(&o, &m, NULL, eobuf, NBE), DV_OK);
     assert_int_equal(dv_obs_simulate(&o, eu, NE, ey), DV_OK);
@@ -258,19 +258,19 @@ static void test_elem_stickslip_matches_reference(void **state)
 static void test_elem_laws_closed_form(void **state)
 {
     (void)state;
-    dv_contact_desc_t c = {0, 1, DV_CONTACT_POS, (dv_real_t)0.0, (dv_real_t)1e-3,
+    dv_elem_desc_t c = {0, 1, DV_SIDE_POS, (dv_real_t)0.0, (dv_real_t)1e-3,
                            (dv_real_t)2.0, DV_ELEM_FRICTION};
     const double tol = sizeof(dv_real_t) == 8 ? 1e-12 : 1e-5;
-    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)1e-3), 2.0 / sqrt(2.0), tol, 0));
-    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)-1.0), -2.0 / sqrt(1 + 1e-6), tol,
+    assert_true(dv_test_close(dv_elem_force(&c, (dv_real_t)1e-3), 2.0 / sqrt(2.0), tol, 0));
+    assert_true(dv_test_close(dv_elem_force(&c, (dv_real_t)-1.0), -2.0 / sqrt(1 + 1e-6), tol,
                               0));
-    assert_true(dv_contact_force(&c, (dv_real_t)0.0) == 0);
+    assert_true(dv_elem_force(&c, (dv_real_t)0.0) == 0);
     c.law = DV_ELEM_CUBIC;
     c.kb_n_per_m = (dv_real_t)3e12;
-    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)-1e-4), -3e12 * 1e-12, tol, 0));
+    assert_true(dv_test_close(dv_elem_force(&c, (dv_real_t)-1e-4), -3e12 * 1e-12, tol, 0));
     c.law = DV_ELEM_VV;
     c.kb_n_per_m = (dv_real_t)50.0;
-    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)-0.2), -50.0 * 0.04, tol, 0));
+    assert_true(dv_test_close(dv_elem_force(&c, (dv_real_t)-0.2), -50.0 * 0.04, tol, 0));
 }
 
 static void test_elem_init_refusals(void **state)
@@ -279,19 +279,95 @@ static void test_elem_init_refusals(void **state)
     dv_model_desc_t d;
     dv_model_t m;
     mt_lanl_desc(&d);
-    d.n_contact = 1;
-    d.contact[0].dof_a = (uint16_t)DV_GROUND;
-    d.contact[0].dof_b = 0;
-    d.contact[0].side = DV_CONTACT_POS;
-    d.contact[0].law = DV_ELEM_FRICTION;
-    d.contact[0].kb_n_per_m = (dv_real_t)1.0;
-    d.contact[0].delta_m = (dv_real_t)0.0; /* eps must be > 0 */
+    d.n_elem = 1;
+    d.elem[0].dof_a = (uint16_t)DV_GROUND;
+    d.elem[0].dof_b = 0;
+    d.elem[0].side = DV_SIDE_POS;
+    d.elem[0].law = DV_ELEM_FRICTION;
+    d.elem[0].kb_n_per_m = (dv_real_t)1.0;
+    d.elem[0].delta_m = (dv_real_t)0.0; /* eps must be > 0 */
     assert_int_equal(dv_model_init(&m, &d, (dv_real_t)(1.0 / MT_FS), ebuf, NBE), DV_EINVAL);
-    d.contact[0].delta_m = (dv_real_t)1e-9; /* F / eps far too steep for the sub-step */
+    d.elem[0].delta_m = (dv_real_t)1e-9; /* F / eps far too steep for the sub-step */
     assert_int_equal(dv_model_init(&m, &d, (dv_real_t)(1.0 / MT_FS), ebuf, NBE), DV_EUNSTABLE);
-    d.contact[0].delta_m = (dv_real_t)1e-3;
-    d.contact[0].law = (dv_elem_law_t)7;
+    d.elem[0].delta_m = (dv_real_t)1e-3;
+    d.elem[0].law = (dv_elem_law_t)7;
     assert_int_equal(dv_model_init(&m, &d, (dv_real_t)(1.0 / MT_FS), ebuf, NBE), DV_EINVAL);
+}
+
+/* dv_elem_force_block: each law against its closed form over a record of X and V (the law
+ * reads one of them: V for friction and v|v|), the stick-slip loop of a displacement cycle
+ * (stick at F / z, slip at +-F, unload with the stick slope), NaN samples and refusals. */
+static void test_elem_force_block(void **state)
+{
+    (void)state;
+    enum { NB = 64 };
+    dv_real_t x[NB], v[NB], f[NB];
+    for (int i = 0; i < NB; i++) {
+        x[i] = (dv_real_t)(2e-4 * sin(0.3 * i));
+        v[i] = (dv_real_t)(0.05 * cos(0.3 * i));
+    }
+    const double tol = sizeof(dv_real_t) == 4 ? 1e-5 : 1e-12;
+    dv_elem_desc_t c = {0, 1, DV_SIDE_BOTH, (dv_real_t)5e-5, (dv_real_t)1e-4, (dv_real_t)2e6,
+                        DV_ELEM_CONTACT};
+    assert_int_equal(dv_elem_force_block(&c, x, NULL, NB, NULL, f), DV_OK);
+    for (int i = 0; i < NB; i++) { /* both sides: g_pos(X) - g_pos(-X), s = |X| - gap */
+        const double xa = fabs((double)x[i]), s = xa - 5e-5;
+        const double g1 = s <= 0 ? 0 : (s < 1e-4 ? 2e6 * s * s / 2e-4 : 2e6 * (s - 5e-5));
+        assert_true(dv_test_close(f[i], x[i] < 0 ? -g1 : g1, tol, 1e-9));
+    }
+    const struct { dv_elem_law_t law; double delta, kb; } laws[] = {
+        {DV_ELEM_FRICTION, 1e-3, 2.0}, {DV_ELEM_CUBIC, 0.0, 3e12}, {DV_ELEM_VV, 0.0, 50.0}};
+    for (size_t k = 0; k < sizeof laws / sizeof laws[0]; k++) {
+        c.law = laws[k].law;
+        c.delta_m = (dv_real_t)laws[k].delta;
+        c.kb_n_per_m = (dv_real_t)laws[k].kb;
+        const bool vel = dv_elem_on_velocity(c.law);
+        assert_int_equal(dv_elem_force_block(&c, vel ? NULL : x, vel ? v : NULL, NB, NULL, f),
+                         DV_OK);
+        for (int i = 0; i < NB; i++) {
+            const double a = vel ? (double)v[i] : (double)x[i];
+            assert_true(dv_test_close(f[i], law((int)c.law, laws[k].delta, laws[k].kb, a), tol,
+                                      1e-12));
+        }
+    }
+    /* stick-slip, F = 2 N, z = 1e-4 m: X 0 -> 3e-4 -> 0 -> -3e-4 in steps of 5e-5 */
+    c.law = DV_ELEM_STICKSLIP;
+    c.kb_n_per_m = 2;
+    c.delta_m = (dv_real_t)1e-4;
+    const double path[] = {5e-5, 1e-4, 1.5e-4, 3e-4, 2.5e-4, 1e-4, 0.0, -3e-4};
+    const double want[] = {1.0, 2.0, 2.0, 2.0, 1.0, -2.0, -2.0, -2.0};
+    dv_real_t xs[8], hist[2] = {0, 0};
+    for (int i = 0; i < 8; i++) {
+        xs[i] = (dv_real_t)path[i];
+    }
+    assert_int_equal(dv_elem_force_block(&c, xs, NULL, 8, hist, f), DV_OK);
+    for (int i = 0; i < 8; i++) {
+        assert_true(dv_test_close(f[i], want[i], tol, 1e-9));
+    }
+    assert_true(hist[0] == xs[7] && hist[1] == f[7]);
+    /* the history carries over: moving back by 5e-5 unloads by 1 N */
+    xs[0] = (dv_real_t)-2.5e-4;
+    assert_int_equal(dv_elem_force_block(&c, xs, NULL, 1, hist, f), DV_OK);
+    assert_true(dv_test_close(f[0], -1.0, tol, 1e-9));
+    /* a NaN sample: force 0, DV_ENUMERIC, the history not advanced by it */
+    hist[0] = hist[1] = 0;
+    xs[0] = (dv_real_t)5e-5;
+    xs[1] = (dv_real_t)NAN;
+    xs[2] = (dv_real_t)1e-4;
+    assert_int_equal(dv_elem_force_block(&c, xs, NULL, 3, hist, f), DV_ENUMERIC);
+    assert_true(f[1] == 0 && dv_test_close(f[2], 2.0, tol, 1e-9));
+    /* refusals */
+    assert_int_equal(dv_elem_force_block(&c, xs, NULL, 3, NULL, f), DV_EINVAL);
+    assert_int_equal(dv_elem_force_block(NULL, xs, NULL, 3, hist, f), DV_EINVAL);
+    assert_int_equal(dv_elem_force_block(&c, NULL, v, 3, hist, f), DV_EINVAL);
+    c.delta_m = 0;
+    assert_int_equal(dv_elem_force_block(&c, xs, NULL, 3, hist, f), DV_EINVAL);
+    assert_int_equal(dv_elem_check(&c), DV_EINVAL);
+    c.delta_m = (dv_real_t)1e-4;
+    c.law = (dv_elem_law_t)DV_ELEM_N_LAWS;
+    assert_int_equal(dv_elem_check(&c), DV_EINVAL);
+    c.law = DV_ELEM_STICKSLIP;
+    assert_true(dv_test_close(dv_elem_stiffness_bound(&c), 2e4, tol, 0));
 }
 
 int main(void)
@@ -303,6 +379,7 @@ int main(void)
         cmocka_unit_test(test_elem_stickslip_matches_reference),
         cmocka_unit_test(test_elem_laws_closed_form),
         cmocka_unit_test(test_elem_init_refusals),
+        cmocka_unit_test(test_elem_force_block),
     };
     return cmocka_run_group_tests_name("dv_elem", tests, NULL, NULL);
 }

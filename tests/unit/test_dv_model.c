@@ -147,7 +147,7 @@ static void bumper_case(double delta, const char *file, uint16_t nsub)
     mt_lanl_desc(&d);
     mt_add_bumper(&d, delta, nsub);
     d.n_out = 5;
-    d.out[4].kind = DV_OUT_CONTACT_FORCE;
+    d.out[4].kind = DV_OUT_ELEM_FORCE;
     d.out[4].index = 0;
     double e = run_case(&d, file, 5, 4);
     double ef = mt_nrmse(yout + 4, 5, ref + 4, 5, NS, 1, 0);
@@ -215,7 +215,7 @@ static void test_model_cubic_hold_matches_reference(void **state)
     double el = run_file(&d, "model_force.csv", "model_cubic_lin_acc.csv", NS, 4, 4, 0);
     mt_add_bumper(&d, 5e-4, 8);
     d.n_out = 5;
-    d.out[4].kind = DV_OUT_CONTACT_FORCE;
+    d.out[4].kind = DV_OUT_ELEM_FORCE;
     d.out[4].index = 0;
     double eb = run_file(&d, "model_force.csv", "model_cubic_bump05_acc.csv", NS, 5, 4, 0);
     double ef = mt_nrmse(yout + 4, 5, ref + 4, 5, NS, 1, 0);
@@ -268,35 +268,35 @@ static void test_model_bumper_delta01_matches_event_reference(void **state)
 static void test_model_contact_law_closed_form(void **state)
 {
     (void)state;
-    dv_contact_desc_t c = {0, 1, DV_CONTACT_POS, (dv_real_t)1e-4, (dv_real_t)5e-4,
+    dv_elem_desc_t c = {0, 1, DV_SIDE_POS, (dv_real_t)1e-4, (dv_real_t)5e-4,
                            (dv_real_t)2e6, DV_ELEM_CONTACT};
     const double gap = 1e-4, del = 5e-4, kb = 2e6;
-    assert_true(dv_contact_force(&c, (dv_real_t)0.5e-4) == 0);
-    assert_true(dv_contact_force(&c, (dv_real_t)-1.0) == 0);
+    assert_true(dv_elem_force(&c, (dv_real_t)0.5e-4) == 0);
+    assert_true(dv_elem_force(&c, (dv_real_t)-1.0) == 0);
     double x = 3e-4; // on the ramp: kB s^2 / (2 delta)
-    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)x),
+    assert_true(dv_test_close(dv_elem_force(&c, (dv_real_t)x),
                               kb * (x - gap) * (x - gap) / (2 * del), 1e-5, 0));
     x = 1e-3; // beyond: kB (s - delta/2)
-    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)x), kb * (x - gap - del / 2), 1e-5,
+    assert_true(dv_test_close(dv_elem_force(&c, (dv_real_t)x), kb * (x - gap - del / 2), 1e-5,
                               0));
     // continuity of force at gap + delta, and of stiffness (finite differences)
     double xe = gap + del, h = 1e-7;
-    double gm = dv_contact_force(&c, (dv_real_t)(xe - h)), gp = dv_contact_force(&c, (dv_real_t)(xe + h));
+    double gm = dv_elem_force(&c, (dv_real_t)(xe - h)), gp = dv_elem_force(&c, (dv_real_t)(xe + h));
     assert_true(fabs(gp - gm) <= kb * 2.5 * h);
-    double km = (gm - dv_contact_force(&c, (dv_real_t)(xe - 2 * h))) / h;
-    double kp = (dv_contact_force(&c, (dv_real_t)(xe + 2 * h)) - gp) / h;
+    double km = (gm - dv_elem_force(&c, (dv_real_t)(xe - 2 * h))) / h;
+    double kp = (dv_elem_force(&c, (dv_real_t)(xe + 2 * h)) - gp) / h;
     assert_true(fabs(kp - km) <= (sizeof(dv_real_t) == 8 ? 1e-2 : 0.3) * kb);
     // negative side mirrors, both = sum, delta = 0 is bilinear
-    c.side = DV_CONTACT_NEG;
-    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)-1e-3), -kb * (1e-3 - gap - del / 2),
+    c.side = DV_SIDE_NEG;
+    assert_true(dv_test_close(dv_elem_force(&c, (dv_real_t)-1e-3), -kb * (1e-3 - gap - del / 2),
                               1e-5, 0));
-    assert_true(dv_contact_force(&c, (dv_real_t)1e-3) == 0);
-    c.side = DV_CONTACT_BOTH;
-    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)1e-3), kb * (1e-3 - gap - del / 2),
+    assert_true(dv_elem_force(&c, (dv_real_t)1e-3) == 0);
+    c.side = DV_SIDE_BOTH;
+    assert_true(dv_test_close(dv_elem_force(&c, (dv_real_t)1e-3), kb * (1e-3 - gap - del / 2),
                               1e-5, 0));
-    c.side = DV_CONTACT_POS;
+    c.side = DV_SIDE_POS;
     c.delta_m = 0;
-    assert_true(dv_test_close(dv_contact_force(&c, (dv_real_t)3e-4), kb * 2e-4, 1e-5, 0));
+    assert_true(dv_test_close(dv_elem_force(&c, (dv_real_t)3e-4), kb * 2e-4, 1e-5, 0));
 }
 
 // Force input: the reaction on the ground equals F - sum m_i a_i at every sample.
@@ -435,12 +435,12 @@ static void test_model_bad_input(void **state)
     d.rayleigh_mode[0] = d.rayleigh_mode[1] = 2;
     assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_EINVAL);
     d = g; mt_add_bumper(&d, 1e-4, 8);
-    d.contact[0].gap_m = -1;
+    d.elem[0].gap_m = -1;
     assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_EINVAL);
-    d.contact[0].gap_m = (dv_real_t)1e-4;
-    d.contact[0].dof_a = 3; // same DOF twice
+    d.elem[0].gap_m = (dv_real_t)1e-4;
+    d.elem[0].dof_a = 3; // same DOF twice
     assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_EINVAL);
-    d.contact[0].dof_a = 2;
+    d.elem[0].dof_a = 2;
     d.n_sub = 0;
     assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_EINVAL);
     // the sample period is too long for the contact stiffness without sub-steps
@@ -449,7 +449,7 @@ static void test_model_bad_input(void **state)
     d.n_sub = 8;
     assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_OK);
     fprintf(stderr, "contact-engaged w_max %.1f rad/s: w h = %.3f at n_sub 8\n",
-            (double)m.w_contact_max, (double)m.w_contact_max / MT_FS / 8);
+            (double)m.w_elem_max, (double)m.w_elem_max / MT_FS / 8);
 }
 
 int main(void)

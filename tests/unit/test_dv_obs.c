@@ -142,7 +142,7 @@ static void test_obs_vector_kernels_match_portable(void **state)
         for (int gain = 0; gain < 2; gain++) {
             mt_lanl_desc(&d);
             if (contact) mt_add_bumper(&d, 1e-4, 8);
-            if (contact == 2) d.contact[0].side = DV_CONTACT_BOTH;
+            if (contact == 2) d.elem[0].side = DV_SIDE_BOTH;
             stiffer_truth(&d, NS);
             assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
             assert_int_equal(dv_obs_init(&o, &m, gain ? &nz : NULL, obuf, NBUF), DV_OK);
@@ -184,13 +184,13 @@ static void test_obs_two_half_bumpers_equal_one(void **state)
     assert_int_equal(dv_model_init(&m1, &d, DT, mbuf, NBUF), DV_OK);
     assert_int_equal(dv_obs_init(&o1, &m1, NULL, obuf, NBUF), DV_OK);
     assert_int_equal(dv_obs_simulate(&o1, force_r, NS, ytrue), DV_OK);
-    d.contact[0].kb_n_per_m *= (dv_real_t)0.5;
-    d.contact[1] = d.contact[0];
-    d.contact[2] = d.contact[0];
-    d.contact[2].dof_a = 0;
-    d.contact[2].dof_b = 1;
-    d.contact[2].gap_m = 1;
-    d.n_contact = 3;
+    d.elem[0].kb_n_per_m *= (dv_real_t)0.5;
+    d.elem[1] = d.elem[0];
+    d.elem[2] = d.elem[0];
+    d.elem[2].dof_a = 0;
+    d.elem[2].dof_b = 1;
+    d.elem[2].gap_m = 1;
+    d.n_elem = 3;
     assert_int_equal(dv_model_init(&m2, &d, DT, mbuf2, NBUF), DV_OK);
     assert_int_equal(dv_obs_init(&o2, &m2, NULL, obuf2, NBUF), DV_OK);
     assert_int_equal(dv_obs_simulate(&o2, force_r, NS, ypred), DV_OK);

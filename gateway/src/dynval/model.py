@@ -55,7 +55,7 @@ INTERPOLATIONS = ("bandlimited", "foh", "cubic")
 _PROBE = ffi.new("dv_model_desc_t *")
 MAX_DOF = len(_PROBE.mass_kg)
 MAX_OUT = len(_PROBE.out)
-MAX_CONTACT = len(_PROBE.contact)
+MAX_ELEM = len(_PROBE.elem)
 MAX_SUB = 16  # DV_MAX_SUB default; the core has the last word (DV_EINVAL)
 del _PROBE
 
@@ -64,9 +64,9 @@ _DAMP_C = {"modal": lib.DV_DAMP_MODAL, "rayleigh": lib.DV_DAMP_RAYLEIGH,
 _INPUT_C = {"force": lib.DV_INPUT_FORCE, "ground_acc": lib.DV_INPUT_GROUND_ACC,
             "ground_disp": lib.DV_INPUT_GROUND_DISP}
 _OUT_C = {"acc": lib.DV_OUT_ACC, "vel": lib.DV_OUT_VEL, "disp": lib.DV_OUT_DISP,
-          "story_force": lib.DV_OUT_ELEM_FORCE, "contact_force": lib.DV_OUT_CONTACT_FORCE,
+          "story_force": lib.DV_OUT_SPRING_FORCE, "contact_force": lib.DV_OUT_ELEM_FORCE,
           "reaction": lib.DV_OUT_REACTION}
-_SIDE_C = {"pos": lib.DV_CONTACT_POS, "neg": lib.DV_CONTACT_NEG, "both": lib.DV_CONTACT_BOTH}
+_SIDE_C = {"pos": lib.DV_SIDE_POS, "neg": lib.DV_SIDE_NEG, "both": lib.DV_SIDE_BOTH}
 _STATUS_HINT = {
     "DV_EUNSTABLE": "the damping matrix is not positive semi-definite, the discretisation is "
                     "not finite, or the sample period is too long for the contact stiffness "
@@ -183,7 +183,7 @@ class StickSlip:
 
 Element = Contact | Friction | CubicSpring | VVDamper | StickSlip
 
-# per element type: (parameter attribute, field of dv_contact_desc_t)
+# per element type: (parameter attribute, field of dv_elem_desc_t)
 _ELEM_PARAMS: dict[str, tuple[tuple[str, str], ...]] = {
     "contact": (("gap_m", "gap_m"), ("delta_m", "delta_m"), ("kb_n_per_m", "kb_n_per_m")),
     "friction": (("force_n", "kb_n_per_m"), ("v_eps_m_per_s", "delta_m")),
@@ -635,8 +635,8 @@ def validate(m: Model, ctx: _Ctx | None = None) -> None:
         if not (math.isfinite(o.gain) and o.gain != 0):
             raise c.err(f"{w}.gain", f"sensor gain must be finite and non-zero (negative: "
                         f"the sensor's sign convention is reversed), got {o.gain!r}")
-    if len(m.elements) > MAX_CONTACT:
-        raise c.err("elements", f"{len(m.elements)} elements; this core supports {MAX_CONTACT}")
+    if len(m.elements) > MAX_ELEM:
+        raise c.err("elements", f"{len(m.elements)} elements; this core supports {MAX_ELEM}")
     for i, e in enumerate(m.elements):
         w = f"elements[{i}]"
         if not isinstance(e, Contact):
@@ -763,12 +763,12 @@ def _fill_desc(desc: Any, m: Model) -> None:
     desc.input_kind = _INPUT_C[m.input.kind]
     desc.input_dof = max(m.input.dof - 1, 0)
     cs = list(m.elements)
-    desc.n_contact = len(cs)
+    desc.n_elem = len(cs)
     for i, e in enumerate(cs):
-        c = desc.contact[i]
+        c = desc.elem[i]
         c.dof_a = lib.DV_GROUND if e.dof_a == 0 else e.dof_a - 1
         c.dof_b = e.dof_b - 1
-        c.side = _SIDE_C[e.side] if isinstance(e, Contact) else lib.DV_CONTACT_POS
+        c.side = _SIDE_C[e.side] if isinstance(e, Contact) else lib.DV_SIDE_POS
         c.gap_m = 0.0
         c.delta_m = 0.0
         c.law = getattr(lib, _ELEM_LAW[e.type])
@@ -996,7 +996,7 @@ def _desc_setters(m: Model) -> dict[str, Callable[[Any, float], None]]:
 
     def con(i: int, attr: str) -> Callable[[Any, float], None]:
         def f(d: Any, v: float) -> None:
-            setattr(d.contact[i], attr, v)
+            setattr(d.elem[i], attr, v)
         return f
 
     for i in range(m.n_dof):
