@@ -73,7 +73,7 @@ def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str
         if p is None:
             return None
         for c in chans:
-            r = (t.y[c] - p[c]) / (scales[c] * math.sqrt(t.y[c].size))
+            r = t.counted(t.y[c] - p[c]) / (scales[c] * math.sqrt(t.n))
             if not np.all(np.isfinite(r)):
                 return None
             parts.append(r)
@@ -152,7 +152,7 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
     ps_all = [*ps, *xs]
     z0 = np.array([min(max(_to_z(p, v), 0.02), 0.98)
                    for p, v in zip(ps_all, init_all, strict=True)])
-    n_res = sum(t.y[c].size for t in tests for c in chans)
+    n_res = sum(t.n for t in tests for c in chans)
     npar = len(ps)
 
     def values(z: np.ndarray) -> list[float]:

@@ -3,10 +3,12 @@ acceptance -> repeat. Returns a DiscoverResult (report.py turns it into JSON and
 
 Decisions (all documented in gateway/docs/discover-schema.md):
 
-* split: tests sorted by input RMS are dealt alternately to the fitting and held-out sets (so
-  both hold every excitation level); with one test, it is both (and the report says so);
-* significance: the residual is significant while the pooled RMSE of some channel on the
-  fitting tests exceeds SIGNIFICANCE_RATIO x its noise floor (residual.noise_floor, or the
+* split: with MIN_TESTS_FOR_TEST_SPLIT tests or more, tests sorted by input RMS are dealt
+  alternately to the fitting and held-out sets (so both hold every excitation level); with
+  fewer, every test is cut into time blocks, alternately fitting and held out (residual.
+  segment_split), so every test and level is in both sets;
+* significance: the residual is significant while the pooled RMSE of some channel over all
+  tests (or blocks) exceeds SIGNIFICANCE_RATIO x its noise floor (residual.noise_floor, or the
   stated noise);
 * acceptance of a fitted candidate: the held-out normalised SSE drops by at least ``min_gain``
   (default 10 %), no held-out test gets worse by more than 2 %, and the BIC over the fitting
@@ -86,11 +88,23 @@ class DiscoverResult:
     calibration: dict[str, Any] = field(default_factory=dict)
 
 
-def split(tests: Sequence[rs.TestData]) -> tuple[list[rs.TestData], list[rs.TestData]]:
-    if len(tests) == 1:
-        return [tests[0]], [tests[0]]
+# fewer tests than this: cross-validate over time segments of every test instead of
+# splitting the tests (two tests split by level leave one level out of the fit entirely)
+MIN_TESTS_FOR_TEST_SPLIT = 4
+
+
+def split(tests: Sequence[rs.TestData]) -> tuple[list[rs.TestData], list[rs.TestData], str]:
+    """Fitting and held-out sets, and a sentence saying how they were made."""
+    if len(tests) < MIN_TESTS_FOR_TEST_SPLIT:
+        fit, held = rs.segment_split(tests)
+        return fit, held, (
+            f"{len(tests)} test(s): cross-validation over time — each record is cut into "
+            f"{rs.SEGMENT_BLOCKS} blocks, the even ones fit and the odd ones are held out "
+            "(simulated over the whole record, so every block starts from its true state)")
     order = sorted(tests, key=lambda t: (float(np.std(t.u)), t.name))
-    return order[0::2], order[1::2]
+    return order[0::2], order[1::2], (
+        f"{len(tests)} tests sorted by input RMS, dealt alternately to the fitting and "
+        "held-out sets")
 
 
 def _bic(nsse: float, n: float, p: int) -> float:
@@ -167,20 +181,22 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
         raise ConfigError(f"the tests have different sample rates: {sorted(fs_set)}")
     notes: list[str] = []
     scales = rs.channel_scales(tests, chans)
-    fit_t, held_t = split(tests)
-    if len(tests) == 1:
-        notes.append("only one test: it is used for fitting and as 'held-out' — no "
-                     "cross-validation is possible, acceptance is by BIC and gain alone")
+    fit_t, held_t, how = split(tests)
+    notes.append(how)
     fit_names = [t.name for t in fit_t]
     held_names = [t.name for t in held_t]
+    all_names = fit_names + held_names
+    evals = [*fit_t, *held_t]  # every test once, or every test's two views
     band = tr.input_band(tests)
     modes_hz = [float(f) for f in mdl.natural_frequencies(m)]
 
-    before, res_before = rs.error_table(m, tests, chans, scales)
+    before, res_before = rs.error_table(m, evals, chans, scales)
     if not res_before:
         raise ConfigError("the declared model cannot be simulated for these tests")
     fs = tests[0].fs_hz
-    noise = dict(o.noise) if o.noise else rs.noise_floor(res_before, fs, chans)
+    # the noise floor from each record once (a test's two views share one residual record)
+    once = {str(id(t.u)): res_before[t.name] for t in evals if t.name in res_before}
+    noise = dict(o.noise) if o.noise else rs.noise_floor(once, fs, chans)
     cur = m
     cur_table = before
     calibration: dict[str, Any] = {}
@@ -189,7 +205,7 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
         # error is not taken for a missing effect
         cal = ft.fit(m, fx.NONE.candidates(m)[0], [], fit_t, chans, scales, o.max_nfev,
                      o.uncertain)
-        tab, _ = rs.error_table(cal.model, tests, chans, scales)
+        tab, _ = rs.error_table(cal.model, evals, chans, scales)
         pm = m.parameters()
         calibration = {
             "parameters": {n.split(" ")[0]: {"declared": pm[n.split(" ")[0]], "value": v,
@@ -214,7 +230,9 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
     timing: dict[str, float] = {}
     for rnd in range(1, o.max_effects + 2):
         t0 = time.perf_counter()
-        ratio = _ratio(cur_table, fit_names, chans, noise)
+        # significance over every test (or block): a residual only the held-out tests show
+        # is still a residual the model leaves
+        ratio = _ratio(cur_table, all_names, chans, noise)
         _, res_cur = rs.error_table(cur, fit_t, chans, scales)
         evs = [tr.events(r[c], fs) for r in res_cur.values() for c in chans]
         sps = [tr.spectrum(r[c], fs, modes_hz, band) for r in res_cur.values() for c in chans]
@@ -288,7 +306,7 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
             gain = 1.0 - held_after / held_before if held_before > 0 else 0.0
             worst = max((tab.nsse[h] / cur_table.nsse[h] - 1.0 for h in held_names
                          if cur_table.nsse[h] > 0), default=0.0)
-            n_eff = sum(t.y[c].size for t in fit_t for c in chans) / res.n_eff_factor
+            n_eff = sum(t.n for t in fit_t for c in chans) / res.n_eff_factor
             dbic = (_bic(res.nsse_fit, n_eff, len(res.values))
                     - _bic(nsse_fit_before, n_eff, 0))
             ok = gain >= o.min_gain and worst <= o.max_worse and dbic < 0
@@ -309,14 +327,14 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
         rd.accepted = best
         res_b: ft.FitResult = best["fit"]
         cur = res_b.model
-        cur_table, _ = rs.error_table(cur, tests, chans, scales)
+        cur_table, _ = rs.error_table(cur, evals, chans, scales)
         accepted_keys.add(_key(res_b.cand))
         effects.append(_effect_entry(res_b, best))
         rd.decision = f"accepted {res_b.cand.label}"
-    after, res_after = rs.error_table(cur, tests, chans, scales)
+    after, res_after = rs.error_table(cur, evals, chans, scales)
     mah = _mahal(m, cur, tests, chans, band, noise)
     timing["total"] = time.perf_counter() - t_start
-    return DiscoverResult(m, cur, tests, fit_names, held_names, chans, scales, noise, before,
+    return DiscoverResult(m, cur, evals, fit_names, held_names, chans, scales, noise, before,
                           after, res_before, res_after, rounds, effects, mah, band, modes_hz,
                           notes, timing, calibration)
 

@@ -28,12 +28,43 @@ SIGNIFICANCE_RATIO = 1.5
 
 @dataclass
 class TestData:
-    """One test prepared for repeated simulation: its input and measured channels."""
+    """One test prepared for repeated simulation: its input and measured channels. A view of
+    a test (segment cross-validation) shares the arrays and counts only the samples in
+    ``mask``; it is still simulated over the whole record, so every segment starts from the
+    state the input put the structure in."""
 
     name: str
     fs_hz: float
     u: np.ndarray
     y: dict[str, np.ndarray]
+    mask: np.ndarray | None = None  # samples that count in errors and fits; None: all
+
+    def counted(self, a: np.ndarray) -> np.ndarray:
+        """The samples of a record-length array that count for this test (or view)."""
+        return a if self.mask is None else a[self.mask]
+
+    @property
+    def n(self) -> int:
+        """Samples that count per channel."""
+        return int(self.u.size if self.mask is None else np.count_nonzero(self.mask))
+
+
+# blocks per record in the segment split (alternately fitting and held out); long enough
+# that a block outlasts the structure's memory of the previous one at the usual damping
+SEGMENT_BLOCKS = 8
+
+
+def segment_split(tests: Sequence[TestData], blocks: int = SEGMENT_BLOCKS
+                  ) -> tuple[list[TestData], list[TestData]]:
+    """Cross-validation over time: each test gives a fitting view (even blocks) and a
+    held-out view (odd blocks), so every test and every excitation level is in both sets."""
+    fit: list[TestData] = []
+    held: list[TestData] = []
+    for t in tests:
+        idx = (np.arange(t.u.size) * blocks) // max(t.u.size, 1)
+        for out, parity, tag in ((fit, 0, "fitting blocks"), (held, 1, "held-out blocks")):
+            out.append(TestData(f"{t.name} [{tag}]", t.fs_hz, t.u, t.y, idx % 2 == parity))
+    return fit, held
 
 
 def prepare(m: mdl.Model, recs: Sequence[Recording]) -> list[TestData]:
@@ -111,8 +142,9 @@ def error_table(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
             nsse[t.name] = math.inf
             continue
         res_all[t.name] = r
-        rmse[t.name] = {c: float(np.sqrt(np.mean(r[c] ** 2))) for c in chans}
-        nsse[t.name] = float(sum(np.mean(r[c] ** 2) / scales[c] ** 2 for c in chans))
+        ms = {c: float(np.mean(t.counted(r[c]) ** 2)) for c in chans}
+        rmse[t.name] = {c: math.sqrt(ms[c]) for c in chans}
+        nsse[t.name] = float(sum(ms[c] / scales[c] ** 2 for c in chans))
     return ErrorTable(rmse, nsse), res_all
 
 
