@@ -31,6 +31,7 @@ import numpy as np
 from dynval import model as mdl
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
+from dynval.discover import noise as nz
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
 from dynval.errors import ConfigError, DynvalError
@@ -46,7 +47,7 @@ class Options:
     min_gain: float = 0.10
     max_worse: float = 0.02
     significance_ratio: float = rs.SIGNIFICANCE_RATIO
-    noise: dict[str, float] | None = None  # stated noise RMS per channel
+    noise: dict[str, float] | None = None  # stated noise RMS per channel (channel units)
     max_nfev: int = 40
     evidence_cut: float = 0.2  # fit only candidates with >= this share of the top evidence
     uncertain: tuple[str, ...] = ()  # declared parameters to calibrate first and re-adjust
@@ -86,6 +87,7 @@ class DiscoverResult:
     notes: list[str] = field(default_factory=list)
     timing_s: dict[str, float] = field(default_factory=dict)
     calibration: dict[str, Any] = field(default_factory=dict)
+    noise_floors: dict[str, nz.Floor] = field(default_factory=dict)
 
 
 # fewer tests than this: cross-validate over time segments of every test instead of
@@ -105,6 +107,13 @@ def split(tests: Sequence[rs.TestData]) -> tuple[list[rs.TestData], list[rs.Test
     return order[0::2], order[1::2], (
         f"{len(tests)} tests sorted by input RMS, dealt alternately to the fitting and "
         "held-out sets")
+
+
+def _settle_s(modes_hz: Sequence[float], zeta: float = 0.01) -> float:
+    """How long the structure rings after its input stops: 1 % of the amplitude left in the
+    lowest flexible mode at a light damping ratio (at most 5 s)."""
+    flex = [f for f in modes_hz if f > 0.1]
+    return min(5.0, math.log(100.0) / (2 * math.pi * min(flex) * zeta)) if flex else 5.0
 
 
 def _bic(nsse: float, n: float, p: int) -> float:
@@ -196,7 +205,8 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
     fs = tests[0].fs_hz
     # the noise floor from each record once (a test's two views share one residual record)
     once = {str(id(t.u)): res_before[t.name] for t in evals if t.name in res_before}
-    noise = dict(o.noise) if o.noise else rs.noise_floor(once, fs, chans)
+    floors = nz.estimate(tests, chans, once, band, _settle_s(modes_hz), o.noise)
+    noise = {c: f.rms for c, f in floors.items()}
     cur = m
     cur_table = before
     calibration: dict[str, Any] = {}
@@ -336,7 +346,7 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
     timing["total"] = time.perf_counter() - t_start
     return DiscoverResult(m, cur, evals, fit_names, held_names, chans, scales, noise, before,
                           after, res_before, res_after, rounds, effects, mah, band, modes_hz,
-                          notes, timing, calibration)
+                          notes, timing, calibration, floors)
 
 
 _LINEAR = ("stiffness_change", "mass_change")

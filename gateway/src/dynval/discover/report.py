@@ -103,6 +103,8 @@ def to_json(r: DiscoverResult, model_path: str = "", model_out: str = "") -> dic
         "tests": {"fitting": r.fit_names, "held_out": r.held_names},
         "channels": r.chans,
         "noise_floor": {c: _f(v) for c, v in r.noise.items()},
+        "noise_method": {c: {"method": f.method, "detail": f.detail}
+                         for c, f in r.noise_floors.items()},
         "effects": effects,
         "rmse_before": {"fitting": rm(r.before, r.fit_names),
                         "held_out": rm(r.before, r.held_names)},

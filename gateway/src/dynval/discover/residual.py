@@ -1,5 +1,5 @@
-"""Residuals of a model against measured tests, the noise floor, significance and the
-Mahalanobis distance of simulated feature vectors from the measured ones.
+"""Residuals of a model against measured tests, significance and the Mahalanobis distance
+of simulated feature vectors from the measured ones.
 
 Errors are compared per channel; sums of squares across channels are normalised by each
 channel's measured RMS (over all tests), so every channel weighs the same.
@@ -146,23 +146,6 @@ def error_table(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
         rmse[t.name] = {c: math.sqrt(ms[c]) for c in chans}
         nsse[t.name] = float(sum(ms[c] / scales[c] ** 2 for c in chans))
     return ErrorTable(rmse, nsse), res_all
-
-
-def noise_floor(res: dict[str, dict[str, np.ndarray]], fs_hz: float, chans: Sequence[str],
-                band: tuple[float, float] = (0.45, 0.5)) -> dict[str, float]:
-    """White-equivalent RMS of each channel's residual from its PSD in the top band (as a
-    fraction of fs): above the anti-alias corner the structure's response is attenuated and
-    what is left is sensor noise (plus the response to the input's noise)."""
-    out = {}
-    for c in chans:
-        levels = []
-        for r in res.values():
-            f, p = signal.welch(r[c], fs=fs_hz, nperseg=min(1024, r[c].size))
-            sel = (f >= band[0] * fs_hz) & (f <= band[1] * fs_hz)
-            if sel.any():
-                levels.append(float(np.median(p[sel])))
-        out[c] = float(math.sqrt(np.median(levels) * fs_hz / 2)) if levels else math.nan
-    return out
 
 
 def mahalanobis(meas: np.ndarray, sim: np.ndarray, shrink: float = 0.2) -> tuple[float, float]:
