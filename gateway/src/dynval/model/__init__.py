@@ -33,6 +33,7 @@ from dynval.model.schema import (
                                    Input,
                                    Model,
                                    Output,
+    param_unit,
 )
 from dynval.model.simulation import (
                                    Linear,
@@ -55,5 +56,5 @@ __all__ = ["DAMPING_TYPES", "ELEMENT_TYPES", "FORMAT", "INPUT_KINDS", "INTERPOLA
            "Damping", "Element", "Friction", "Input", "Linear", "Model", "Output",
            "ResidualResult", "StickSlip", "VVDamper", "_Core", "damping_matrix_explicit",
            "from_dict", "input_channel", "interpolate_input", "linear", "load", "modes",
-           "natural_frequencies", "residual", "save", "simulate", "simulate_batch",
+           "natural_frequencies", "param_unit", "residual", "save", "simulate", "simulate_batch",
            "simulate_recording", "stiffness_matrix", "to_dict", "validate"]

@@ -178,3 +178,14 @@ def param_target(name: str, m: Model) -> tuple[int, str]:
     except ConfigError as exc:
         raise ConfigError(f"parameter '{name}': element {i + 1}: {exc}") from None
     return i, g.group(5)
+
+
+_UNITS = {"m": "kg", "k": "N/m", "zeta": "1", "alpha": "1/s", "beta": "s"}
+
+
+def param_unit(name: str, m: Model) -> str:
+    """The unit of a parameter name (element parameters: their registry unit)."""
+    i, attr = param_target(name, m)
+    if attr in _UNITS:
+        return _UNITS[attr]
+    return el.spec(m.elements[i]).param(attr).unit
