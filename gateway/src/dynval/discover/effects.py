@@ -158,6 +158,11 @@ class EffectType:
         """Starting points of the fit (the best fit over them is kept)."""
         return [self.initial(m, cand, amp)]
 
+    def motion_scales(self, st: States, cand: Candidate) -> dict[str, float]:
+        """Scales of the motion the effect acts on (recorded in the candidate's shape, they
+        set its parameter bounds)."""
+        return {}
+
 
 class NoEffect(EffectType):
     type = "none"
@@ -397,6 +402,10 @@ class Contact(EffectType):
                         _story_basis(st, cand.location["story"], g)))
         return out
 
+    def motion_scales(self, st: States, cand: Candidate) -> dict[str, float]:
+        d, _ = drift(st, cand.location["story"])
+        return {"drift_rms_m": float(np.std(d))}
+
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         s = cand.location["story"]
         k = max(m.stiffness_n_per_m[s - 1], max(m.stiffness_n_per_m))
@@ -512,6 +521,9 @@ class Friction(_GroundElement):
         # prefer the smooth one
         f0, e0 = self.initial(m, cand, amp)
         return [[f0, e0], [f0, 10 * e0]]
+
+    def motion_scales(self, st: States, cand: Candidate) -> dict[str, float]:
+        return {"v_rms": float(np.std(self._rel(st, cand)[1]))}
 
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
         j = cand.location["dof"] - 1

@@ -416,13 +416,7 @@ def score(view: ForceView, cands: Sequence[fx.Candidate]) -> list[Evidence]:
                 r2 = float(br @ f_res) ** 2 / brr / fr
             if r2 > best.r2:
                 best = Evidence(cand, r2, amp, dict(shape))
-        if cand.type == "contact":
-            d, _ = fx.drift(view.states, cand.location["story"])
-            best.shape["drift_rms_m"] = float(np.std(d))
-        if cand.type == "friction":
-            j = cand.location["dof"] - 1
-            vg = view.states.vg if view.states.vg is not None and j == 0 else 0.0
-            best.shape["v_rms"] = float(np.std(view.states.v[j] - vg))
+        best.shape.update(fx.by_type(cand.type).motion_scales(view.states, cand))
         out.append(best)
     out.sort(key=lambda e: -e.r2)
     log.debug("evidence: the linear nuisance bases explain %.3f of the missing force", r2_n)

@@ -15,7 +15,7 @@ from typing import Any
 
 from dynval.errors import ConfigError
 from dynval.model import elements as el
-from dynval.model.elements import Contact, Element
+from dynval.model.elements import Element
 
 FORMAT = "dynval-model/1"
 DAMPING_TYPES = ("modal", "rayleigh", "matrix")
@@ -94,10 +94,6 @@ class Model:
     @property
     def channels(self) -> list[str]:
         return list(self.outputs)
-
-    @property
-    def contacts(self) -> list[Contact]:
-        return [e for e in self.elements if isinstance(e, Contact)]
 
     def parameters(self) -> dict[str, float]:
         """The model's scalar parameters by name (see with_params)."""
