@@ -169,8 +169,10 @@ def make(type_name: str, dof_a: int, dof_b: int, values: Mapping[str, float] | S
     """An element of a registered type from its parameters (by name, or in registry order)."""
     t = spec(type_name)
     if isinstance(values, Mapping):
-        vals = {p.name: float(values[p.name] if p.name in values or p.default is None
-                              else p.default) for p in t.params}
+        missing = [p.name for p in t.params if p.name not in values and p.default is None]
+        if missing:
+            raise ConfigError(f"{t.name}: missing parameter {', '.join(missing)}")
+        vals = {p.name: float(values.get(p.name, p.default or 0.0)) for p in t.params}
     else:
         if len(values) != len(t.params):
             raise ConfigError(f"{t.name}: expected {len(t.params)} parameters "
