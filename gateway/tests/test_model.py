@@ -392,3 +392,18 @@ def test_linear_matrices_from_the_core_match_the_closed_forms() -> None:
     exp = mdl.linear(dataclasses.replace(m, damping=mdl.Damping("rayleigh", alpha_per_s=2.0,
                                                                 beta_s=1e-5)))
     np.testing.assert_allclose(exp.c, 2.0 * np.diag(MASSES) + 1e-5 * k, rtol=1e-15)
+
+
+@pytest.mark.parametrize(("rel", "ok"), [(1e-9, True), (1e-6, True), (1e-4, False)])
+def test_damping_matrix_symmetry_is_the_core_s_tolerance(rel: float, ok: bool) -> None:
+    """dv_model_init accepts |C_ij - C_ji| <= 1e-5 max|C|; validation is the core's check."""
+    c = np.array([[2.0, -1.0], [-1.0, 2.0]])
+    c[0, 1] *= 1 + rel
+    d = {"format": mdl.FORMAT, "masses_kg": [1.0, 1.0], "stiffness_n_per_m": [100.0, 100.0],
+         "damping": {"type": "matrix", "c_n_s_per_m": c.tolist()},
+         "input": {"kind": "force", "dof": 1}, "outputs": {"a": {"kind": "acc", "dof": 1}}}
+    if ok:
+        mdl.from_dict(d)
+    else:
+        with pytest.raises(ConfigError, match="damping.c_n_s_per_m.*not symmetric"):
+            mdl.from_dict(d)
