@@ -14,7 +14,8 @@ import statistics
 import time
 
 from dynval import model as mdl
-from dynval.validate import doe, featvec, synth
+from dynval import synth
+from dynval.validate import doe, featvec
 
 
 def lanl() -> mdl.Model:

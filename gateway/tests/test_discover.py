@@ -1,7 +1,7 @@
-"""dynval discover on generated "measured" tests with an undeclared effect (the generator's
-RK4 truth at 16x, DAQ anti-alias filter, decimation, 1 % sensor noise, two excitation levels),
-random locations and sizes per effect type (fixed seeds), clean data, and the shared
-lanl4dof-bumper data through the CLI.
+"""dynval discover on generated "measured" tests with an undeclared effect (dynval.synth: the
+truth simulated by the core at 16x, DAQ anti-alias filter, decimation, 1 % sensor noise, two
+excitation levels), random locations and sizes per effect type (fixed seeds), clean data, and
+the shared lanl4dof-bumper data through the CLI.
 
 Tolerances (stated): stiffness change within 3 % of the true change, mass change within 5 %,
 sensor gain within 0.005, friction force within 10 %, cubic and v|v| coefficients within 5 %,
@@ -21,8 +21,8 @@ import pytest
 
 from dynval import cli
 from dynval import model as mdl
+from dynval import synth as gen
 from dynval.discover import effects as fx
-from dynval.discover import generator as gen
 from dynval.discover import loop, report
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
@@ -65,9 +65,9 @@ def test_generator_clean_matches_declared_model_to_noise_floor() -> None:
 
 
 def test_generator_truth_differs_from_the_c_model_only_by_the_effect() -> None:
-    """The bumper truth from the generator, predicted by the C model WITH the bumper, is at the
-    noise floor; without it, far above (an independent integrator agrees with dv_model)."""
-    truth = gen.Truth(elements=(gen.TruthElement("contact", 3, 4, (1.114e-4, 1e-4, 1.925e6)),))
+    """The bumper truth from the generator (the core at 16 x fs), predicted by the C model WITH
+    the bumper at fs, is at the noise floor; without it, far above."""
+    truth = gen.Truth(elements=(mdl.Contact(3, 4, 1.114e-4, 1e-4, 1.925e6),))
     rec = gen.generate(declared(), truth, n_tests=1, seed=2)[0]
     with_b = mdl.Model(**{**declared().__dict__, "elements": (
         mdl.Contact(3, 4, 1.114e-4, 1e-4, 1.925e6),)})
@@ -126,8 +126,8 @@ def test_discover_contact(seed: int) -> None:
     gap = float(rng.uniform(0.7e-4, 1.1e-4))
     delta = float(rng.uniform(0.5e-4, 1.5e-4))
     kb = float(rng.uniform(1.0e6, 2.5e6))
-    truth = gen.Truth(elements=(gen.TruthElement("contact", story - 1, story, (gap, delta, kb),
-                                                 side),), label="contact")
+    truth = gen.Truth(elements=(mdl.Contact(story - 1, story, gap, delta, kb, side),),
+                      label="contact")
     r = run(truth, seed)
     e = only_effect(r)
     assert e["type"] == "contact"
@@ -147,11 +147,11 @@ def test_discover_clean_data_reports_no_effect(seed: int) -> None:
 
 # ---- the element effects (friction, cubic, v|v|: dv_model element laws) --------------------
 @pytest.mark.parametrize(("truth", "want"), [
-    (gen.Truth(elements=(gen.TruthElement("friction", 0, 1, (0.8, 1e-4)),)), ("friction", 1)),
-    (gen.Truth(elements=(gen.TruthElement("friction", 0, 3, (0.5, 1e-4)),)), ("friction", 3)),
-    (gen.Truth(elements=(gen.TruthElement("cubic", 1, 2, (3e12,)),)), ("cubic_stiffness", 2)),
-    (gen.Truth(elements=(gen.TruthElement("cubic", 3, 4, (5e12,)),)), ("cubic_stiffness", 4)),
-    (gen.Truth(elements=(gen.TruthElement("vv", 2, 3, (5e3,)),)), ("vv_damping", 3)),
+    (gen.Truth(elements=(mdl.Friction(0, 1, 0.8, 1e-4),)), ("friction", 1)),
+    (gen.Truth(elements=(mdl.Friction(0, 3, 0.5, 1e-4),)), ("friction", 3)),
+    (gen.Truth(elements=(mdl.CubicSpring(1, 2, 3e12),)), ("cubic_stiffness", 2)),
+    (gen.Truth(elements=(mdl.CubicSpring(3, 4, 5e12),)), ("cubic_stiffness", 4)),
+    (gen.Truth(elements=(mdl.VVDamper(2, 3, 5e3),)), ("vv_damping", 3)),
 ])
 def test_trace_ranks_element_effects_first(truth: gen.Truth, want: tuple[str, int]) -> None:
     m = declared()
@@ -169,7 +169,7 @@ def test_discover_friction(seed: int) -> None:
     rng = np.random.default_rng(seed)
     dof = int(rng.integers(1, 5))
     force = float(rng.uniform(0.3, 1.0))
-    r = run(gen.Truth(elements=(gen.TruthElement("friction", 0, dof, (force, 1e-4)),),
+    r = run(gen.Truth(elements=(mdl.Friction(0, dof, force, 1e-4),),
                       label="friction"), seed)
     e = only_effect(r)
     assert e["type"] == "friction" and e["location"]["dof"] == dof
@@ -182,7 +182,7 @@ def test_discover_cubic_stiffness(seed: int) -> None:
     rng = np.random.default_rng(seed)
     story = int(rng.integers(2, 5))
     k3 = float(10 ** rng.uniform(12.0, 12.8))
-    r = run(gen.Truth(elements=(gen.TruthElement("cubic", story - 1, story, (k3,)),),
+    r = run(gen.Truth(elements=(mdl.CubicSpring(story - 1, story, k3),),
                       label="cubic"), seed)
     e = only_effect(r)
     assert e["type"] == "cubic_stiffness" and e["location"]["story"] == story
@@ -191,7 +191,7 @@ def test_discover_cubic_stiffness(seed: int) -> None:
 
 
 def test_discover_vv_damping() -> None:
-    r = run(gen.Truth(elements=(gen.TruthElement("vv", 1, 2, (8e3,)),), label="vv"), 81)
+    r = run(gen.Truth(elements=(mdl.VVDamper(1, 2, 8e3),), label="vv"), 81)
     e = only_effect(r)
     assert e["type"] == "vv_damping" and e["location"]["story"] == 2
     assert e["parameters"]["c2_n_s2_per_m2"]["value"] == pytest.approx(8e3, rel=0.05)

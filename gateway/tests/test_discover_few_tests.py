@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dynval import model as mdl
-from dynval.discover import generator as gen
+from dynval import synth as gen
 from dynval.discover import loop
 from dynval.discover import residual as rs
 
@@ -43,8 +43,8 @@ def test_two_tests_bumper_closing_only_at_high_level_is_found(seed: int) -> None
     rng = np.random.default_rng(seed)
     story = int(rng.integers(2, 5))
     gap = float(rng.uniform(0.9e-4, 1.3e-4))
-    truth = gen.Truth(elements=(gen.TruthElement("contact", story - 1, story,
-                                                 (gap, 1e-4, 1.925e6)),), label="contact")
+    truth = gen.Truth(elements=(mdl.Contact(story - 1, story, gap, 1e-4, 1.925e6),),
+                      label="contact")
     recs = gen.generate(declared(), truth, n_tests=2, seed=seed)
     r = loop.discover(declared(), recs)
     assert any("cross-validation over time" in n for n in r.notes)

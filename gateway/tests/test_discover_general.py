@@ -16,10 +16,8 @@ import pytest
 
 from dynval import cli
 from dynval import model as mdl
-from dynval.discover import generator as gen
+from dynval import synth as gen
 from dynval.discover import loop
-
-G = gen.TruthElement
 
 
 def six(fs: float) -> mdl.Model:
@@ -48,7 +46,7 @@ def held_reduction(r: loop.DiscoverResult) -> float:
     (1000.0, gen.Truth(m_add_kg={5: 0.4}), ("mass_change", "dof", 5), "dm_kg", 0.4, 0.03),
     (2048.0, gen.Truth(k_scale={4: 0.9}), ("stiffness_change", "story", 4), "dk_n_per_m",
      -8e4, 0.03),
-    (1000.0, gen.Truth(elements=(G("cubic", 2, 3, (4e15,)),)), ("cubic_stiffness", "story", 3),
+    (1000.0, gen.Truth(elements=(mdl.CubicSpring(2, 3, 4e15),)), ("cubic_stiffness", "story", 3),
      "k3_n_per_m3", 4e15, 0.05),
     (1000.0, gen.Truth(), None, "", 0.0, 0.0),
 ])
@@ -70,9 +68,9 @@ def test_six_dof_partial_sensors(fs: float, truth: gen.Truth, want: tuple[str, s
 
 
 @pytest.mark.parametrize(("truth", "want", "param", "value", "rel"), [
-    (gen.Truth(elements=(G("friction", 0, 1, (1.5, 1e-4)),)), ("friction", {"dof": 1}),
+    (gen.Truth(elements=(mdl.Friction(0, 1, 1.5, 1e-4),)), ("friction", {"dof": 1}),
      "force_n", 1.5, 0.05),
-    (gen.Truth(elements=(G("contact", 0, 1, (2e-5, 2e-5, 2e6), "pos"),)),
+    (gen.Truth(elements=(mdl.Contact(0, 1, 2e-5, 2e-5, 2e6, "pos"),)),
      ("contact", {"story": 1, "side": "pos"}), "gap_m", 2e-5, 0.15),
     (gen.Truth(k_scale={1: 0.85}), ("stiffness_change", {"story": 1}), "dk_n_per_m", -3e5,
      0.03),

@@ -128,7 +128,7 @@ def test_discover_on_a_cheap_daq_keeps_a_right_model_and_reads_its_noise() -> No
     floor reads within 1.6x of the noise actually added (the top band read it 3-7x low, and
     discover then kept hunting), and no effect is claimed."""
     from dynval import model as mdl
-    from dynval.discover import generator as gen
+    from dynval import synth as gen
     from dynval.discover import loop
 
     m = mdl.Model(masses_kg=(6.54, 6.66, 6.86, 6.80), stiffness_n_per_m=(10.0, 4e5, 4e5, 4e5),

@@ -364,3 +364,46 @@ def test_residual_bumper_model_explains_bumper_data(shared_data: Path) -> None:
         nom, bump = _nrmse(m, d / name), _nrmse(mb, d / name)
         assert max(bump.values()) < 0.02, (name, bump)
         assert max(bump.values()) < 0.5 * max(nom.values())
+
+
+def test_linear_matrices_from_the_core_match_the_closed_forms() -> None:
+    """mdl.linear: K of the chain (eq. 2), modal C = M Phi diag(2 zeta w) Phi^T M, Rayleigh
+    from two modes with zeta_i = a / (2 w_i) + b w_i / 2, explicit Rayleigh a M + b K, and the
+    modes of scipy's generalised eigen-solution."""
+    m = report_model()
+    lin = mdl.linear(m)
+    k = np.diag([KS[i] + (KS[i + 1] if i < 3 else 0.0) for i in range(4)])
+    for i in range(3):
+        k[i, i + 1] = k[i + 1, i] = -KS[i + 1]
+    np.testing.assert_allclose(lin.k, k, rtol=1e-15, atol=0)
+    w2, phi = linalg.eigh(k, np.diag(MASSES))
+    np.testing.assert_allclose(lin.w, np.sqrt(np.maximum(w2, 0)), rtol=1e-9, atol=1e-6)
+    mp = np.diag(MASSES) @ phi
+    c = mp @ np.diag(2 * np.array(m.damping.zeta) * np.sqrt(np.maximum(w2, 0))) @ mp.T
+    np.testing.assert_allclose(lin.c, c, rtol=1e-9, atol=1e-9 * np.abs(c).max())
+    ray = mdl.linear(dataclasses.replace(m, damping=mdl.Damping("rayleigh", (0.02, 0.03),
+                                                                modes=(2, 4))))
+    cm = np.linalg.solve(np.diag(MASSES), ray.c)  # = a I + b M^-1 K
+    b = (cm[0, 1]) / (k[0, 1] / MASSES[0])
+    a = cm[0, 0] - b * k[0, 0] / MASSES[0]
+    w = lin.w
+    assert a / (2 * w[1]) + b * w[1] / 2 == pytest.approx(0.02, rel=1e-9)
+    assert a / (2 * w[3]) + b * w[3] / 2 == pytest.approx(0.03, rel=1e-9)
+    exp = mdl.linear(dataclasses.replace(m, damping=mdl.Damping("rayleigh", alpha_per_s=2.0,
+                                                                beta_s=1e-5)))
+    np.testing.assert_allclose(exp.c, 2.0 * np.diag(MASSES) + 1e-5 * k, rtol=1e-15)
+
+
+@pytest.mark.parametrize(("rel", "ok"), [(1e-9, True), (1e-6, True), (1e-4, False)])
+def test_damping_matrix_symmetry_is_the_core_s_tolerance(rel: float, ok: bool) -> None:
+    """dv_model_init accepts |C_ij - C_ji| <= 1e-5 max|C|; validation is the core's check."""
+    c = np.array([[2.0, -1.0], [-1.0, 2.0]])
+    c[0, 1] *= 1 + rel
+    d = {"format": mdl.FORMAT, "masses_kg": [1.0, 1.0], "stiffness_n_per_m": [100.0, 100.0],
+         "damping": {"type": "matrix", "c_n_s_per_m": c.tolist()},
+         "input": {"kind": "force", "dof": 1}, "outputs": {"a": {"kind": "acc", "dof": 1}}}
+    if ok:
+        mdl.from_dict(d)
+    else:
+        with pytest.raises(ConfigError, match="damping.c_n_s_per_m.*not symmetric"):
+            mdl.from_dict(d)

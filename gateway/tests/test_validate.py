@@ -16,10 +16,11 @@ import pytest
 
 from dynval import features as feat
 from dynval import model as mdl
+from dynval import synth
 from dynval.cli import main
 from dynval.errors import ConfigError
 from dynval.io.recording import Recording
-from dynval.validate import doe, featvec, study, synth
+from dynval.validate import doe, featvec, study
 from dynval.validate import mahalanobis as mh
 from dynval.validate.sensitivity import anova_r2, pca
 

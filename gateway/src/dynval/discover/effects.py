@@ -13,9 +13,11 @@ Each effect type is a small unit (a subclass of EffectType) that says:
 Numbering follows the model (1-based): story s ties DOF s-1 to DOF s (story 1: ground to
 DOF 1); X = x_s - x_{s-1} is the story drift.
 
-Types whose force law the C model cannot represent yet (friction, cubic and v|v| story
-elements) are listed with ``available = False``: their evidence is computed and ranked, but they
-are never fitted or faked in Python; the report says so.
+Effects that add an element (contact, friction, stick-slip, cubic spring, v|v| damper) are
+built from the element registry (dynval.model.elements): their parameters carry the registry's
+names and units, and their evidence bases are the element's law evaluated by the core
+(dv_elem_force_block), never a copy of it. ``available = False`` (ranked on evidence, never
+fitted) is left for effect types the model cannot represent.
 """
 from __future__ import annotations
 
@@ -28,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from dynval import model as mdl
+from dynval.model import elements as el
 
 log = logging.getLogger(__name__)
 
@@ -86,22 +89,24 @@ def drift(st: States, story: int) -> tuple[np.ndarray, np.ndarray]:
     return st.x[s] - st.x[s - 1], st.v[s] - st.v[s - 1]
 
 
-def jenkins(x: np.ndarray, zs: Sequence[float]) -> np.ndarray:
-    """Unit elasto-plastic (Jenkins: stick spring in series with a slider) force of each slip
-    displacement zs over the displacement history x: y' = x'/zs while |y| < 1, else held at
-    +-1 until the motion reverses. Returns (len(zs), len(x)), |y| <= 1."""
-    dx = np.diff(x, prepend=x[:1]).tolist()
-    y = np.zeros((len(zs), x.size))
-    for k, z in enumerate(zs):
-        inv = 1.0 / float(z)
-        cur = 0.0
-        row = [0.0] * x.size
-        for i, d in enumerate(dx):  # plain floats: ~10x faster than numpy per sample
-            cur += d * inv
-            cur = 1.0 if cur > 1.0 else (-1.0 if cur < -1.0 else cur)
-            row[i] = cur
-        y[k] = row
-    return y
+def _unit_force(type_name: str, x: np.ndarray | None = None, v: np.ndarray | None = None, *,
+                side: str = "pos", **shape: float) -> np.ndarray:
+    """The force of a registry element with the given shape parameters and 1 for the others
+    (its amplitude), evaluated by the core (model.elements.force): an evidence basis is the
+    element's own law, never a copy of it."""
+    vals = {p.name: shape.get(p.name, 1.0) for p in el.spec(type_name).params}
+    return el.force(el.make(type_name, 0, 1, vals, side=side), x, v)
+
+
+def _param(type_name: str, name: str, lower: float, upper: float, log: bool = False) -> Param:
+    """A fit parameter of an element effect: its registry name and unit, the search bounds."""
+    return Param(name, el.spec(type_name).param(name).unit, lower, upper, log)
+
+
+def _add_element(m: mdl.Model, type_name: str, dof_a: int, dof_b: int,
+                 values: Sequence[float], name: str, side: str = "pos") -> mdl.Model:
+    e = el.make(type_name, dof_a, dof_b, [float(v) for v in values], side=side, name=name)
+    return dataclasses.replace(m, elements=(*m.elements, e))
 
 
 def _story_basis(st: States, story: int, g: np.ndarray) -> np.ndarray:
@@ -152,6 +157,11 @@ class EffectType:
     def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
         """Starting points of the fit (the best fit over them is kept)."""
         return [self.initial(m, cand, amp)]
+
+    def motion_scales(self, st: States, cand: Candidate) -> dict[str, float]:
+        """Scales of the motion the effect acts on (recorded in the candidate's shape, they
+        set its parameter bounds)."""
+        return {}
 
 
 class NoEffect(EffectType):
@@ -382,23 +392,27 @@ class Contact(EffectType):
 
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
         d, _ = drift(st, cand.location["story"])
-        sgn = 1.0 if cand.location["side"] == "pos" else -1.0
-        y = sgn * d
+        side = cand.location["side"]
+        y = d if side == "pos" else -d
         out = []
-        for q in _QUANTILES:
-            gap = float(np.quantile(y, q))
-            g = st.hp(sgn * np.maximum(y - gap, 0.0))
-            out.append(({"gap_m": max(gap, 0.0), "quantile": q},
+        for q in _QUANTILES:  # a bilinear contact (delta = 0, kB = 1) at the drift's quantiles
+            gap = max(float(np.quantile(y, q)), 0.0)
+            g = st.hp(_unit_force("contact", d, side=side, gap_m=gap, delta_m=0.0))
+            out.append(({"gap_m": gap, "quantile": q},
                         _story_basis(st, cand.location["story"], g)))
         return out
+
+    def motion_scales(self, st: States, cand: Candidate) -> dict[str, float]:
+        d, _ = drift(st, cand.location["story"])
+        return {"drift_rms_m": float(np.std(d))}
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         s = cand.location["story"]
         k = max(m.stiffness_n_per_m[s - 1], max(m.stiffness_n_per_m))
         dscale = float(cand.shape.get("drift_rms_m", 1e-4))
-        return [Param("gap_m", "m", 0.0, 10 * dscale),
-                Param("delta_m", "m", 1e-3 * dscale, 10 * dscale, log=True),
-                Param("kb_n_per_m", "N/m", 1e-3 * k, 20 * k, log=True)]
+        return [_param("contact", "gap_m", 0.0, 10 * dscale),
+                _param("contact", "delta_m", 1e-3 * dscale, 10 * dscale, log=True),
+                _param("contact", "kb_n_per_m", 1e-3 * k, 20 * k, log=True)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         ps = self.params(m, cand)
@@ -409,34 +423,16 @@ class Contact(EffectType):
 
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
         s = cand.location["story"]
-        e = mdl.Contact(dof_a=s - 1, dof_b=s, gap_m=float(values[0]), delta_m=float(values[1]),
-                        kb_n_per_m=float(values[2]), side=cand.location["side"],
-                        name=f"discovered contact story {s}")
-        return dataclasses.replace(m, elements=(*m.elements, e))
-
-
-def _core_has(law: str) -> bool:
-    """Whether the compiled core knows an element law (dv_elem_law_t)."""
-    from dynval._core import lib
-
-    try:
-        getattr(lib, law)
-    except AttributeError:
-        return False
-    return True
+        return _add_element(m, "contact", s - 1, s, values, f"discovered contact story {s}",
+                            cand.location["side"])
 
 
 class _ElementEffect(EffectType):
-    """An effect that is a new C element (dv_model element laws); unavailable, and then
-    ranked on evidence only and never fitted or imitated in Python, when the core lacks it."""
+    """An effect that is a new model element (a registry type, model/elements.py): its
+    evidence basis and its fit both run the core's law."""
 
-    c_law = ""
-    note_missing = ("needs a C element type that this build's dv_model lacks; ranked on "
-                    "evidence only, never fitted (it is not faked in Python)")
-
-    def __init__(self) -> None:
-        self.available = _core_has(self.c_law)
-        self.note = "" if self.available else self.note_missing
+    element = ""  # registry type name
+    tag = ""  # in the discovered element's name
 
     @staticmethod
     def _scale(cand: Candidate, default: float) -> float:
@@ -444,18 +440,77 @@ class _ElementEffect(EffectType):
         return a if a > 0 else default
 
 
-class Friction(_ElementEffect):
-    type = "friction"
+class _GroundElement(_ElementEffect):
+    """An element between the ground and DOF j."""
+
     location_kind = "dof"
+    what = ""
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"dof": j} for j in range(1, m.n_dof + 1)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"{self.what}, DOF {loc['dof']} (to ground)"
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        j = cand.location["dof"]
+        return _add_element(m, self.element, 0, j, values,
+                            f"discovered {self.tag} DOF {j}")
+
+    @staticmethod
+    def _rel(st: States, cand: Candidate) -> tuple[np.ndarray, np.ndarray]:
+        """X and V of DOF j against the ground (the ground's motion for a ground input)."""
+        j = cand.location["dof"] - 1
+        x = st.x[j] - (st.xg if st.xg is not None and j == 0 else 0.0)
+        v = st.v[j] - (st.vg if st.vg is not None and j == 0 else 0.0)
+        return x, v
+
+
+class _StoryElement(_ElementEffect):
+    """An element across story s (DOF s-1 to DOF s) with one coefficient."""
+
+    location_kind = "story"
+    what = ""
+    default_scale = 1.0
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"story": s, "between": [s - 1, s]} for s in range(1, m.n_dof + 1)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"{self.what}, story {loc['story']}"
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        c = self._scale(cand, self.default_scale)
+        name = el.spec(self.element).params[0].name
+        return [_param(self.element, name, 1e-3 * c, 1e2 * c, log=True)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        return [self._scale(cand, self.default_scale)]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        s = cand.location["story"]
+        return _add_element(m, self.element, s - 1, s, values,
+                            f"discovered {self.tag} story {s}")
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        x, v = drift(st, cand.location["story"])
+        return [({}, _story_basis(st, cand.location["story"],
+                                  st.hp(_unit_force(self.element, x, v))))]
+
+
+class Friction(_GroundElement):
+    tag = "friction"
+    type = "friction"
+    element = "friction"
+    what = "friction"
     law = ("Coulomb friction between DOF j and the ground on the relative velocity V: "
            "F V / sqrt(V^2 + eps^2) (a dv_model friction element, -> F sign(V))")
-    c_law = "DV_ELEM_FRICTION"
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         f = self._scale(cand, 1.0)
         vr = float(cand.shape.get("v_rms", 1e-2))
-        return [Param("force_n", "N", 1e-3 * f, 20 * f, log=True),
-                Param("v_eps_m_per_s", "m/s", 1e-3 * vr, 0.5 * vr, log=True)]
+        return [_param("friction", "force_n", 1e-3 * f, 20 * f, log=True),
+                _param("friction", "v_eps_m_per_s", 1e-3 * vr, 0.5 * vr, log=True)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         vr = float(cand.shape.get("v_rms", 1e-2))
@@ -467,134 +522,70 @@ class Friction(_ElementEffect):
         f0, e0 = self.initial(m, cand, amp)
         return [[f0, e0], [f0, 10 * e0]]
 
-    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
-        j = cand.location["dof"]
-        e = mdl.Friction(0, j, float(values[0]), float(values[1]),
-                         name=f"discovered friction DOF {j}")
-        return dataclasses.replace(m, elements=(*m.elements, e))
-
-    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
-        return [{"dof": j} for j in range(1, m.n_dof + 1)]
-
-    def label(self, loc: dict[str, Any]) -> str:
-        return f"friction, DOF {loc['dof']} (to ground)"
+    def motion_scales(self, st: States, cand: Candidate) -> dict[str, float]:
+        return {"v_rms": float(np.std(self._rel(st, cand)[1]))}
 
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
         j = cand.location["dof"] - 1
-        v = st.v[j] - (st.vg if st.vg is not None and j == 0 else 0.0)
-        x = st.x[j] - (st.xg if st.xg is not None and j == 0 else 0.0)
+        _, v = self._rel(st, cand)
         vs = float(np.std(v)) or 1.0
-        xs = float(np.std(x)) or 1.0
-        del x, xs
         out = []
-        for eps in (0.02, 0.1):
+        for eps in (0.02, 0.1):  # the core's friction law, eps relative to the velocity's STD
             b = np.zeros_like(st.v)
-            b[j] = st.hp(np.tanh(v / (eps * vs)))
+            b[j] = st.hp(_unit_force("friction", v=v, v_eps_m_per_s=eps * vs))
             out.append(({"v_eps_rel": eps}, b))
         return out
 
 
-class StickSlipFriction(_ElementEffect):
+class StickSlipFriction(_GroundElement):
+    tag = "stick-slip"
     type = "stick_slip"
-    location_kind = "dof"
+    element = "stick_slip"
+    what = "stick-slip friction"
     law = ("stick-slip (Jenkins) friction between DOF j and the ground: a stick spring F/z in "
            "series with a slider at F, rate-independent hysteresis (a dv_model stick_slip "
            "element)")
-    c_law = "DV_ELEM_STICKSLIP"
     _FR = (0.003, 0.01, 0.05, 0.15, 0.4, 0.8)
-
-    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
-        return [{"dof": j} for j in range(1, m.n_dof + 1)]
-
-    def label(self, loc: dict[str, Any]) -> str:
-        return f"stick-slip friction, DOF {loc['dof']} (to ground)"
 
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
         j = cand.location["dof"] - 1
-        x = st.x[j] - (st.xg if st.xg is not None and j == 0 else 0.0)
+        x, _ = self._rel(st, cand)
         xs = float(np.std(x)) or 1.0
         out = []
-        ys = jenkins(x, [f * xs for f in self._FR])
-        for f, y in zip(self._FR, ys, strict=True):
+        for f in self._FR:  # the core's stick-slip law (from the virgin state) over slip_m
             b = np.zeros_like(st.v)
-            b[j] = st.hp(y)
+            b[j] = st.hp(_unit_force("stick_slip", x, slip_m=f * xs))
             out.append(({"slip_m": f * xs, "x_rms": xs}, b))
         return out
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         f = self._scale(cand, 1.0)
         xs = float(cand.shape.get("x_rms", 1e-4))
-        return [Param("force_n", "N", 1e-3 * f, 20 * f, log=True),
-                Param("slip_m", "m", 1e-4 * xs, 2.0 * xs, log=True)]
+        return [_param("stick_slip", "force_n", 1e-3 * f, 20 * f, log=True),
+                _param("stick_slip", "slip_m", 1e-4 * xs, 2.0 * xs, log=True)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         xs = float(cand.shape.get("x_rms", 1e-4))
         return [max(abs(amp), 2e-3 * self._scale(cand, 1.0)),
                 float(cand.shape.get("slip_m", 0.05 * xs))]
 
-    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
-        j = cand.location["dof"]
-        e = mdl.StickSlip(0, j, float(values[0]), float(values[1]),
-                          name=f"discovered stick-slip DOF {j}")
-        return dataclasses.replace(m, elements=(*m.elements, e))
 
-
-class CubicStiffness(_ElementEffect):
+class CubicStiffness(_StoryElement):
+    tag = "cubic"
     type = "cubic_stiffness"
-    location_kind = "story"
+    element = "cubic_spring"
+    what = "cubic stiffness"
+    default_scale = 1e12
     law = "cubic story spring: k3 X^3 (a dv_model cubic_spring element)"
-    c_law = "DV_ELEM_CUBIC"
-
-    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
-        k = self._scale(cand, 1e12)
-        return [Param("k3_n_per_m3", "N/m^3", 1e-3 * k, 1e2 * k, log=True)]
-
-    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
-        return [self._scale(cand, 1e12)]
-
-    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
-        s = cand.location["story"]
-        e = mdl.CubicSpring(s - 1, s, float(values[0]), name=f"discovered cubic story {s}")
-        return dataclasses.replace(m, elements=(*m.elements, e))
-
-    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
-        return [{"story": s, "between": [s - 1, s]} for s in range(1, m.n_dof + 1)]
-
-    def label(self, loc: dict[str, Any]) -> str:
-        return f"cubic stiffness, story {loc['story']}"
-
-    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
-        d, _ = drift(st, cand.location["story"])
-        return [({}, _story_basis(st, cand.location["story"], st.hp(d ** 3)))]
 
 
-class VelocitySquaredDamping(_ElementEffect):
+class VelocitySquaredDamping(_StoryElement):
+    tag = "v|v| damper"
     type = "vv_damping"
-    location_kind = "story"
+    element = "vv_damper"
+    what = "velocity-squared damping"
+    default_scale = 1e3
     law = "quadratic story damper: c2 V |V| on the drift velocity (a dv_model vv_damper)"
-    c_law = "DV_ELEM_VV"
-
-    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
-        c = self._scale(cand, 1e3)
-        return [Param("c2_n_s2_per_m2", "N s^2/m^2", 1e-3 * c, 1e2 * c, log=True)]
-
-    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
-        return [self._scale(cand, 1e3)]
-
-    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
-        s = cand.location["story"]
-        e = mdl.VVDamper(s - 1, s, float(values[0]), name=f"discovered v|v| damper story {s}")
-        return dataclasses.replace(m, elements=(*m.elements, e))
-
-    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
-        return [{"story": s, "between": [s - 1, s]} for s in range(1, m.n_dof + 1)]
-
-    def label(self, loc: dict[str, Any]) -> str:
-        return f"velocity-squared damping, story {loc['story']}"
-
-    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
-        _, v = drift(st, cand.location["story"])
-        return [({}, _story_basis(st, cand.location["story"], st.hp(v * np.abs(v))))]
 
 
 LIBRARY: tuple[EffectType, ...] = (

@@ -106,8 +106,9 @@ def uncertain_params(m: mdl.Model, names: Sequence[str]) -> list[fx.Param]:
             raise ConfigError(f"uncertain parameter '{n}' is not a parameter of the model "
                               f"(known: {', '.join(cur)})")
         v = float(cur[n])
-        out.append(fx.Param(n, "", v / 3, 3 * v, log=True) if v > 0 else
-                   fx.Param(n, "", 0.0, 1.0))
+        unit = mdl.param_unit(n, m)
+        out.append(fx.Param(n, unit, v / 3, 3 * v, log=True) if v > 0 else
+                   fx.Param(n, unit, 0.0, 1.0))
     return out
 
 

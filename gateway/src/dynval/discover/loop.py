@@ -36,6 +36,7 @@ from dynval.discover import residual as rs
 from dynval.discover import trace as tr
 from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
+from dynval.validate import mahalanobis as mh
 
 log = logging.getLogger(__name__)
 
@@ -136,10 +137,11 @@ def _mahal(m0: mdl.Model, m1: mdl.Model, tests: Sequence[rs.TestData],
     out: dict[str, Any] = {"features": [f"{k}:{c}" for c in chans
                                         for k in ("log_std_gain", "kurtosis")],
                            "method": "mean distance of each test's simulated feature vector (noise "
-                                     "floor added) "
-                                     "from the measured vectors' distribution (covariance "
-                                     "shrunk 20 % to its diagonal); reference: the measured "
-                                     "vectors' own leave-one-out distance"}
+                                     "floor added) from the measured vectors' distribution "
+                                     "(standardised features, Ledoit-Wolf covariance when "
+                                     "tests <= features + 1: dynval.validate.mahalanobis); "
+                                     "reference: the measured vectors' own leave-one-out "
+                                     "distance"}
     for key, mm in (("before", m0), ("after", m1)):
         sims = []
         rng = np.random.default_rng(12345)
@@ -153,7 +155,11 @@ def _mahal(m0: mdl.Model, m1: mdl.Model, tests: Sequence[rs.TestData],
         if len(sims) != len(tests):
             out[key] = math.nan
             continue
-        d, ref = rs.mahalanobis(meas, np.array(sims))
+        try:
+            d, ref = mh.mean_distance(meas, np.array(sims), out["features"])
+        except DynvalError as exc:
+            log.info("no Mahalanobis baseline of the measured features: %s", exc)
+            d, ref = math.nan, math.nan
         out[key] = d
         out["measured_reference"] = ref
         vm = _validate_mahalanobis()

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from dynval import features as feat
 from dynval import model as mdl
 from dynval.errors import ConfigError
 from dynval.io.recording import Recording
@@ -148,41 +149,16 @@ def error_table(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
     return ErrorTable(rmse, nsse), res_all
 
 
-def mahalanobis(meas: np.ndarray, sim: np.ndarray, shrink: float = 0.2) -> tuple[float, float]:
-    """Mean Mahalanobis distance of simulated feature vectors (rows) from the distribution of
-    the measured ones (mean, covariance shrunk towards its diagonal by ``shrink``), and the
-    mean leave-one-out distance of the measured vectors themselves (the reference a valid
-    model should land near)."""
-    def dist(base: np.ndarray, x: np.ndarray) -> np.ndarray:
-        mu = base.mean(axis=0)
-        cov = np.cov(base, rowvar=False) if base.shape[0] > 1 else np.eye(base.shape[1])
-        cov = np.atleast_2d(cov)
-        cov = (1 - shrink) * cov + shrink * np.diag(np.diag(cov))
-        cov += 1e-12 * np.trace(cov) * np.eye(cov.shape[0]) + 1e-300
-        inv = np.linalg.pinv(cov)
-        d = x - mu
-        return np.asarray(np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", d, inv, d), 0.0)))
-
-    d_sim = float(np.mean(dist(meas, sim)))
-    n = meas.shape[0]
-    if n > 2:
-        loo = [float(dist(np.delete(meas, i, axis=0), meas[i:i + 1])[0]) for i in range(n)]
-        d_ref = float(np.mean(loo))
-    else:
-        d_ref = math.nan
-    return d_sim, d_ref
 
 
 def features(y: dict[str, np.ndarray], u: np.ndarray, chans: Sequence[str], fs_hz: float,
              band_hz: tuple[float, float]) -> np.ndarray:
     """Per channel: log(STD / input STD) (a level-free gain, sensitive to linear changes) and
     the kurtosis (impacts and stick-slip raise it; report Table 15)."""
-    su = float(np.std(u)) or 1.0
+    su = feat.moments(u).std or 1.0
     out = []
     for c in chans:
-        x = y[c]
-        s = float(np.std(x)) or 1e-300
-        out.append(math.log(s / su))
-        xc = x - x.mean()
-        out.append(float(np.mean(xc ** 4)) / (float(np.mean(xc ** 2)) ** 2 or 1e-300))
+        st = feat.moments(y[c])  # the core's moments (dv_moments), as the firmware computes
+        out.append(math.log((st.std or 1e-300) / su))
+        out.append(st.kurt)
     return np.array(out)

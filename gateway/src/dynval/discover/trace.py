@@ -23,14 +23,15 @@ from typing import Any
 
 import numpy as np
 
+from dynval import features as feat
 from dynval import model as mdl
 from dynval.discover import effects as fx
 from dynval.discover.residual import TestData
 from dynval.errors import DynvalError
+from dynval.model import elements as el
 
 log = logging.getLogger(__name__)
 signal: Any = importlib.import_module("scipy.signal")
-stats: Any = importlib.import_module("scipy.stats")
 next_fast_len: Any = importlib.import_module("scipy.fft").next_fast_len
 
 
@@ -85,7 +86,7 @@ def events(r: np.ndarray, fs_hz: float, win: int = 32, k: float = 5.0) -> Events
     e = w ** 2
     top = np.sort(e)[::-1][: max(1, n // 10)]
     return Events([float(i * win / fs_hz) for i in idx], float(top.sum() / (e.sum() or 1e-300)),
-                  float(stats.kurtosis(r, fisher=False)))
+                  float(feat.moments(r).kurt))
 
 
 def spectrum(r: np.ndarray, fs_hz: float, modes_hz: Sequence[float],
@@ -142,62 +143,10 @@ def _hp(x: np.ndarray, fs: float, f_hp: float) -> np.ndarray:
 
 
 def matrices(m: mdl.Model) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Masses, K, C (modal damping rebuilt from the C core's modes) and the modes (rad/s,
-    mass-normalised shapes)."""
-    mass = np.array(m.masses_kg)
-    k = mdl.stiffness_matrix(m)
-    f_hz, phi = mdl.modes(m)
-    w = 2 * np.pi * f_hz
-    d = m.damping
-    if d.type == "modal":
-        mp = mass[:, None] * phi
-        c = mp @ np.diag(2 * np.array(d.zeta) * w) @ mp.T
-    elif d.type == "rayleigh" and d.modes:
-        r, s = d.modes[0] - 1, d.modes[1] - 1
-        a_mat = np.array([[1 / (2 * w[r]), w[r] / 2], [1 / (2 * w[s]), w[s] / 2]])
-        ab = np.linalg.solve(a_mat, np.array(d.zeta))
-        c = ab[0] * np.diag(mass) + ab[1] * k
-    else:
-        c = mdl.damping_matrix_explicit(m)
-    return mass, k, c, w, phi
-
-
-def _element_force(m: mdl.Model, x: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Restoring forces of the model's elements on reconstructed displacements/velocities."""
-    f = np.zeros_like(x)
-    for el in m.elements:
-        if isinstance(el, mdl.Contact):
-            continue
-        z = v if isinstance(el, (mdl.Friction, mdl.VVDamper)) else x
-        rel = z[el.dof_b - 1] - (z[el.dof_a - 1] if el.dof_a > 0 else 0.0)
-        if isinstance(el, mdl.StickSlip):
-            g = el.force_n * fx.jenkins(np.asarray(rel), [el.slip_m])[0]
-        elif isinstance(el, mdl.Friction):
-            g = el.force_n * rel / np.sqrt(rel * rel + el.v_eps_m_per_s ** 2)
-        elif isinstance(el, mdl.CubicSpring):
-            g = el.k3_n_per_m3 * rel ** 3
-        else:
-            g = el.c2_n_s2_per_m2 * rel * np.abs(rel)
-        f[el.dof_b - 1] += g
-        if el.dof_a > 0:
-            f[el.dof_a - 1] -= g
-    for e in m.contacts:
-        xa = x[e.dof_a - 1] if e.dof_a > 0 else 0.0
-        xx = x[e.dof_b - 1] - xa
-
-        def law(s: np.ndarray, e: mdl.Contact = e) -> np.ndarray:
-            d = max(e.delta_m, 1e-30)
-            return np.where(s <= 0, 0.0, np.where(s < d, e.kb_n_per_m * s * s / (2 * d),
-                                                  e.kb_n_per_m * (s - d / 2)))
-        g = np.zeros_like(xx)
-        if e.side in ("pos", "both"):
-            g += law(xx - e.gap_m)
-        if e.side in ("neg", "both"):
-            g -= law(-xx - e.gap_m)
-        f[e.dof_b - 1] += g
-        if e.dof_a > 0:
-            f[e.dof_a - 1] -= g
-    return f
+    """Masses, K, C and the modes (rad/s, mass-normalised shapes), as the C core builds them
+    (model.linear)."""
+    lin = mdl.linear(m)
+    return lin.mass, lin.k, lin.c, lin.w, lin.phi
 
 
 def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
@@ -228,8 +177,8 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
         u = _hp(t.u, fs, f_hp)
         fext = np.zeros_like(ah)
         fext[m.input.dof - 1] = u
-        fm = fext - mass[:, None] * ah - c @ vh - k @ xh - _hp(_element_force(m, xh, vh), fs,
-                                                                f_hp)
+        f_el = _hp(el.restoring(m.elements, xh, vh), fs, f_hp)
+        fm = fext - mass[:, None] * ah - c @ vh - k @ xh - f_el
         cut = int(trim_frac * t.u.size)
         sl = slice(cut, t.u.size - cut)
         xs.append(xh[:, sl])
@@ -467,13 +416,7 @@ def score(view: ForceView, cands: Sequence[fx.Candidate]) -> list[Evidence]:
                 r2 = float(br @ f_res) ** 2 / brr / fr
             if r2 > best.r2:
                 best = Evidence(cand, r2, amp, dict(shape))
-        if cand.type == "contact":
-            d, _ = fx.drift(view.states, cand.location["story"])
-            best.shape["drift_rms_m"] = float(np.std(d))
-        if cand.type == "friction":
-            j = cand.location["dof"] - 1
-            vg = view.states.vg if view.states.vg is not None and j == 0 else 0.0
-            best.shape["v_rms"] = float(np.std(view.states.v[j] - vg))
+        best.shape.update(fx.by_type(cand.type).motion_scales(view.states, cand))
         out.append(best)
     out.sort(key=lambda e: -e.r2)
     log.debug("evidence: the linear nuisance bases explain %.3f of the missing force", r2_n)

@@ -93,9 +93,10 @@ def ledoit_wolf(z: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def fit(x_exp: np.ndarray, labels: list[str] | tuple[str, ...] = (), *,
-        shrink: str = "auto", level: float = 0.95) -> Baseline:
+        shrink: str = "auto", level: float = 0.95, quiet: bool = False) -> Baseline:
     """Baseline from the experimental feature vectors (rows = tests). shrink: 'auto'
-    (Ledoit-Wolf when n <= p + 1, where S_E is singular or nearly so), 'always', 'never'."""
+    (Ledoit-Wolf when n <= p + 1, where S_E is singular or nearly so), 'always', 'never'.
+    quiet: the shrinkage notice at debug level (for repeated baselines)."""
     x = np.asarray(x_exp, dtype=np.float64)
     if x.ndim != 2 or x.shape[0] < 2:
         raise ConfigError(f"the baseline needs at least 2 experimental feature vectors, got "
@@ -122,9 +123,10 @@ def fit(x_exp: np.ndarray, labels: list[str] | tuple[str, ...] = (), *,
     if use_lw:
         cov, alpha = ledoit_wolf(z)
         if n <= p + 1:
-            log.warning("%d experimental tests for %d features: the sample covariance is "
-                        "singular or nearly so; using Ledoit-Wolf shrinkage towards a scaled "
-                        "identity (shrinkage %.3f) and the chi-square threshold", n, p, alpha)
+            log.log(logging.DEBUG if quiet else logging.WARNING,
+                    "%d experimental tests for %d features: the sample covariance is singular "
+                    "or nearly so; using Ledoit-Wolf shrinkage towards a scaled identity "
+                    "(shrinkage %.3f) and the chi-square threshold", n, p, alpha)
         else:
             log.info("Ledoit-Wolf covariance (shrinkage %.3f)", alpha)
     else:
@@ -136,6 +138,21 @@ def fit(x_exp: np.ndarray, labels: list[str] | tuple[str, ...] = (), *,
     inv = 0.5 * (inv + inv.T)
     d = np.einsum("ij,jk,ik->i", z, inv, z)
     return Baseline(lab, mean, scale, cov, inv, n, alpha, d, level)
+
+
+def mean_distance(x_exp: np.ndarray, x_model: np.ndarray,
+                  labels: list[str] | tuple[str, ...] = ()) -> tuple[float, float]:
+    """Mean distance sqrt(D) of the model's feature vectors (rows of x_model) from the
+    experimental baseline fit(x_exp), and the reference a valid model should land near: the
+    mean leave-one-out distance of the experimental vectors themselves (each from the baseline
+    of the others; NaN with fewer than 3 tests). ConfigError when no baseline can be fitted."""
+    x = np.asarray(x_exp, dtype=np.float64)
+    d_model = float(np.mean(np.sqrt(fit(x, labels).distance(np.asarray(x_model)))))
+    if x.shape[0] < 3:
+        return d_model, float("nan")
+    loo = [float(np.sqrt(fit(np.delete(x, i, axis=0), labels, quiet=True).distance(x[i])[0]))
+           for i in range(x.shape[0])]
+    return d_model, float(np.mean(loo))
 
 
 def verdict(base: Baseline, d_model: np.ndarray) -> dict[str, Any]:

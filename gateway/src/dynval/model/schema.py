@@ -1,0 +1,187 @@
+"""The model's data: a chain of lumped masses with story springs, damping, one input, named
+outputs and nonlinear elements (model/elements.py), and its scalar parameters by name.
+
+Numbering is 1-based like the report: DOF 1..n, story k1 ties DOF 1 to the ground, story ki
+ties DOF i-1 to DOF i, modes 1..n ascending, element i is the i-th entry of ``elements``; DOF
+0 (or "ground") is the ground.
+"""
+from __future__ import annotations
+
+import dataclasses
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from dynval.errors import ConfigError
+from dynval.model import elements as el
+from dynval.model.elements import Element
+
+FORMAT = "dynval-model/1"
+DAMPING_TYPES = ("modal", "rayleigh", "matrix")
+INPUT_KINDS = ("force", "ground_acc", "ground_disp")
+OUTPUT_KINDS = ("acc", "vel", "disp", "story_force", "contact_force", "reaction")
+INTERPOLATIONS = ("bandlimited", "foh", "cubic")
+# the file key that holds an output's index, per output kind (none for the reaction)
+OUTPUT_INDEX_KEY = {"acc": "dof", "vel": "dof", "disp": "dof", "story_force": "story",
+                    "contact_force": "element"}
+
+
+@dataclass(frozen=True)
+class Damping:
+    """Damping. type 'modal': zeta per mode (ascending frequency). type 'rayleigh': C = a M + b K,
+    either from two modes (1-based ``modes``) and their ratios ``zeta``, or from ``alpha_per_s``
+    and ``beta_s`` directly. type 'matrix': ``c_n_s_per_m``, n x n symmetric."""
+
+    type: str = "modal"
+    zeta: tuple[float, ...] = ()
+    modes: tuple[int, ...] = ()
+    alpha_per_s: float | None = None
+    beta_s: float | None = None
+    c_n_s_per_m: tuple[tuple[float, ...], ...] = ()
+
+    @property
+    def explicit_rayleigh(self) -> bool:
+        """Rayleigh from alpha_per_s and beta_s (the core does not build it itself)."""
+        return self.type == "rayleigh" and not self.modes
+
+
+@dataclass(frozen=True)
+class Input:
+    """The measured input: a force at ``dof`` (1-based), or a ground acceleration/displacement.
+    ``channel`` names the test's column (None: the recording's only input channel)."""
+
+    kind: str = "force"
+    dof: int = 1
+    channel: str | None = None
+
+
+@dataclass(frozen=True)
+class Output:
+    """One predicted channel. ``index``: DOF (acc/vel/disp, 1-based), story (story_force: story i
+    is k_i), element (contact_force: 1-based into Model.elements); ignored for reaction. ``gain``:
+    the sensor's gain (1 = calibrated); the prediction is gain x the model's quantity."""
+
+    kind: str
+    index: int = 0
+    gain: float = 1.0  # sensor gain: the channel reads gain x the model's quantity (< 0: reversed)
+
+
+@dataclass(frozen=True)
+class Model:
+    """A chain of lumped masses with story springs, damping, one input, named outputs and
+    nonlinear elements. Build it from a file with load(), or directly."""
+
+    masses_kg: tuple[float, ...]
+    stiffness_n_per_m: tuple[float, ...]
+    damping: Damping
+    input: Input
+    outputs: Mapping[str, Output]
+    elements: tuple[Element, ...] = ()
+    substeps: int = 8
+    oversample: int = 4
+    interpolation: str = "bandlimited"
+    fs_hz: float | None = None
+    name: str = ""
+    description: str = ""
+    dof_names: tuple[str, ...] = ()
+    source: str = field(default="", compare=False)
+
+    @property
+    def n_dof(self) -> int:
+        return len(self.masses_kg)
+
+    @property
+    def channels(self) -> list[str]:
+        return list(self.outputs)
+
+    def parameters(self) -> dict[str, float]:
+        """The model's scalar parameters by name (see with_params)."""
+        p: dict[str, float] = {}
+        for i, m in enumerate(self.masses_kg, 1):
+            p[f"m{i}"] = m
+        for i, k in enumerate(self.stiffness_n_per_m, 1):
+            p[f"k{i}"] = k
+        d = self.damping
+        if d.type == "modal" or (d.type == "rayleigh" and d.modes):
+            for i, z in enumerate(d.zeta, 1):
+                p[f"zeta{i}"] = z
+        elif d.type == "rayleigh":
+            p["alpha"] = float(d.alpha_per_s or 0.0)
+            p["beta"] = float(d.beta_s or 0.0)
+        for i, e in enumerate(self.elements, 1):
+            for name, v in el.values(e).items():
+                p[f"e{i}.{name}"] = v
+        return p
+
+    def with_params(self, params: Mapping[str, float]) -> Model:
+        """A copy with parameters replaced: m<i>, k<i>, zeta<i> (modal ratio of mode i, or the
+        i-th of the two Rayleigh ratios), alpha, beta (Rayleigh a, b), e<i>.<parameter> of
+        element i (its registry parameters, model/elements.py). The copy is validated."""
+        from dynval.model.validation import validate  # validation reads this schema
+
+        lists: dict[str, list[Any]] = {"m": list(self.masses_kg),
+                                       "k": list(self.stiffness_n_per_m),
+                                       "zeta": list(self.damping.zeta), "e": list(self.elements)}
+        damp = self.damping
+        for name, value in params.items():
+            v = float(value)
+            idx, attr = param_target(name, self)
+            if attr in ("m", "k", "zeta"):
+                lists[attr][idx] = v
+            elif attr == "alpha":
+                damp = dataclasses.replace(damp, alpha_per_s=v)
+            elif attr == "beta":
+                damp = dataclasses.replace(damp, beta_s=v)
+            else:  # an element parameter (checked against its type by param_target)
+                upd: dict[str, Any] = {attr: v}
+                lists["e"][idx] = dataclasses.replace(lists["e"][idx], **upd)
+        if lists["zeta"]:
+            damp = dataclasses.replace(damp, zeta=tuple(lists["zeta"]))
+        m = dataclasses.replace(self, masses_kg=tuple(lists["m"]),
+                                stiffness_n_per_m=tuple(lists["k"]), damping=damp,
+                                elements=tuple(lists["e"]))
+        validate(m)
+        return m
+
+
+_PARAM = re.compile(r"^(?:(m|k|zeta)(\d+)|(alpha|beta)|e(\d+)\.([a-z0-9_]+))$")
+
+
+def param_target(name: str, m: Model) -> tuple[int, str]:
+    """(0-based index, attribute) a parameter name addresses: ('m'|'k'|'zeta', i),
+    (0, 'alpha'|'beta') or (element index, its parameter name); ConfigError otherwise."""
+    g = _PARAM.match(name)
+    if g is None:
+        raise ConfigError(f"unknown model parameter '{name}' (known: "
+                          f"{', '.join(m.parameters())})")
+    if g.group(3):
+        if not m.damping.explicit_rayleigh:
+            raise ConfigError(f"parameter '{name}' needs damping type rayleigh with "
+                              "alpha_per_s/beta_s")
+        return 0, g.group(3)
+    if g.group(1):
+        i = int(g.group(2)) - 1
+        n = len(m.damping.zeta) if g.group(1) == "zeta" else m.n_dof
+        if not 0 <= i < n:
+            raise ConfigError(f"parameter '{name}': index out of range 1..{n}")
+        return i, g.group(1)
+    i = int(g.group(4)) - 1
+    if not 0 <= i < len(m.elements):
+        raise ConfigError(f"parameter '{name}': the model has {len(m.elements)} elements")
+    try:
+        el.spec(m.elements[i]).param(g.group(5))
+    except ConfigError as exc:
+        raise ConfigError(f"parameter '{name}': element {i + 1}: {exc}") from None
+    return i, g.group(5)
+
+
+_UNITS = {"m": "kg", "k": "N/m", "zeta": "1", "alpha": "1/s", "beta": "s"}
+
+
+def param_unit(name: str, m: Model) -> str:
+    """The unit of a parameter name (element parameters: their registry unit)."""
+    i, attr = param_target(name, m)
+    if attr in _UNITS:
+        return _UNITS[attr]
+    return el.spec(m.elements[i]).param(attr).unit

@@ -1,0 +1,373 @@
+"""Simulation through the C core's model and observer (dv_model, dv_obs): the code the
+firmware runs; and the linear model's matrices and modes as the core computes them.
+
+Input interpolation: the C core's discretisation is exact for an input that is linear between
+samples (first-order hold). A measured force is band-limited (the DAQ's anti-alias filter),
+and linear interpolation of it attenuates the response near a mode by sinc^2(f/fs) (4 % at
+71.6 Hz sampled at 640 Hz). With ``oversample`` R > 1 the input is first interpolated
+band-limited by R (scipy.signal.resample_poly, zeros before t = 0 as the structure starts at
+rest), the C code runs at R fs, and every R-th output is kept. R = 1 is the C code on the
+samples as they are (bit-identical to dv_obs_simulate). ``cubic`` runs the core on the samples
+with its cubic input hold (dv_model DV_HOLD_CUBIC: the Lagrange cubic through four samples,
+discretised exactly), the hold the firmware can run too (one sample of latency there).
+"""
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import logging
+import math
+import re
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from dynval import _core
+from dynval.errors import ConfigError
+from dynval.model import elements as el
+from dynval.model.schema import Damping, Model, Output
+from dynval.model.validation import MAX_OVERSAMPLE
+
+log = logging.getLogger(__name__)
+
+_DAMP_C = {"modal": "DV_DAMP_MODAL", "rayleigh": "DV_DAMP_RAYLEIGH", "matrix": "DV_DAMP_MATRIX"}
+_INPUT_C = {"force": "DV_INPUT_FORCE", "ground_acc": "DV_INPUT_GROUND_ACC",
+            "ground_disp": "DV_INPUT_GROUND_DISP"}
+_OUT_C = {"acc": "DV_OUT_ACC", "vel": "DV_OUT_VEL", "disp": "DV_OUT_DISP",
+          "story_force": "DV_OUT_SPRING_FORCE", "contact_force": "DV_OUT_ELEM_FORCE",
+          "reaction": "DV_OUT_REACTION"}
+_STATUS_HINT = {
+    "DV_EUNSTABLE": "the damping matrix is not positive semi-definite, the discretisation is "
+                    "not finite, or the sample period is too long for the contact stiffness "
+                    "(raise simulation.substeps or oversample)",
+    "DV_EINVAL": "a value is out of the core's range",
+}
+
+
+def _c(name: str) -> int:
+    return int(getattr(_core.lib, name))
+
+
+def _fill_damping(desc: Any, m: Model) -> None:
+    d, n = m.damping, m.n_dof
+    if d.type == "modal":
+        desc.damp_kind = _c("DV_DAMP_MODAL")
+        for i in range(n):
+            desc.zeta[i] = d.zeta[i]
+    elif d.type == "rayleigh" and d.modes:
+        desc.damp_kind = _c("DV_DAMP_RAYLEIGH")
+        for j in range(2):
+            desc.rayleigh_mode[j] = d.modes[j] - 1
+            desc.rayleigh_zeta[j] = d.zeta[j]
+    else:
+        desc.damp_kind = _c("DV_DAMP_MATRIX")
+        cm = damping_matrix_explicit(m)
+        for i in range(n):
+            for j in range(n):
+                desc.c_n_s_per_m[i * n + j] = float(cm[i, j])
+
+
+def _fill_desc(desc: Any, m: Model) -> None:
+    """Write m into a dv_model_desc_t (0-based indices)."""
+    lib = _core.lib
+    _core.check(lib.dv_model_desc_default(desc), "dv_model_desc_default")
+    n = m.n_dof
+    desc.n_dof = n
+    for i in range(n):
+        desc.mass_kg[i] = m.masses_kg[i]
+        desc.k_n_per_m[i] = m.stiffness_n_per_m[i]
+    _fill_damping(desc, m)
+    desc.input_kind = _c(_INPUT_C[m.input.kind])
+    desc.input_dof = max(m.input.dof - 1, 0)
+    desc.n_elem = len(m.elements)
+    for i, e in enumerate(m.elements):
+        c = desc.elem[i]
+        c.dof_a = lib.DV_GROUND if e.dof_a == 0 else e.dof_a - 1
+        c.dof_b = e.dof_b - 1
+        el.fill_desc(c, e)
+    desc.n_sub = m.substeps if m.elements else 1
+    desc.input_hold = _c("DV_HOLD_CUBIC" if m.interpolation == "cubic" else "DV_HOLD_FOH")
+    desc.n_out = len(m.outputs)
+    for j, o in enumerate(m.outputs.values()):
+        desc.out[j].kind = _c(_OUT_C[o.kind])
+        desc.out[j].index = 0 if o.kind == "reaction" else o.index - 1
+
+
+def damping_matrix_explicit(m: Model) -> np.ndarray:
+    """C for the types the core does not build itself (matrix; Rayleigh from alpha, beta, with
+    the core's K)."""
+    d = m.damping
+    if d.type == "matrix":
+        return np.asarray(d.c_n_s_per_m, dtype=np.float64)
+    if d.explicit_rayleigh:
+        return float(d.alpha_per_s or 0.0) * np.diag(m.masses_kg) + float(
+            d.beta_s or 0.0) * stiffness_matrix(m)
+    raise ConfigError("the core builds modal and mode-based Rayleigh damping itself")
+
+
+class _Core:
+    """A C model + open-loop observer with their buffers, reusable for many parameter sets."""
+
+    def __init__(self, m: Model, dt_s: float) -> None:
+        ffi = _core.ffi
+        self.dt = dt_s
+        self.desc = ffi.new("dv_model_desc_t *")
+        self.cm = ffi.new("dv_model_t *")
+        self.obs = ffi.new("dv_obs_t *")
+        self.no = len(m.outputs)
+        _fill_desc(self.desc, m)
+        self.mlen = int(_core.lib.dv_model_buf_len(self.desc))
+        if self.mlen == 0:
+            raise ConfigError(f"{m.source or '<model>'}: the core refused the model's sizes")
+        self.mbuf = np.zeros(self.mlen)
+        self.mptr = _core.ptr(self.mbuf)
+        self.olen = 0
+        self.obuf = np.zeros(0)
+        self.optr: Any = None
+
+    def build_model(self, m: Model) -> None:
+        """dv_model_init on the current description."""
+        st = _core.lib.dv_model_init(self.cm, self.desc, self.dt, self.mptr, self.mlen)
+        if st < 0:
+            raise _refused(m, "dv_model_init", st, self.dt)
+
+    def build(self, m: Model, refill: bool = True) -> None:
+        if refill:
+            _fill_desc(self.desc, m)
+        self.build_model(m)
+        lib = _core.lib
+        olen = int(lib.dv_obs_buf_len(self.cm))
+        if olen > self.olen:
+            self.olen = olen
+            self.obuf = np.zeros(olen)
+            self.optr = _core.ptr(self.obuf)
+        st = lib.dv_obs_init(self.obs, self.cm, _core.ffi.NULL, self.optr, self.olen)
+        if st < 0:
+            raise _refused(m, "dv_obs_init", st, self.dt)
+
+    def run(self, u: np.ndarray, y: np.ndarray) -> int:
+        """Simulate from rest into y (n x no, C-contiguous); returns the core's status."""
+        return int(_core.lib.dv_obs_simulate(self.obs, _core.ptr(u), u.size, _core.ptr(y)))
+
+    def matrix(self, which: str) -> np.ndarray:
+        """A copy of one of the built model's matrices (dv_model_get_mat, DV_MODEL_MAT_<which>)."""
+        view = _core.ffi.new("dv_mat_t *")
+        _core.check(_core.lib.dv_model_get_mat(self.cm, _c(f"DV_MODEL_MAT_{which}"), view),
+                    "dv_model_get_mat")
+        r, c = int(view.rows), int(view.cols)
+        buf = _core.ffi.buffer(view.data, r * c * 8)
+        return np.frombuffer(buf, dtype=np.float64).reshape(r, c).copy()
+
+    def modes(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        f = np.zeros(n)
+        phi = np.zeros(n * n)
+        _core.check(_core.lib.dv_model_get_modes(self.cm, _core.ptr(f), _core.ptr(phi), n * n),
+                    "dv_model_get_modes")
+        return f, phi.reshape(n, n)
+
+
+def _refused(m: Model, func: str, status: int, dt: float) -> ConfigError:
+    name = _core.status_name(status)
+    hint = _STATUS_HINT.get(name, "")
+    return ConfigError(f"{m.source or '<model>'}: the core refused the model ({func}: {name}"
+                       f"{'; ' + hint if hint else ''}; sample period {dt:g} s)")
+
+
+def _linear_core(m: Model) -> _Core:
+    """The core's model of m's linear part (no elements, one output), built (the damping of an
+    explicit Rayleigh model, which needs K, is left out: see linear())."""
+    lin = dataclasses.replace(m, elements=(), outputs={"a": Output("acc", 1)})
+    if m.damping.explicit_rayleigh:
+        lin = dataclasses.replace(lin, damping=Damping("modal", zeta=(0.0,) * m.n_dof))
+    core = _Core(lin, 1e-4)
+    core.build_model(lin)
+    return core
+
+
+@dataclass(frozen=True)
+class Linear:
+    """The linear model as the core builds it: masses (kg), K and C (n x n), undamped
+    frequencies (Hz, ascending) and mass-normalised mode shapes (column k = mode k+1)."""
+
+    mass: np.ndarray
+    k: np.ndarray
+    c: np.ndarray
+    f_hz: np.ndarray
+    phi: np.ndarray
+
+    @property
+    def w(self) -> np.ndarray:
+        return np.asarray(2 * np.pi * self.f_hz)
+
+
+def linear(m: Model) -> Linear:
+    """K, C and the modes of m's linear part from one build of the core's model
+    (dv_model_get_mat, dv_model_get_modes)."""
+    core = _linear_core(m)
+    k = core.matrix("K")
+    f, phi = core.modes(m.n_dof)
+    mass = np.array(m.masses_kg, dtype=np.float64)
+    if m.damping.explicit_rayleigh:
+        c = float(m.damping.alpha_per_s or 0.0) * np.diag(mass) + float(
+            m.damping.beta_s or 0.0) * k
+    else:
+        c = core.matrix("C")
+    return Linear(mass, k, c, f, phi)
+
+
+def stiffness_matrix(m: Model) -> np.ndarray:
+    """K of the chain (eq. 2), N/m, as the core builds it."""
+    return _linear_core(m).matrix("K")
+
+
+def modes(m: Model) -> tuple[np.ndarray, np.ndarray]:
+    """Undamped natural frequencies (Hz, ascending) and mass-normalised mode shapes
+    (column k = mode k+1), by the C core's eigen-solution (the core has no cheaper call than
+    building the linear model: its eigen-solution is a stage of dv_model_init)."""
+    return _linear_core(m).modes(m.n_dof)
+
+
+def natural_frequencies(m: Model) -> np.ndarray:
+    """Undamped natural frequencies of the linear chain, Hz, ascending (contacts open)."""
+    return modes(m)[0]
+def _resolve_oversample(m: Model, oversample: int | None) -> int:
+    r = m.oversample if oversample is None else int(oversample)
+    if m.interpolation in ("foh", "cubic") and oversample is None:
+        r = 1
+    if not 1 <= r <= MAX_OVERSAMPLE:
+        raise ConfigError(f"oversample must be 1..{MAX_OVERSAMPLE}, got {r}")
+    return r
+
+
+def interpolate_input(u: np.ndarray, r: int) -> np.ndarray:
+    """Band-limited interpolation by r (zeros before the first sample: the structure starts at
+    rest; zeros padded after the last so its tail is not cut by the filter)."""
+    if r == 1:
+        return _core.as_doubles(u)
+    pad = np.concatenate([_core.as_doubles(u), np.zeros(32)])
+    resample_poly = importlib.import_module("scipy.signal").resample_poly
+    return np.ascontiguousarray(resample_poly(pad, r, 1)[: u.size * r])
+
+
+def _prepare_input(u: Any, r: int) -> np.ndarray:
+    a = _core.as_doubles(u)
+    if a.size == 0:
+        raise ConfigError("the input record is empty")
+    if r > 1 and not np.all(np.isfinite(a)):
+        bad = int(np.count_nonzero(~np.isfinite(a)))
+        raise ConfigError(f"the input has {bad} non-finite samples: band-limited interpolation "
+                          "needs a complete record (use oversample=1 to let the core hold)")
+    return interpolate_input(a, r)
+
+
+def simulate(m: Model, force_or_motion: Any, fs_hz: float, *,
+             oversample: int | None = None) -> dict[str, np.ndarray]:
+    """Predicted outputs (channel -> array) of the model driven from rest by the sampled input,
+    through the C core (dv_model_init, dv_obs_init open loop, dv_obs_simulate). oversample:
+    band-limited interpolation factor (None: the model's; 1: the samples as they are)."""
+    if not fs_hz > 0:
+        raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
+    r = _resolve_oversample(m, oversample)
+    u = _prepare_input(force_or_motion, r)
+    core = _Core(m, 1.0 / (fs_hz * r))
+    core.build(m, refill=False)
+    y = np.empty((u.size, core.no))
+    st = core.run(u, y)
+    if st < 0:
+        bad = int(core.obs.n_bad_input)
+        if st == _core.lib.DV_ENUMERIC:
+            log.warning("%d non-finite input samples: the core held the state there", bad)
+        else:
+            _core.check(st, "dv_obs_simulate")
+    y = y[::r]
+    return {name: np.ascontiguousarray(y[:, j]) * o.gain if o.gain != 1.0 else
+            np.ascontiguousarray(y[:, j]) for j, (name, o) in enumerate(m.outputs.items())}
+
+
+def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
+                   param_sets: Sequence[Mapping[str, float]], *, oversample: int | None = None,
+                   on_progress: Callable[[int, int], None] | None = None) -> np.ndarray:
+    """Simulate many parameter variants (Model.with_params names: m1, k2, zeta3, e1.gap_m, ...)
+    of one model for one input. Returns an array (n_sets, n_samples, n_outputs), outputs in
+    the order of m.channels. The input is interpolated once; each run rebuilds only the C
+    model and observer in preallocated buffers."""
+    if not fs_hz > 0:
+        raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
+    r = _resolve_oversample(m, oversample)
+    u = _prepare_input(force_or_motion, r)
+    n = u.size // r
+    core = _Core(m, 1.0 / (fs_hz * r))
+    base = _core.ffi.new("dv_model_desc_t *")
+    _fill_desc(base, m)
+    size = _core.ffi.sizeof("dv_model_desc_t")
+    setters = _desc_setters(m)
+    out = np.empty((len(param_sets), n, core.no))
+    work = np.empty((u.size, core.no)) if r > 1 else None
+    for i, ps in enumerate(param_sets):
+        _core.ffi.memmove(core.desc, base, size)
+        if all(name in setters for name in ps):
+            for name, value in ps.items():
+                v = float(value)
+                if not math.isfinite(v):
+                    raise ConfigError(f"parameter set {i}: {name} = {value!r} is not finite")
+                setters[name](core.desc, v)
+        else:  # a parameter the description does not hold directly (Rayleigh alpha, beta)
+            try:
+                _fill_desc(core.desc, m.with_params(ps))
+            except ConfigError as exc:
+                raise ConfigError(f"parameter set {i}: {exc}") from None
+        try:
+            core.build(m, refill=False)
+        except ConfigError as exc:
+            raise ConfigError(f"parameter set {i} {dict(ps)}: {exc}") from None
+        if work is None:
+            y = out[i]
+            st = core.run(u, y)
+        else:
+            st = core.run(u, work)
+            out[i] = work[::r]
+        if st < 0 and st != _core.lib.DV_ENUMERIC:
+            _core.check(st, "dv_obs_simulate")
+        if on_progress is not None:
+            on_progress(i + 1, len(param_sets))
+    gains = np.array([o.gain for o in m.outputs.values()])
+    if np.any(gains != 1.0):
+        out *= gains
+    return out
+
+
+def _desc_setters(m: Model) -> dict[str, Callable[[Any, float], None]]:
+    """Direct writers into a dv_model_desc_t for each parameter name (validated by the core:
+    mass <= 0, negative stiffness etc. give DV_EINVAL, reported as ConfigError)."""
+    s: dict[str, Callable[[Any, float], None]] = {}
+
+    def arr(field_: str, i: int) -> Callable[[Any, float], None]:
+        def f(d: Any, v: float) -> None:
+            getattr(d, field_)[i] = v
+        return f
+
+    def con(i: int, attr: str) -> Callable[[Any, float], None]:
+        def f(d: Any, v: float) -> None:
+            setattr(d.elem[i], attr, v)
+        return f
+
+    for i in range(m.n_dof):
+        s[f"m{i + 1}"] = arr("mass_kg", i)
+        s[f"k{i + 1}"] = arr("k_n_per_m", i)
+    if m.damping.type == "modal":
+        for i in range(m.n_dof):
+            s[f"zeta{i + 1}"] = arr("zeta", i)
+    elif m.damping.type == "rayleigh" and m.damping.modes:
+        for i in range(2):
+            s[f"zeta{i + 1}"] = arr("rayleigh_zeta", i)
+    for i, e in enumerate(m.elements):
+        for p in el.spec(e).params:
+            s[f"e{i + 1}.{p.name}"] = con(i, p.field)
+    if m.damping.explicit_rayleigh:
+        # masses and stiffnesses also enter C = a M + b K: recompute C in Python for them
+        s = {k: v for k, v in s.items() if not re.match(r"^[mk]\d+$", k)}
+    return s
+
+

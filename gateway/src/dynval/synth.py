@@ -1,0 +1,160 @@
+"""Synthetic "measured" tests for tests, studies and benchmarks (not used by the runtime
+commands): a truth model simulated by the C core through the binding (dynval.model.simulate),
+never C compiled at run time.
+
+Two generators:
+
+* ``generate``: a declared model plus what it lacks (``Truth``: story stiffness and mass
+  changes, damping ratios, sensor gains, extra elements of the registry). The truth runs at
+  ``fine`` x the output rate (default 16), the force band-limited random (white noise through a
+  4th-order Butterworth band-pass at the fine rate, linear between fine samples, the core's
+  first-order hold); a DAQ is imitated: a causal 8th-order Butterworth low-pass at 0.4 fs on
+  every channel (force included) at the fine rate, decimation to fs, and white sensor noise of
+  ``noise`` x the clean RMS of each channel.
+* ``make_experiments``: a truth model driven by zero-phase band-limited forces through
+  model.simulate, with test-to-test variation of chosen parameters and of the force level, and
+  white sensor noise on every channel.
+"""
+from __future__ import annotations
+
+import dataclasses
+import importlib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dynval import model as mdl
+from dynval.errors import ConfigError
+from dynval.io.recording import Channel, Recording
+
+signal: Any = importlib.import_module("scipy.signal")
+
+
+@dataclass(frozen=True)
+class Truth:
+    """What the generator's structure has on top of the declared model: relative changes of
+    story stiffness (k_scale) and mass (m_add_kg), modal damping ratios (zeta, None: the
+    model's damping), sensor gains per output channel, and elements (model.elements types)."""
+
+    k_scale: dict[int, float] = field(default_factory=dict)
+    m_add_kg: dict[int, float] = field(default_factory=dict)
+    zeta: tuple[float, ...] | None = None
+    gains: dict[str, float] = field(default_factory=dict)
+    elements: tuple[mdl.Element, ...] = ()
+    label: str = "clean"
+
+
+def band_limited_force(rng: np.random.Generator, n: int, fs_hz: float, rms: float,
+                       band_hz: tuple[float, float] = (20.0, 200.0), *,
+                       zero_phase: bool = False) -> np.ndarray:
+    """White noise through a 4th-order Butterworth band-pass, scaled to rms. zero_phase: the
+    filter forwards and backwards over 512 extra samples, the first 64 samples ramped in."""
+    sos = signal.butter(4, band_hz, btype="bandpass", fs=fs_hz, output="sos")
+    if not zero_phase:
+        f = signal.sosfilt(sos, rng.standard_normal(n))
+        return np.asarray(rms * f / np.sqrt(np.mean(f * f)))
+    x = signal.sosfiltfilt(sos, rng.standard_normal(n + 512))[256:256 + n]
+    x *= rms / np.sqrt(np.mean(x * x))
+    return np.asarray(x * np.minimum(1.0, np.arange(n) / 64.0))
+
+
+def truth_model(m: mdl.Model, truth: Truth) -> mdl.Model:
+    """The truth as a model: m with the truth's changes and elements, every DOF's acceleration
+    as output (``__a<j>``), the samples held linearly (no interpolation)."""
+    params = {f"k{s}": m.stiffness_n_per_m[s - 1] * f for s, f in truth.k_scale.items()}
+    params.update({f"m{j}": m.masses_kg[j - 1] + dm for j, dm in truth.m_add_kg.items()})
+    tm = m.with_params(params) if params else m
+    damp = tm.damping if truth.zeta is None else mdl.Damping("modal", zeta=tuple(truth.zeta))
+    outs = {f"__a{j}": mdl.Output("acc", j) for j in range(1, m.n_dof + 1)}
+    tm = dataclasses.replace(tm, damping=damp, outputs=outs,
+                             elements=(*m.elements, *truth.elements), interpolation="foh",
+                             oversample=1)
+    mdl.validate(tm)
+    return tm
+
+
+def simulate_truth(m: mdl.Model, truth: Truth, force_fine: np.ndarray,
+                   fs_fine_hz: float) -> np.ndarray:
+    """Accelerations (len(force_fine) x n) of the truth driven from rest by a force at the
+    model's input DOF, by the core at the fine rate."""
+    if m.input.kind != "force":
+        raise ConfigError("the generator drives force-input models only")
+    y = mdl.simulate(truth_model(m, truth), force_fine, fs_fine_hz, oversample=1)
+    return np.column_stack([y[f"__a{j}"] for j in range(1, m.n_dof + 1)])
+
+
+def generate(m: mdl.Model, truth: Truth, *, n_tests: int = 10,
+             levels_n_rms: tuple[float, ...] = (12.0, 7.2), n_samples: int = 8192,
+             fs_hz: float = 640.0, fine: int = 16, noise: float = 0.01, seed: int = 0,
+             band_hz: tuple[float, float] = (20.0, 200.0)) -> list[Recording]:
+    """n_tests measured tests (levels cycled: test i has force RMS levels[i % len(levels)]),
+    as Recordings whose columns are the model's input channel (default 'force_N') and its
+    acceleration outputs (other output kinds are not generated)."""
+    rng = np.random.default_rng(seed)
+    fs_fine = fs_hz * fine
+    aa = signal.butter(8, 0.4 * fs_hz, btype="low", fs=fs_fine, output="sos")
+    in_name = m.input.channel or "force_N"
+    acc_outs = {name: o for name, o in m.outputs.items() if o.kind == "acc"}
+    if not acc_outs:
+        raise ConfigError("the generator produces accelerations: the model has no acc output")
+    recs = []
+    for i in range(n_tests):
+        level = levels_n_rms[i % len(levels_n_rms)]
+        f = band_limited_force(rng, n_samples * fine, fs_fine, level, band_hz)
+        acc = simulate_truth(m, truth, f, fs_fine)
+        cols = {in_name: f}
+        for name, o in acc_outs.items():
+            cols[name] = acc[:, o.index - 1] * truth.gains.get(name, 1.0)
+        chans = []
+        for name, x in cols.items():
+            y = signal.sosfilt(aa, x)[::fine]
+            y = y + noise * float(np.sqrt(np.mean(y * y))) * rng.standard_normal(y.size)
+            chans.append(Channel(name=name, data=np.ascontiguousarray(y),
+                                 unit="N" if name == in_name else "m/s^2",
+                                 role="input" if name == in_name else "output"))
+        tag = "high" if level == max(levels_n_rms) else "low"
+        recs.append(Recording(name=f"{truth.label}_{tag}_{i + 1:02d}", fs_hz=fs_hz,
+                              channels=chans))
+    return recs
+
+
+def make_experiments(truth: mdl.Model, n_tests: int = 20, *, fs_hz: float = 640.0,
+                     n_samples: int = 8192, force_rms: float = 12.0,
+                     band_hz: tuple[float, float] = (20.0, 200.0), noise: float = 0.01,
+                     variation: Mapping[str, float] | None = None, level_var: float = 0.02,
+                     force_channel: str = "force_N", seed: int = 0,
+                     oversample: int | None = None) -> list[Recording]:
+    """n_tests recordings of the truth model. variation: parameter -> relative STD of its
+    test-to-test scatter (e.g. {"zeta2": 0.03}); level_var: relative STD of the force RMS;
+    noise: sensor noise STD relative to each channel's RMS."""
+    rng = np.random.default_rng(seed)
+    base = truth.parameters()
+    recs = []
+    for k in range(n_tests):
+        params = {n: base[n] * (1.0 + s * rng.standard_normal())
+                  for n, s in (variation or {}).items()}
+        m = truth.with_params(params) if params else truth
+        rms = force_rms * (1 + level_var * rng.standard_normal())
+        f = band_limited_force(rng, n_samples, fs_hz, rms, band_hz, zero_phase=True)
+        y = mdl.simulate(m, f, fs_hz, oversample=oversample)
+        chans = [Channel(force_channel, f + noise * np.sqrt(np.mean(f * f))
+                         * rng.standard_normal(n_samples), "N", "input")]
+        for name, v in y.items():
+            rms = float(np.sqrt(np.mean(v * v)))
+            chans.append(Channel(name, v + noise * rms * rng.standard_normal(n_samples),
+                                 "m/s^2" if name.startswith("acc") else "", "output"))
+        recs.append(Recording(f"exp{k + 1:02d}", fs_hz, chans))
+    return recs
+
+
+def write_csv(rec: Recording, path: Path | str) -> None:
+    """Write a Recording in the shared data's CSV layout (time_s first). Column names are the
+    channel names as they are (a model names its channels by the tests' columns, so a
+    generated test must keep them: 'a1' stays 'a1', 'acc1_mps2' stays 'acc1_mps2')."""
+    t = rec.t0_s + np.arange(rec.n_samples) / rec.fs_hz
+    data = np.column_stack([t] + [c.data for c in rec.channels])
+    np.savetxt(path, data, delimiter=",", header=",".join(["time_s", *rec.names]), comments="",
+               fmt="%.10g")
