@@ -5,8 +5,8 @@ from __future__ import annotations
 import re
 import struct
 import threading
-from pathlib import Path
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
