@@ -163,7 +163,7 @@ def lsb_for(x: np.ndarray, headroom: float = 30000.0) -> float:
     finite = x[np.isfinite(x)]
     peak = float(np.max(np.abs(finite))) if finite.size else 0.0
     if peak == 0.0:
-        return 2.0 ** -10
+        return DEFAULT_LSB
     return float(2.0 ** math.ceil(math.log2(peak / headroom)))
 
 

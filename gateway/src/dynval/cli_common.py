@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -17,6 +18,8 @@ from typing import Any
 
 from dynval.errors import InputFileError
 from dynval.io import Recording, collect_tests, load_channel_map, read_test
+
+log = logging.getLogger(__name__)
 
 
 def add_test_options(p: Any) -> None:
@@ -113,6 +116,28 @@ def add_study_options(p: Any) -> None:
     p.add_argument("--html", dest="html_out", type=Path, default=None, metavar="OUT",
                    help="write the self-contained HTML report here")
     add_test_options(p)
+
+
+def study_inputs(args: argparse.Namespace) -> tuple[Any, list[Recording], list[Any]]:
+    """(model, tests, parameter ranges) of validate / calibrate."""
+    from dynval import model as mdl
+    from dynval.validate.doe import parse_param
+
+    m = mdl.load(args.model)
+    recs = read_tests(args.experiments, args, besides=args.model)
+    return m, recs, [parse_param(t) for t in args.param]
+
+
+def write_study_reports(args: argparse.Namespace, res: Any, art: Any) -> None:
+    """--json and --html of validate / calibrate."""
+    from dynval.validate import report
+
+    if args.json_out:
+        report.write_json(res, args.json_out)
+        log.info("wrote %s", args.json_out)
+    if args.html_out:
+        report.write_html(res, art, args.html_out)
+        log.info("wrote %s", args.html_out)
 
 
 def runner_for(args: argparse.Namespace) -> Any:

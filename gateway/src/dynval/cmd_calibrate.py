@@ -8,7 +8,13 @@ import logging
 from pathlib import Path
 from typing import Any
 
-from dynval.cli_common import Progress, add_study_options, read_tests, runner_for
+from dynval.cli_common import (
+    Progress,
+    add_study_options,
+    runner_for,
+    study_inputs,
+    write_study_reports,
+)
 
 log = logging.getLogger(__name__)
 
@@ -38,12 +44,9 @@ def add_parser(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dynval import model as mdl
-    from dynval.validate import report, study
-    from dynval.validate.doe import parse_param
+    from dynval.validate import study
 
-    m = mdl.load(args.model)
-    recs = read_tests(args.experiments, args, besides=args.model)
-    ranges = [parse_param(t) for t in args.param]
+    m, recs, ranges = study_inputs(args)
     with runner_for(args) as rn, Progress(args) as bars:
         res, art, m_cal = study.calibrate(
             m, recs, args.features, ranges, method=args.method, runs=args.runs,
@@ -51,12 +54,7 @@ def run(args: argparse.Namespace) -> int:
             steps=args.steps, direct_steps=args.direct_steps, rmse_channels=args.rmse_channel,
             seed=args.seed, shrink=args.shrink, oversample=args.oversample, runner=rn,
             progress=bars.stage)
-    if args.json_out:
-        report.write_json(res, args.json_out)
-        log.info("wrote %s", args.json_out)
-    if args.html_out:
-        report.write_html(res, art, args.html_out)
-        log.info("wrote %s", args.html_out)
+    write_study_reports(args, res, art)
     if args.model_out:
         mdl.save(m_cal, args.model_out)
         log.info("wrote the calibrated model %s", args.model_out)

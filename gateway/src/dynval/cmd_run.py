@@ -15,6 +15,7 @@ from dynval.cli_common import Progress, add_test_options, fmt_timing, read_with_
 from dynval.errors import ConfigError
 from dynval.io import collect_tests
 from dynval.io.mcapfile import iter_messages
+from dynval.topics import T_RESID
 
 
 def add_parser(sub: Any) -> None:
@@ -59,7 +60,7 @@ def _model_for(test: Path, args: argparse.Namespace) -> Any:
 
 def resid_rms(mcap: Path) -> dict[str, float]:
     acc: dict[str, list[float]] = {}
-    for m in iter_messages(mcap, topics={"/dv/residuals"}):
+    for m in iter_messages(mcap, topics={T_RESID}):
         v = m.data["value"]
         a = acc.setdefault(m.data["name"], [0.0, 0.0])
         a[0] += v * v

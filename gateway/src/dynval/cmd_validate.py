@@ -5,12 +5,15 @@ optional design of experiments (Latin hypercube or full factorial), RMSE, ANOVA 
 from __future__ import annotations
 
 import argparse
-import logging
 from typing import Any
 
-from dynval.cli_common import Progress, add_study_options, read_tests, runner_for
-
-log = logging.getLogger(__name__)
+from dynval.cli_common import (
+    Progress,
+    add_study_options,
+    runner_for,
+    study_inputs,
+    write_study_reports,
+)
 
 
 def add_parser(sub: Any) -> None:
@@ -26,25 +29,16 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dynval import model as mdl
-    from dynval.validate import report, study
-    from dynval.validate.doe import parse_param
+    from dynval.validate import study
 
-    m = mdl.load(args.model)
-    recs = read_tests(args.experiments, args, besides=args.model)
-    ranges = [parse_param(t) for t in args.param]
+    m, recs, ranges = study_inputs(args)
     with runner_for(args) as rn, Progress(args) as bars:
         res, art = study.validate(m, recs, args.features, ranges, runs=args.runs,
                                   design=args.doe, ref_test=args.ref_test,
                                   rmse_channels=args.rmse_channel, seed=args.seed,
                                   levels=args.levels, shrink=args.shrink, runner=rn,
                                   progress=bars.stage)
-    if args.json_out:
-        report.write_json(res, args.json_out)
-        log.info("wrote %s", args.json_out)
-    if args.html_out:
-        report.write_html(res, art, args.html_out)
-        log.info("wrote %s", args.html_out)
+    write_study_reports(args, res, art)
     v = res["nominal"]["verdict"]
     print(f"baseline: {res['baseline']['n_tests']} tests x {res['baseline']['n_features']} "
           f"features ({res['baseline']['covariance']} covariance)")

@@ -23,12 +23,11 @@ from mcap.writer import CompressionType, Writer
 from dynval import __version__, _core, bus
 from dynval.contract import IR_COUNTERS
 from dynval.errors import DynvalError
+from dynval.topics import T_CONTROL, T_EVENTS, T_FEATURES, T_RAW, T_RESID, T_SAMPLES, T_STATUS
 
 log = logging.getLogger(__name__)
 
 PROFILE = ""  # plain JSON messages
-T_RAW, T_FEATURES, T_RESID, T_STATUS = "/can/raw", "/dv/features", "/dv/residuals", "/dv/status"
-T_CONTROL, T_EVENTS, T_SAMPLES = "/dv/control", "/dv/events", "/dv/samples/"
 
 _INT = {"type": "integer"}
 _NUM = {"type": "number"}

@@ -30,6 +30,7 @@ from dynval.contract import IR_COUNTERS, const, named
 from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
 from dynval.mcap_log import McapLog, log_bus
+from dynval.topics import T_FEATURES, T_RESID
 
 log = logging.getLogger(__name__)
 
@@ -369,8 +370,8 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
     finally:
         counters = fw.stop()
         summary = logger.close()
-    feats = logger.counts.get("/dv/features", 0)
-    resid = logger.counts.get("/dv/residuals", 0)
+    feats = logger.counts.get(T_FEATURES, 0)
+    resid = logger.counts.get(T_RESID, 0)
     return RunResult(rec.name, out, f"{choice.interface}:{choice.channel}", choice.firmware,
                      res, summary, counters, feats, resid)
 
