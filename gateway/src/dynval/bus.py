@@ -41,7 +41,9 @@ EFF_FLAG = const("DV_CAN_EFF_FLAG")
 #: DV_FEATURE.feat_id -> name, the DBC's value table
 FEATURE_NAMES = DBC_VALUES[(ID_FEATURE, "feat_id")]
 
-SEQ_VERDICTS = ("ok", "gap", "dup", "late", "stale")
+#: dv_seq_update's verdicts by value (dv_seq_verdict_t: DV_SEQ_OK -> "ok", ...)
+SEQ_VERDICTS = tuple(str(n).removeprefix("DV_SEQ_").lower() for _, n in
+                     sorted(_core.ffi.typeof("dv_seq_verdict_t").elements.items()))
 
 
 class BusError(DynvalError):
