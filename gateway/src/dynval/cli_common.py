@@ -37,16 +37,21 @@ def read_with_options(path: Path, args: argparse.Namespace) -> Recording:
     return read_tests([path], args)[0]
 
 
-def read_tests(paths: Sequence[Path], args: argparse.Namespace, *,
-               besides: Path | None = None) -> list[Recording]:
-    """The tests the paths name (files, folders: io.collect_tests), read with the options of
-    add_test_options. besides: a file that is not a test although it sits in a tests folder
-    (the model)."""
+def test_files(paths: Sequence[Path], besides: Path | None = None) -> list[Path]:
+    """The test files the paths name (files, folders: io.collect_tests); besides: a file that
+    is not a test although it sits in a tests folder (the model)."""
     files = collect_tests(paths)
     if besides is not None:
         files = [f for f in files if f.resolve() != besides.resolve()]
         if not files:
             raise InputFileError(paths[0], f"no tests besides the model file {besides}")
+    return files
+
+
+def read_tests(paths: Sequence[Path], args: argparse.Namespace, *,
+               besides: Path | None = None) -> list[Recording]:
+    """The tests of test_files(paths, besides), read with the options of add_test_options."""
+    files = test_files(paths, besides)
     cmap = load_channel_map(args.channel_map) if args.channel_map else None
     return [read_test(f, lenient=args.lenient, fs_hz=args.fs, channel_map=cmap) for f in files]
 

@@ -11,9 +11,14 @@ import math
 from pathlib import Path
 from typing import Any
 
-from dynval.cli_common import Progress, add_test_options, fmt_timing, read_with_options
+from dynval.cli_common import (
+    Progress,
+    add_test_options,
+    fmt_timing,
+    read_with_options,
+    test_files,
+)
 from dynval.errors import ConfigError
-from dynval.io import collect_tests
 from dynval.io.mcapfile import iter_messages
 from dynval.topics import T_RESID
 
@@ -72,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     from dynval import model as mdl
     from dynval import runloop
 
-    tests = collect_tests(args.tests)
+    tests = test_files(args.tests, besides=args.model)
     choice = runloop.choose_bus(args.bus, args.channel, args.firmware)
     print(f"bus: {choice.interface}:{choice.channel}, firmware: {choice.firmware}")
     fw_kw = {"win_len": args.win, "seg_len": args.seg, "n_seg": args.nseg,
