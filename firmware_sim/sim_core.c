@@ -724,23 +724,29 @@ static size_t handle_samples(struct sim_core *c, const dv_msg_samples_t *s, dv_c
     return n;
 }
 
+int sim_refused_counter(dv_status_t st)
+{
+    switch (st) {
+    case DV_ESIZE:
+    case DV_EINVAL:
+        return SIM_IR_BAD_DLC;
+    case DV_ENUMERIC:
+        return SIM_IR_BAD_CFG;
+    default:
+        return SIM_IR_UNKNOWN_ID;
+    }
+}
+
 size_t sim_core_handle(struct sim_core *c, const dv_can_frame_t *in, dv_can_frame_t *out)
 {
     c->n.rx_frames++;
     dv_msg_t m;
     const dv_status_t st = dv_codec_decode(in, &m);
-    switch (st) {
-    case DV_OK:
-        break;
-    case DV_ESIZE:
-    case DV_EINVAL:
-        c->n.bad_dlc++;
-        return 0;
-    case DV_ENUMERIC:
-        c->n.bad_cfg++;
-        return 0;
-    default:
-        c->n.unknown_id++;
+    if (st != DV_OK) {
+        const int reg = sim_refused_counter(st);
+        uint32_t *n = reg == SIM_IR_BAD_DLC ? &c->n.bad_dlc
+                      : reg == SIM_IR_BAD_CFG ? &c->n.bad_cfg : &c->n.unknown_id;
+        (*n)++;
         return 0;
     }
     switch (m.kind) {

@@ -46,6 +46,7 @@ struct sim_counters {
     uint32_t samples, tx_errors, cfg_writes;
 };
 
+#ifndef DV_CDEF /* the Python binding's cdef (CMakeLists.txt) sees struct sim_core opaque */
 /* The latest features of one channel, as floats (the wire type). NaN = not yet computed. */
 struct sim_latest {
     float seg_std, win_mean, win_std, win_rms, win_peak;
@@ -107,6 +108,9 @@ struct sim_core {
     uint8_t overflowed;   /* the receive queue overflowed at least once */
     uint64_t next_beat_ns; /* time of the next heartbeat */
 };
+#else
+struct sim_core;
+#endif
 
 /* Defaults: 5 channels, window 256, 64 x 64 records, 640 Hz, lsb 2^-10, heartbeat 1 s. */
 void sim_config_default(struct sim_config *cfg);
@@ -127,6 +131,11 @@ void sim_core_free(struct sim_core *c);
  * with the defaults when @p cfg is NULL. NULL on a bad config or no memory. */
 struct sim_core *sim_core_new(const struct sim_config *cfg);
 void sim_core_delete(struct sim_core *c);
+
+/* The counter (its input register: SIM_IR_BAD_DLC, SIM_IR_BAD_CFG or SIM_IR_UNKNOWN_ID) of a
+ * frame dv_codec_decode() refused with @p st (< 0): the one table of refusal names, which the
+ * gateway's logger also uses for its events. */
+int sim_refused_counter(dv_status_t st);
 
 /* Handle one received frame; writes up to SIM_CORE_MAX_OUT frames to @p out and returns how
  * many. Never fails: bad frames are counted. */

@@ -1,5 +1,6 @@
 /* firmware_sim Modbus register map: the one place it is defined (the table in README.md is
- * the same map in prose; gateway tests parse this header).
+ * the same map in prose; the Python gateway reads it from the build's macro dump of
+ * sim_core.h, dynval.contract, and never restates a number).
  *
  * Conventions: unit id ignored (TCP), register addresses are 0-based protocol addresses.
  * 32-bit values take two registers, high word first (the common "big-endian word order");

@@ -2,14 +2,16 @@
 and the drift-free replay scheduler on python-can's virtual bus."""
 from __future__ import annotations
 
+import re
 import struct
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from dynval import bus
+from dynval import bus, contract
 from dynval.io.recording import Channel, Recording
 
 can = pytest.importorskip("can")
@@ -111,3 +113,18 @@ def test_replay_virtual_paced_no_loss_no_drift():
     assert {"mean_us", "p95_us", "max_us", "drift_us_over_run"} <= set(t)
     seqs = [m.data[1] for m in got if m.arbitration_id == 0x200 and m.data[0] == 4]
     assert seqs == [k & 0xFF for k in range(640)]
+
+
+def test_codec_names_and_ids_come_from_the_dbc_and_the_header():
+    dbc = (Path(__file__).resolve().parents[2] / "can" / "dynval.dbc")
+    if not dbc.is_file():
+        pytest.skip("can/dynval.dbc not beside the package")
+    text = dbc.read_text()
+    msgs = {n.removeprefix("DV_").lower(): int(i) for i, n in
+            re.findall(r"^BO_ (\d+) (\w+):", text, re.M)}
+    assert bus.IDS == msgs
+    feats = {int(v) for v in contract.named("DV_FEAT_").values()}
+    assert set(bus.FEATURE_NAMES) == feats
+    assert bus.FEATURE_NAMES[0x22] == "tm_rms_duration"
+    assert {bus.CTRL_START, bus.CTRL_STOP, bus.CTRL_CLEAR, bus.CTRL_STATUS} == set(
+        contract.DBC_VALUES[(bus.ID_CTRL, "cmd")])

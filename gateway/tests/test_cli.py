@@ -1,6 +1,7 @@
 """The CLI: `dynval features` on good and bad files, exit codes and one-line errors."""
 from __future__ import annotations
 
+import importlib
 import json
 from pathlib import Path
 
@@ -70,3 +71,122 @@ def test_real_data_file(shared_data: Path, capsys: pytest.CaptureFixture[str]) -
     assert res["n_samples"] == 8192 and res["fs_hz"] == pytest.approx(640.0)
     # the declared force level is 12 N RMS (meta.json); 1 % sensor noise on top
     assert res["channels"]["force_N"]["rms"] == pytest.approx(12.0, rel=0.05)
+
+
+# ---- one way to read tests, on every command ------------------------------------------------
+TEST_READING = ("features", "simulate", "residual", "replay", "log", "run", "discover",
+                "validate", "calibrate")
+MINIMAL_ARGS = {"features": ["t.csv"], "simulate": ["m.json", "t.csv", "-o", "p.csv"],
+                "residual": ["m.json", "t.csv"], "replay": ["t.csv"], "log": ["-o", "x.mcap"],
+                "run": ["t.csv", "-o", "out"], "discover": ["m.json", "t.csv"],
+                "validate": ["--model", "m.json", "--experiments", "t.csv", "--features", "rms"],
+                "calibrate": ["--model", "m.json", "--experiments", "t.csv", "--features",
+                              "rms"]}
+
+
+def test_every_command_but_inspect_reads_tests() -> None:
+    from dynval.cli import COMMANDS
+
+    assert set(COMMANDS) - set(TEST_READING) == {"inspect"}
+
+
+@pytest.mark.parametrize("cmd", TEST_READING)
+def test_every_test_reading_command_takes_the_shared_options(cmd: str) -> None:
+    from dynval.cli import build_parser
+
+    args = build_parser().parse_args([cmd, *MINIMAL_ARGS[cmd], "--channel-map", "map.yaml",
+                                      "--lenient", "--fs", "100"])
+    assert args.channel_map == Path("map.yaml") and args.lenient and args.fs == 100.0
+
+
+def test_residual_discover_and_validate_read_the_same_files_of_a_folder(
+        tmp_path: Path, shared_data: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A folder with the model, its metadata and tests of several formats: every command that
+    takes a model and tests reads the same tests (io.collect_tests, the model left out)."""
+    import shutil
+
+    from dynval import cli_common
+    from dynval.errors import ConfigError
+
+    model = tmp_path / "declared_model.json"
+    shutil.copy(shared_data / "synthetic" / "lanl4dof-clean" / "declared_model.json", model)
+    for name in ("b.csv", "a.json", "c.mcap", "d.txt", "meta.json", "run1_meta.json",
+                 "notes.md"):
+        (tmp_path / name).write_text("")
+    (tmp_path / "sub.csv").mkdir()  # a folder is not a test
+    read: dict[str, list[str]] = {}
+    real = cli_common.read_tests
+
+    def spy(*a: object, **kw: object) -> None:
+        real(*a, **kw)  # collect and read (read_test records the names)
+        raise ConfigError("stop here")
+
+    for cmd, argv in (("residual", ["residual", str(model), str(tmp_path)]),
+                      ("discover", ["discover", str(model), str(tmp_path)]),
+                      ("validate", ["validate", "--model", str(model), "--experiments",
+                                    str(tmp_path), "--features", "rms"])):
+        seen = read.setdefault(cmd, [])
+        monkeypatch.setattr(cli_common, "read_test", lambda p, seen=seen, **kw: seen.append(p.name))
+        for mod in (cli_common, importlib.import_module(f"dynval.cmd_{cmd}")):
+            monkeypatch.setattr(mod, "read_tests", spy, raising=False)
+        assert main(argv) == 2
+    assert read == {c: ["a.json", "b.csv", "c.mcap", "d.txt"]
+                    for c in ("residual", "discover", "validate")}
+
+
+def test_a_folder_without_tests_and_a_missing_path_are_one_line_errors(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    (tmp_path / "meta.json").write_text("{}")
+    for argv, what in ((["residual", "m.json", str(tmp_path)], "folder holds no tests"),
+                       (["features", str(tmp_path / "nope")], "no such file")):
+        caplog.clear()
+        assert main(argv) == 2
+        msgs = [r.getMessage() for r in caplog.records if r.levelname == "ERROR"]
+        assert len(msgs) == 1 and what in msgs[0]
+
+
+# ---- the core is loaded lazily ----------------------------------------------------------------
+_HIDDEN = """
+import sys
+from pathlib import Path
+import dynval._core as core
+core._LIB_DIR = Path(sys.argv[1])
+from dynval.cli import main
+code = main(sys.argv[2:])
+assert "ffi" not in core._loaded and "lib" not in core._loaded
+sys.exit(code)
+"""
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["features", "--help"], ["run", "--help"],
+                                  ["discover", "--help"]])
+def test_help_works_with_the_core_hidden(tmp_path: Path, argv: list[str]) -> None:
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-c", _HIDDEN, str(tmp_path), *argv],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "usage: dynval" in r.stdout and r.stderr == ""
+
+
+@pytest.mark.parametrize("cmd", TEST_READING)
+def test_a_missing_core_is_one_line_and_exit_2(tmp_path: Path, cmd: str) -> None:
+    import subprocess
+    import sys
+
+    (tmp_path / "t.csv").write_text(GOOD)
+    (tmp_path / "m.json").write_text("{}")
+    argv = [cmd, *(a if a not in ("t.csv", "m.json") else str(tmp_path / a)
+                   for a in MINIMAL_ARGS[cmd])]
+    if cmd == "log":
+        argv += ["--test", str(tmp_path / "t.csv"), "--bus", "virtual"]
+    if cmd in ("replay", "run"):
+        argv += ["--bus", "virtual"]
+    lib = tmp_path / "no_lib"
+    lib.mkdir()
+    r = subprocess.run([sys.executable, "-c", _HIDDEN.replace('assert "ffi"', '# "ffi"'),
+                        str(lib), *argv], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "not installed" in lines[0] and str(lib) in lines[0], r.stderr

@@ -3,13 +3,16 @@ python-can's virtual bus. The features in the MCAP equal features.channel_record
 quantised samples, bit for bit in float32 as sent; faults on the bus are counted; the CLI."""
 from __future__ import annotations
 
+import re
+import shutil
 import struct
+import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from dynval import bus, cli, features, runloop
+from dynval import bus, cli, contract, features, mcap_log, runloop
 from dynval.io import read_test
 from dynval.io.mcapfile import iter_messages
 from dynval.io.recording import Channel, Recording
@@ -130,22 +133,62 @@ def test_cli_run_and_inspect_on_bundled_data(tmp_path, capsys):
     assert cli.main(["inspect", str(mc)]) == 0
 
 
-def test_sim_regmap_addresses_match_the_header():
-    hdr = REPO / "firmware_sim" / "sim_regmap.h"
-    if not hdr.is_file():
-        pytest.skip("firmware_sim sources not beside the package")
-    import re
+def test_contract_constants_equal_what_the_c_compiler_makes_of_the_headers(tmp_path):
+    """Every number dynval.contract parsed from the build's macro dump equals the C value, and
+    nothing of the register map or the codec was left out by the parser."""
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None or not (REPO / "firmware_sim" / "sim_core.h").is_file():
+        pytest.skip("no C compiler or no firmware_sim sources beside the package")
+    hdr = (REPO / "firmware_sim" / "sim_regmap.h").read_text() + (
+        REPO / "include" / "dynval" / "dv_codec.h").read_text()
+    declared = set(re.findall(r"^#define ((?:SIM|DV)_\w+) ", hdr, re.M))
+    assert declared - set(contract.MACROS) == set()
+    names = sorted(contract.MACROS)
+    body = "".join(f'    printf("{n} %.17g\\n", (double)({n}));\n' for n in names)
+    src = tmp_path / "c.c"
+    src.write_text(f'#include <stdio.h>\n#include "sim_core.h"\nint main(void)\n{{\n{body}'
+                   "    return 0;\n}\n")
+    exe = tmp_path / "c"
+    subprocess.run([cc, "-std=c99", "-DDV_REAL_DOUBLE", "-DDV_CDEF",  # as the dump
+                    f"-I{REPO / 'include'}",
+                    f"-I{REPO / 'firmware_sim'}", str(src), "-o", str(exe)], check=True)
+    out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
+    c_values = {k: float(v) for k, v in (ln.split() for ln in out.splitlines())}
+    assert c_values == {k: float(v) for k, v in contract.MACROS.items()}
+    assert contract.IR_COUNTERS["rx_frames"] == contract.const("SIM_IR_RX_FRAMES")
+    assert "ch_lost" not in contract.IR_COUNTERS and "version" not in contract.IR_COUNTERS
 
-    d = {m.group(1): int(m.group(2)) for m in
-         re.finditer(r"#define (SIM_\w+) (\d+)\b", hdr.read_text())}
-    assert (d["SIM_HR_N_CHAN"], d["SIM_HR_WIN_LEN"], d["SIM_HR_SEG_LEN"], d["SIM_HR_N_SEG"],
-            d["SIM_HR_AR_ORDER"], d["SIM_HR_RESID_DECIM"], d["SIM_HR_FORCE_CHAN"],
-            d["SIM_HR_HEARTBEAT_MS"], d["SIM_HR_LSB"], d["SIM_HR_FS_CH"],
-            d["SIM_HR_MODEL"]) == (runloop.HR_N_CHAN, runloop.HR_WIN_LEN, runloop.HR_SEG_LEN,
-                                   runloop.HR_N_SEG, runloop.HR_AR_ORDER,
-                                   runloop.HR_RESID_DECIM, runloop.HR_FORCE_CHAN,
-                                   runloop.HR_HEARTBEAT_MS, runloop.HR_LSB, runloop.HR_FS_CH,
-                                   runloop.HR_MODEL)
-    assert d["SIM_MAX_CHAN"] == runloop.MAX_CHAN and d["SIM_N_MODEL"] == runloop.N_MODEL
-    for k, a in runloop.IR_COUNTERS.items():
-        assert d[f"SIM_IR_{k.upper()}"] == a
+
+def test_sim_config_fields_land_in_the_contract_registers():
+    """The binding's struct sim_config, through the firmware's own sim_config_to_regs, puts
+    each field at the holding register dynval.contract names."""
+    from dynval import _core
+
+    ffi, lib = _core.ffi, _core.sim_lib
+    c = ffi.new("struct sim_config *")
+    lib.sim_config_default(c)
+    c.n_chan, c.win_len, c.seg_len, c.n_seg, c.heartbeat_ms = 3, 111, 22, 7, 555
+    c.fs_hz[2], c.model[contract.const("SIM_MODEL_HOLD")] = 1234, 0.5
+    hr = ffi.new("uint16_t[]", contract.const("SIM_N_HOLDING"))
+    lib.sim_config_to_regs(c, hr)
+    k = contract.const
+    assert (hr[k("SIM_HR_N_CHAN")], hr[k("SIM_HR_WIN_LEN")], hr[k("SIM_HR_SEG_LEN")],
+            hr[k("SIM_HR_N_SEG")], hr[k("SIM_HR_HEARTBEAT_MS")],
+            hr[k("SIM_HR_FS_CH") + 2]) == (3, 111, 22, 7, 555, 1234)
+    at = k("SIM_HR_MODEL") + 2 * k("SIM_MODEL_HOLD")
+    assert struct.pack(">HH", hr[at], hr[at + 1]) == struct.pack(">f", 0.5)
+
+
+def test_refused_frames_are_named_after_the_firmware_counter_that_counts_them():
+    core = runloop.SimCore(runloop.FirmwareConfig())
+    try:
+        for can_id, data, status in ((0x200, bytes(5), -2), (0x7F0, bytes(8), -6),
+                                     (0x101, bytes([0, 1, 100, 0, 0, 0, 0, 0]), -4)):
+            before = core.counters()
+            assert bus.decode(can_id, data) == status
+            core.handle(can_id, data)
+            after = core.counters()
+            grew = {n for n in after if after[n] != before[n]} - {"rx_frames"}
+            assert grew == {mcap_log.refused_event(status)}
+    finally:
+        core.close()

@@ -1,8 +1,15 @@
-"""The only bridge to the C core: cffi (ABI mode) over the shared library that this package's
-build step compiled from the repository's src/ (double precision), with the cdef taken from the
-preprocessed public headers, so the declarations cannot drift from the C code."""
+"""The only bridge to the C code: cffi (ABI mode) over the shared libraries that this package's
+build step compiled from the repository (double precision): libdynval (the core) and
+libdv_simcore (firmware_sim's socket-free loop, for `dynval run` in-process). One FFI holds both
+cdefs, the preprocessed public headers dv_cdef.h and sim_cdef.h (CMakeLists.txt), so the
+declarations cannot drift from the C code.
+
+Loaded lazily (PEP 562): importing this module opens nothing; the first `_core.lib`, `_core.ffi`
+or `_core.sim_lib` does, and a missing or unusable build raises CoreNotBuiltError (one line and
+exit 2 in the CLI), never an ImportError at import time."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -13,34 +20,69 @@ from dynval.errors import CoreError, CoreNotBuiltError
 
 _LIB_DIR = Path(__file__).resolve().parent / "_lib"
 
-
-def _load() -> tuple[FFI, Any]:  # (ffi, lib): lib's functions come from the cdef at run time
-    cdef = _LIB_DIR / "dv_cdef.h"
-    libs = sorted(_LIB_DIR.glob("libdynval-f64*.so*"))
-    libs += sorted(_LIB_DIR.glob("*dynval-f64*.dylib"))
-    if not cdef.is_file() or not libs:
-        raise CoreNotBuiltError(
-            f"the compiled dynval core is missing from {_LIB_DIR}: install the package with "
-            "`pip install ./gateway` (its build step compiles the C library)")
-    ffi = FFI()
-    ffi.cdef(cdef.read_text(encoding="utf-8"))
-    lib: Any = ffi.dlopen(str(libs[0]))
-    if lib.dv_real_size() != 8:
-        raise CoreNotBuiltError("the dynval core was built with float samples; "
-                                "the binding needs double")
-    return ffi, lib
-
-
-_ffi, lib = _load()
-# cdata objects are dynamically typed: callers see Any, not cffi's opaque stub classes
-ffi: Any = _ffi
-
 DV_OK = 0
 DV_DONE = 1
 DV_RECORD = 2
 
 
+def lib_file(name: str) -> Path:
+    """A file the build step generated into the package's _lib folder (cdefs, contract, DBC)."""
+    p = _LIB_DIR / name
+    if not p.is_file():
+        raise CoreNotBuiltError(f"{p} is missing: the compiled dynval core is not installed "
+                                "(`pip install ./gateway` builds it)")
+    return p
+
+
+def _dlopen(stem: str) -> Any:
+    libs = sorted(_LIB_DIR.glob(f"lib{stem}*.so*")) + sorted(_LIB_DIR.glob(f"*{stem}*.dylib"))
+    if not libs:
+        lib_file(f"lib{stem}.so")  # raises: names what is missing
+    try:
+        return __getattr__("ffi").dlopen(str(libs[0]))
+    except OSError as exc:
+        raise CoreNotBuiltError(f"{libs[0]}: cannot load: {exc}") from exc
+
+
+def _load_ffi() -> Any:
+    ffi = FFI()
+    ffi.cdef(lib_file("dv_cdef.h").read_text(encoding="utf-8"))
+    return ffi
+
+
+def _load_lib() -> Any:
+    lib = _dlopen("dynval-f64")
+    if lib.dv_real_size() != 8:
+        raise CoreNotBuiltError("the dynval core was built with float samples; "
+                                "the binding needs double")
+    return lib
+
+
+def _load_sim_lib() -> Any:
+    # the firmware core's own declarations; its dv_* types are dv_cdef.h's (override: a retry
+    # after a failed dlopen declares them again)
+    __getattr__("ffi").cdef(lib_file("sim_cdef.h").read_text(encoding="utf-8"), override=True)
+    return _dlopen("dv_simcore-f64")
+
+
+_LOADERS: dict[str, Callable[[], Any]] = {"ffi": _load_ffi, "lib": _load_lib,
+                                          "sim_lib": _load_sim_lib}
+_loaded: dict[str, Any] = {}
+
+
+def __getattr__(name: str) -> Any:
+    """`ffi`, `lib` and `sim_lib`, loaded on first use (cdata objects are dynamically typed:
+    callers see Any, not cffi's opaque stub classes)."""
+    if name not in _LOADERS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    if name not in _loaded:
+        _loaded[name] = _LOADERS[name]()
+    return _loaded[name]
+
+
 def status_name(status: int) -> str:
+    """The core's name of a status code (dv_status_str: "DV_ESIZE", ...)."""
+    ffi, lib = __getattr__("ffi"), __getattr__("lib")
     return str(ffi.string(lib.dv_status_str(status)).decode("ascii"))
 
 
@@ -58,4 +100,5 @@ def as_doubles(x: Any) -> np.ndarray:
 
 def ptr(a: np.ndarray) -> Any:
     """A `double *` into a contiguous float64 array (kept alive by the caller)."""
+    ffi = __getattr__("ffi")
     return ffi.cast("double *", ffi.from_buffer(a))

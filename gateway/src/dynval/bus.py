@@ -1,6 +1,7 @@
 """The CAN side of the gateway: the dynval protocol through the C codec (dv_codec, via the
-binding: nothing is encoded or decoded by a second implementation), sequence tracking
-(dv_seq_t), the frame plan of a recorded test and a drift-free replay scheduler.
+binding: nothing is encoded or decoded by a second implementation), its constants from the C
+header and the DBC (dynval.contract), sequence tracking (dv_seq_t), the frame plan of a recorded
+test and a drift-free replay scheduler.
 
 Frame plan of one test (one record): DV_CTRL CLEAR, one DV_CHCFG per channel (rate and lsb),
 DV_CTRL START (record_id), the DV_SAMPLES frames (channels interleaved, 3 samples per frame,
@@ -13,33 +14,36 @@ import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
+from functools import cache
 from typing import Any
 
 import numpy as np
 
-from dynval._core import ffi, lib
+from dynval import _core
+from dynval.contract import DBC_VALUES, MACROS, const, named
 from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
 
 log = logging.getLogger(__name__)
 
-SAMPLES_PER_FRAME = 3
-RAW_MISSING = -32768
-CTRL_START, CTRL_STOP, CTRL_CLEAR, CTRL_STATUS = 1, 2, 3, 4
+SAMPLES_PER_FRAME = const("DV_CODEC_SAMPLES_PER_FRAME")
+RAW_MISSING = const("DV_CODEC_RAW_MISSING")
+DEFAULT_LSB = float(MACROS["DV_CODEC_DEFAULT_LSB"])  # until DV_CHCFG arrives
+CTRL_START, CTRL_STOP = const("DV_CTRL_START"), const("DV_CTRL_STOP")
+CTRL_CLEAR, CTRL_STATUS = const("DV_CTRL_CLEAR"), const("DV_CTRL_STATUS")
+MAX_CHAN = const("SIM_MAX_CHAN")  # channels a node serves
 
-KIND_NAMES = {int(lib.DV_MSG_STATUS): "status", int(lib.DV_MSG_CTRL): "ctrl",
-              int(lib.DV_MSG_CHCFG): "chcfg", int(lib.DV_MSG_SAMPLES): "samples",
-              int(lib.DV_MSG_FEATURE): "feature", int(lib.DV_MSG_RESID): "resid"}
+#: the protocol's identifiers (DV_CAN_ID_* of dv_codec.h)
+IDS = named("DV_CAN_ID_")
+ID_STATUS, ID_CTRL, ID_CHCFG = IDS["status"], IDS["ctrl"], IDS["chcfg"]
+ID_SAMPLES, ID_FEATURE, ID_RESID = IDS["samples"], IDS["feature"], IDS["resid"]
+EFF_FLAG = const("DV_CAN_EFF_FLAG")
+#: DV_FEATURE.feat_id -> name, the DBC's value table
+FEATURE_NAMES = DBC_VALUES[(ID_FEATURE, "feat_id")]
 
-FEATURE_NAMES = {0x01: "seg_std", 0x08: "win_mean", 0x09: "win_std", 0x0A: "win_rms",
-                 0x0B: "win_peak", 0x10: "rec_mean", 0x11: "rec_std", 0x12: "rec_rms",
-                 0x13: "rec_skew", 0x14: "rec_kurt", 0x15: "rec_peak", 0x16: "rec_min",
-                 0x17: "rec_max", 0x18: "rec_crest", 0x19: "rec_kfactor", 0x20: "tm_energy",
-                 0x21: "tm_central_time", 0x22: "tm_rms_duration", 0x23: "tm_central_skew",
-                 0x24: "tm_central_kurt", 0x25: "tm_root_energy_amp", 0x40: "ar_resid_rms",
-                 0x41: "ar_outliers"}
-
-SEQ_VERDICTS = ("ok", "gap", "dup", "late", "stale")
+#: dv_seq_update's verdicts by value (dv_seq_verdict_t: DV_SEQ_OK -> "ok", ...)
+SEQ_VERDICTS = tuple(str(n).removeprefix("DV_SEQ_").lower() for _, n in
+                     sorted(_core.ffi.typeof("dv_seq_verdict_t").elements.items()))
 
 
 class BusError(DynvalError):
@@ -47,66 +51,54 @@ class BusError(DynvalError):
 
 
 # ---- the codec (C) ---------------------------------------------------------------------------
-_msg = ffi.new("dv_msg_t *")
-_frame = ffi.new("dv_can_frame_t *")
+@cache
+def _buf(ctype: str, user: str = "encode") -> Any:
+    """A scratch instance of a C type for each user: the replay encodes while the logger's
+    thread decodes, each in one thread."""
+    return _core.ffi.new(ctype)
 
 
-def _encode() -> tuple[int, bytes]:
-    st = lib.dv_codec_encode(_msg, _frame)
+def _encode(kind: str) -> tuple[int, bytes]:
+    """Encode the message _buf("dv_msg_t *") holds, as kind (the DV_MSG_<KIND> member)."""
+    msg, frame = _buf("dv_msg_t *"), _buf("dv_can_frame_t *")
+    msg.kind = getattr(_core.lib, f"DV_MSG_{kind.upper()}")
+    st = _core.lib.dv_codec_encode(msg, frame)
     if st != 0:
         raise ConfigError(f"dv_codec_encode refused a message (status {st})")
-    return int(_frame.id), bytes(ffi.buffer(_frame.data, 8))
+    return int(frame.id), bytes(_core.ffi.buffer(frame.data, 8))
 
 
 def encode_ctrl(cmd: int, record_id: int = 0) -> tuple[int, bytes]:
     """(id, 8 bytes) of a DV_CTRL frame."""
-    _msg.kind = lib.DV_MSG_CTRL
-    _msg.u.ctrl.cmd = cmd
-    _msg.u.ctrl.record_id = record_id & 0xFFFFFFFF
-    return _encode()
+    c = _buf("dv_msg_t *").u.ctrl
+    c.cmd = cmd
+    c.record_id = record_id & 0xFFFFFFFF
+    return _encode("ctrl")
 
 
 def encode_chcfg(channel: int, fs_hz: int, lsb: float, flags: int = 1) -> tuple[int, bytes]:
     """(id, 8 bytes) of a DV_CHCFG frame."""
-    _msg.kind = lib.DV_MSG_CHCFG
-    _msg.u.chcfg.channel = channel
-    _msg.u.chcfg.flags = flags
-    _msg.u.chcfg.fs_hz = fs_hz
-    _msg.u.chcfg.lsb = lsb
-    return _encode()
+    c = _buf("dv_msg_t *").u.chcfg
+    c.channel = channel
+    c.flags = flags
+    c.fs_hz = fs_hz
+    c.lsb = lsb
+    return _encode("chcfg")
 
 
 def encode_samples(channel: int, seq: int, raw: Sequence[int] | np.ndarray) -> tuple[int, bytes]:
     """(id, 8 bytes) of a DV_SAMPLES frame with three raw counts."""
-    _msg.kind = lib.DV_MSG_SAMPLES
-    s = _msg.u.samples
+    s = _buf("dv_msg_t *").u.samples
     s.channel = channel
     s.seq = seq & 0xFF
     s.raw[0], s.raw[1], s.raw[2] = int(raw[0]), int(raw[1]), int(raw[2])
-    return _encode()
-
-
-def _ids() -> dict[str, int]:
-    out = {"ctrl": encode_ctrl(CTRL_STATUS)[0], "chcfg": encode_chcfg(0, 1, 1.0)[0],
-           "samples": encode_samples(0, 0, (0, 0, 0))[0]}
-    for kind, name in ((lib.DV_MSG_STATUS, "status"), (lib.DV_MSG_FEATURE, "feature"),
-                       (lib.DV_MSG_RESID, "resid")):
-        _msg.kind = kind
-        out[name] = _encode()[0]
-    return out
-
-
-#: the protocol's identifiers, as the C codec encodes them
-IDS = _ids()
-ID_STATUS, ID_CTRL, ID_CHCFG = IDS["status"], IDS["ctrl"], IDS["chcfg"]
-ID_SAMPLES, ID_FEATURE, ID_RESID = IDS["samples"], IDS["feature"], IDS["resid"]
-_dframe = ffi.new("dv_can_frame_t *")
-_dmsg = ffi.new("dv_msg_t *")
+    return _encode("samples")
 
 
 @dataclass
 class Decoded:
-    """A decoded frame: kind is one of KIND_NAMES' values, fields the message's members."""
+    """A decoded frame: kind is the message (status, ctrl, chcfg, samples, feature, resid),
+    fields its members."""
 
     kind: str
     fields: dict[str, Any]
@@ -115,15 +107,17 @@ class Decoded:
 def decode(can_id: int, data: bytes, extended: bool = False) -> Decoded | int:
     """Decode a frame with the C codec. Returns Decoded, or the codec's negative status
     (unknown id / bad DLC / bad config value) for a frame it refuses."""
-    _dframe.id = (can_id | 0x80000000) if extended else can_id
+    lib = _core.lib
+    frame, msg = _buf("dv_can_frame_t *", "decode"), _buf("dv_msg_t *", "decode")
+    frame.id = (can_id | EFF_FLAG) if extended else can_id
     n = len(data)
-    _dframe.dlc = n if n <= 8 else 9
-    ffi.memmove(_dframe.data, data[:8], min(n, 8))
-    st = int(lib.dv_codec_decode(_dframe, _dmsg))
+    frame.dlc = n if n <= 8 else 9
+    _core.ffi.memmove(frame.data, data[:8], min(n, 8))
+    st = int(lib.dv_codec_decode(frame, msg))
     if st != 0:
         return st
-    k = int(_dmsg.kind)
-    u = _dmsg.u
+    k = int(msg.kind)
+    u = msg.u
     if k == lib.DV_MSG_SAMPLES:
         s = u.samples
         return Decoded("samples", {"channel": s.channel, "seq": s.seq,
@@ -150,18 +144,18 @@ def decode(can_id: int, data: bytes, extended: bool = False) -> Decoded | int:
 
 def sample_value(raw: int, lsb: float) -> float:
     """raw * lsb in channel units, NaN for a missing sample (dv_codec_sample_value)."""
-    return float(lib.dv_codec_sample_value(raw, lsb))
+    return float(_core.lib.dv_codec_sample_value(raw, lsb))
 
 
 def quantise(x: np.ndarray, lsb: float) -> np.ndarray:
     """int16 counts of x by dv_codec_sample_raw (rounded, clamped, NaN -> missing)."""
-    f = lib.dv_codec_sample_raw
+    f = _core.lib.dv_codec_sample_raw
     return np.fromiter((f(v, lsb) for v in x.tolist()), dtype=np.int16, count=x.size)
 
 
 def dequantise(raw: np.ndarray, lsb: float) -> np.ndarray:
     """Channel values of raw counts, exactly as the firmware converts them."""
-    f = lib.dv_codec_sample_value
+    f = _core.lib.dv_codec_sample_value
     return np.fromiter((f(int(v), lsb) for v in raw.tolist()), dtype=np.float64,
                        count=raw.size)
 
@@ -171,7 +165,7 @@ def lsb_for(x: np.ndarray, headroom: float = 30000.0) -> float:
     finite = x[np.isfinite(x)]
     peak = float(np.max(np.abs(finite))) if finite.size else 0.0
     if peak == 0.0:
-        return 2.0 ** -10
+        return DEFAULT_LSB
     return float(2.0 ** math.ceil(math.log2(peak / headroom)))
 
 
@@ -179,15 +173,15 @@ class SeqTracker:
     """dv_seq_t of one channel (the firmware's own sequence rules)."""
 
     def __init__(self) -> None:
-        self._s = ffi.new("dv_seq_t *")
-        lib.dv_seq_init(self._s)
-        self._c = ffi.new("dv_seq_counts_t *")
+        self._s = _core.ffi.new("dv_seq_t *")
+        _core.lib.dv_seq_init(self._s)
+        self._c = _core.ffi.new("dv_seq_counts_t *")
 
     def update(self, seq: int) -> str:
-        return SEQ_VERDICTS[int(lib.dv_seq_update(self._s, seq & 0xFF))]
+        return SEQ_VERDICTS[int(_core.lib.dv_seq_update(self._s, seq & 0xFF))]
 
     def counts(self) -> dict[str, int]:
-        lib.dv_seq_get(self._s, self._c)
+        _core.lib.dv_seq_get(self._s, self._c)
         c = self._c
         return {"ok": c.ok, "lost": c.lost, "dup": c.dup, "late": c.late, "stale": c.stale}
 
@@ -244,9 +238,9 @@ def make_plan(rec: Recording, record_id: int = 1, lsb: Sequence[float] | None = 
     counts by the C codec, missing samples for NaN and for the padding of the last frame."""
     if not rec.channels:
         raise ConfigError(f"{rec.name}: no channels to send")
-    if len(rec.channels) > 8:
+    if len(rec.channels) > MAX_CHAN:
         raise ConfigError(f"{rec.name}: {len(rec.channels)} channels; the protocol's node "
-                          "serves at most 8 (use a channel map to choose)")
+                          f"serves at most {MAX_CHAN} (use a channel map to choose)")
     fs = int(round(rec.fs_hz))
     if not 1 <= fs <= 65535 or abs(fs - rec.fs_hz) > 1e-6 * rec.fs_hz:
         raise ConfigError(f"{rec.name}: sample rate {rec.fs_hz:g} Hz is not an integer "

@@ -1,30 +1,29 @@
-"""Shared pieces of the sub-commands: the progress bar (tqdm, only on a terminal and without
---quiet), test-reading options."""
+"""Shared pieces of the sub-commands: the options and the reading of recorded tests (every
+command that reads tests takes --fs, --channel-map and --lenient and collects folders with
+io.collect_tests), the options of the validation studies, progress bars and timing text.
+
+Nothing here (nor at the top of a cmd_<name> module) loads the C core: commands import what
+needs it inside run(), so `dynval --help` works without the compiled core and a missing core is
+one error line and exit 2."""
 from __future__ import annotations
 
 import argparse
+import importlib
+import logging
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from types import TracebackType
 from typing import Any
 
-from dynval.io import Recording, load_channel_map, read_test
+from dynval.errors import InputFileError
+from dynval.io import Recording, collect_tests, load_channel_map, read_test
 
-
-def progress(total: int, desc: str, args: argparse.Namespace) -> tuple[
-        Callable[[int], None] | None, Callable[[], None]]:
-    """(on_progress, close) for a tqdm bar on stderr, or (None, no-op) when stderr is not a
-    TTY or --quiet was given."""
-    if getattr(args, "quiet", False) or not sys.stderr.isatty():
-        return None, lambda: None
-    import importlib
-
-    bar: Any = importlib.import_module("tqdm").tqdm(total=total, desc=desc, unit="fr",
-                                                    unit_scale=True, leave=False)
-    return bar.update, bar.close
+log = logging.getLogger(__name__)
 
 
 def add_test_options(p: Any) -> None:
+    """--fs, --channel-map, --lenient: how recorded tests are read."""
     p.add_argument("--fs", type=float, default=None, metavar="HZ",
                    help="sampling rate of whitespace text tests (no time column)")
     p.add_argument("--channel-map", type=Path, default=None, metavar="FILE",
@@ -34,8 +33,123 @@ def add_test_options(p: Any) -> None:
 
 
 def read_with_options(path: Path, args: argparse.Namespace) -> Recording:
+    """One test, read with the options of add_test_options."""
+    return read_tests([path], args)[0]
+
+
+def test_files(paths: Sequence[Path], besides: Path | None = None) -> list[Path]:
+    """The test files the paths name (files, folders: io.collect_tests); besides: a file that
+    is not a test although it sits in a tests folder (the model)."""
+    files = collect_tests(paths)
+    if besides is not None:
+        files = [f for f in files if f.resolve() != besides.resolve()]
+        if not files:
+            raise InputFileError(paths[0], f"no tests besides the model file {besides}")
+    return files
+
+
+def read_tests(paths: Sequence[Path], args: argparse.Namespace, *,
+               besides: Path | None = None) -> list[Recording]:
+    """The tests of test_files(paths, besides), read with the options of add_test_options."""
+    files = test_files(paths, besides)
     cmap = load_channel_map(args.channel_map) if args.channel_map else None
-    return read_test(path, lenient=args.lenient, fs_hz=args.fs, channel_map=cmap)
+    return [read_test(f, lenient=args.lenient, fs_hz=args.fs, channel_map=cmap) for f in files]
+
+
+class Progress:
+    """tqdm bars on stderr, only on a terminal and without --quiet (else no callbacks); every
+    bar is closed when the `with` block ends."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.on = not getattr(args, "quiet", False) and sys.stderr.isatty()
+        self._bars: list[Any] = []
+
+    def _bar(self, **kw: Any) -> Any:
+        bar = importlib.import_module("tqdm").tqdm(leave=False, **kw)
+        self._bars.append(bar)
+        return bar
+
+    def counter(self, desc: str, total: int) -> Callable[[int], None] | None:
+        """on_progress(n): n more frames done."""
+        if not self.on:
+            return None
+        return self._bar(total=total, desc=desc, unit="fr", unit_scale=True).update  # type: ignore[no-any-return]
+
+    def stage(self, desc: str) -> Callable[[int, int], None] | None:
+        """A bar per stage of a study (validate.study's progress factory): cb(done, total)."""
+        if not self.on:
+            return None
+        bar = self._bar(desc=desc)
+
+        def cb(done: int, total: int) -> None:
+            bar.total = total
+            bar.n = done
+            bar.refresh()
+        return cb
+
+    def __enter__(self) -> Progress:
+        return self
+
+    def __exit__(self, t: type[BaseException] | None, e: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        for b in self._bars:
+            b.close()
+
+
+def add_study_options(p: Any) -> None:
+    """Options shared by validate and calibrate."""
+    p.add_argument("--model", type=Path, required=True, help="model file (dynval format or "
+                   "declared_model.json)")
+    p.add_argument("--experiments", type=Path, nargs="+", required=True, metavar="TEST",
+                   help="recorded tests (files or folders), the experimental baseline")
+    p.add_argument("--features", required=True, metavar="SPEC",
+                   help="feature vector, e.g. 'peak,std@acc3,acc4' or 'segstd64@acc4' "
+                   "(see gateway/docs/validate-schema.md)")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=LO:HI",
+                   help="uncertain parameter with a uniform range (repeat), e.g. zeta2=0.01:0.08")
+    p.add_argument("--rmse-channel", action="append", default=None, metavar="CH",
+                   help="channel(s) of the RMSE (eq. 47) (default: the feature channels)")
+    p.add_argument("--seed", type=int, default=0, help="design / MCMC seed (%(default)s)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="worker processes (default: all cores)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the sweeps on a Dask distributed scheduler (tcp://host:8786)")
+    p.add_argument("--shrink", choices=("auto", "always", "never"), default="auto",
+                   help="Ledoit-Wolf covariance shrinkage (auto: when tests <= features + 1)")
+    p.add_argument("--json", dest="json_out", type=Path, default=None, metavar="OUT",
+                   help="write the JSON result here")
+    p.add_argument("--html", dest="html_out", type=Path, default=None, metavar="OUT",
+                   help="write the self-contained HTML report here")
+    add_test_options(p)
+
+
+def study_inputs(args: argparse.Namespace) -> tuple[Any, list[Recording], list[Any]]:
+    """(model, tests, parameter ranges) of validate / calibrate."""
+    from dynval import model as mdl
+    from dynval.validate.doe import parse_param
+
+    m = mdl.load(args.model)
+    recs = read_tests(args.experiments, args, besides=args.model)
+    return m, recs, [parse_param(t) for t in args.param]
+
+
+def write_study_reports(args: argparse.Namespace, res: Any, art: Any) -> None:
+    """--json and --html of validate / calibrate."""
+    from dynval.validate import report
+
+    if args.json_out:
+        report.write_json(res, args.json_out)
+        log.info("wrote %s", args.json_out)
+    if args.html_out:
+        report.write_html(res, art, args.html_out)
+        log.info("wrote %s", args.html_out)
+
+
+def runner_for(args: argparse.Namespace) -> Any:
+    """The sweep runner of validate / calibrate (--workers, --scheduler)."""
+    from dynval.validate.doe import Runner
+
+    return Runner(workers=args.workers, scheduler=args.scheduler)
 
 
 def fmt_timing(t: dict[str, float]) -> str:

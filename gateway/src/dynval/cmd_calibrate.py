@@ -8,15 +8,20 @@ import logging
 from pathlib import Path
 from typing import Any
 
-from dynval import model as mdl
-from dynval.cmd_validate import add_common, bars, read_tests, runner_for
+from dynval.cli_common import (
+    Progress,
+    add_study_options,
+    runner_for,
+    study_inputs,
+    write_study_reports,
+)
 
 log = logging.getLogger(__name__)
 
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser("calibrate", help="Bayesian calibration of model parameters")
-    add_common(p)
+    add_study_options(p)
     p.add_argument("--method", choices=("gp", "direct", "both"), default="both",
                    help="GP emulator + MCMC, MCMC on the C model, or both (%(default)s)")
     p.add_argument("--runs", type=int, default=150, help="LHS runs for the emulator "
@@ -38,25 +43,18 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dynval.validate import report, study
-    from dynval.validate.doe import parse_param
+    from dynval import model as mdl
+    from dynval.validate import study
 
-    m = mdl.load(args.model)
-    recs = read_tests(args)
-    ranges = [parse_param(t) for t in args.param]
-    with runner_for(args) as rn, bars(args) as prog:
+    m, recs, ranges = study_inputs(args)
+    with runner_for(args) as rn, Progress(args) as bars:
         res, art, m_cal = study.calibrate(
             m, recs, args.features, ranges, method=args.method, runs=args.runs,
             holdout=args.holdout, gp_forces=args.gp_forces, direct_forces=args.direct_forces,
             steps=args.steps, direct_steps=args.direct_steps, rmse_channels=args.rmse_channel,
             seed=args.seed, shrink=args.shrink, oversample=args.oversample, runner=rn,
-            progress=prog)
-    if args.json_out:
-        report.write_json(res, args.json_out)
-        log.info("wrote %s", args.json_out)
-    if args.html_out:
-        report.write_html(res, art, args.html_out)
-        log.info("wrote %s", args.html_out)
+            progress=bars.stage)
+    write_study_reports(args, res, art)
     if args.model_out:
         mdl.save(m_cal, args.model_out)
         log.info("wrote the calibrated model %s", args.model_out)

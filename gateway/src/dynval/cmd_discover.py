@@ -9,10 +9,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from dynval import model as mdl
-from dynval.discover import loop, report
-from dynval.errors import ConfigError, InputFileError
-from dynval.io import TEST_SUFFIXES, read_test
+from dynval.cli_common import add_test_options, read_tests
+from dynval.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
@@ -36,35 +34,17 @@ def add_parser(sub: Any) -> None:
                    help="declared parameters that are uncertain (model parameter names, e.g. "
                         "zeta2,zeta4 or k1,beta): calibrated first, then re-adjusted jointly "
                         "with every candidate effect")
-    p.add_argument("--fs", type=float, default=None, metavar="HZ",
-                   help="sampling rate of whitespace text tests")
+    add_test_options(p)
     p.set_defaults(run=run)
 
 
-def expand(paths: list[Path]) -> list[Path]:
-    out: list[Path] = []
-    for p in paths:
-        if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.suffix.lower() in TEST_SUFFIXES
-                           and q.is_file() and not q.name.endswith(("meta.json",
-                                                                    "declared_model.json")))
-            if not found:
-                raise InputFileError(p, "folder holds no tests")
-            out.extend(found)
-        else:
-            out.append(p)
-    return out
-
-
 def run(args: argparse.Namespace) -> int:
+    from dynval import model as mdl
+    from dynval.discover import loop, report
+
     t0 = time.perf_counter()
     m = mdl.load(args.model)
-    # the model file may sit in the tests' folder: it is not a test
-    model_path = args.model.resolve()
-    files = [f for f in expand(args.tests) if f.resolve() != model_path]
-    if not files:
-        raise InputFileError(args.tests[0], "no tests besides the model file")
-    recs = [read_test(f, fs_hz=args.fs) for f in files]
+    recs = read_tests(args.tests, args, besides=args.model)
     noise = None
     if args.noise is not None:
         if not args.noise > 0:

@@ -7,8 +7,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from dynval import features
-from dynval.io import read_test
+from dynval.cli_common import add_test_options, read_with_options
+from dynval.io import Recording
 
 COLUMNS = ("mean", "std", "rms", "skew", "kurt", "peak", "crest", "kfactor")
 TEMPORAL = ("energy", "central_time", "rms_duration")
@@ -20,13 +20,13 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--seg-len", type=int, default=64, help="segment length for segmented STD "
                    "(%(default)s)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    p.add_argument("--lenient", action="store_true",
-                   help="turn recoverable file problems into counted warnings")
+    add_test_options(p)
     p.set_defaults(run=run)
 
 
-def compute(path: Path, seg_len: int = 64, lenient: bool = False) -> dict[str, Any]:
-    rec = read_test(path, lenient=lenient)
+def compute(rec: Recording, seg_len: int = 64) -> dict[str, Any]:
+    from dynval import features
+
     out: dict[str, Any] = {"test": rec.name, "fs_hz": rec.fs_hz, "n_samples": rec.n_samples,
                            "sha256": rec.sha256, "warnings": len(rec.warnings), "channels": {}}
     for ch in rec.channels:
@@ -42,7 +42,7 @@ def compute(path: Path, seg_len: int = 64, lenient: bool = False) -> dict[str, A
 
 
 def run(args: argparse.Namespace) -> int:
-    res = compute(args.file, args.seg_len, args.lenient)
+    res = compute(read_with_options(args.file, args), args.seg_len)
     if args.json:
         json.dump(res, sys.stdout, indent=1)
         sys.stdout.write("\n")

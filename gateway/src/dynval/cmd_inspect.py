@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from dynval.io.mcapfile import Scan, iter_messages
+from dynval.topics import T_EVENTS, T_STATUS
 
 GAP_FACTOR = 5.0  # an interval this many times the median interval is a gap
 
@@ -34,9 +35,9 @@ def inspect(path: Path) -> dict[str, Any]:
             t["dts"].append(m.log_time - t["last_ns"])
         t["count"] += 1
         t["last_ns"] = m.log_time
-        if m.topic == "/dv/events":
+        if m.topic == T_EVENTS:
             events[m.data["event"]] = events.get(m.data["event"], 0) + int(m.data["count"])
-        elif m.topic == "/dv/status":
+        elif m.topic == T_STATUS:
             last_status = m.data
     out: dict[str, Any] = {"file": str(path), "complete": sc.complete, "bytes": sc.size,
                            "chunks": sc.chunks, "unreadable_tail_bytes": sc.truncated_bytes,

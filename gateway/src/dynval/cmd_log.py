@@ -8,10 +8,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from dynval import bus
-from dynval.cli_common import read_with_options
-from dynval.mcap_log import McapLog, log_bus
-from dynval.runloop import recording_meta
+from dynval.cli_common import add_test_options, read_with_options
 
 
 def add_parser(sub: Any) -> None:
@@ -23,18 +20,20 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--test", type=Path, default=None,
                    help="the recorded test being replayed: its name, channel map, rate, units "
                    "and hash go into the metadata record")
-    p.add_argument("--fs", type=float, default=None, help="rate of a text --test")
-    p.add_argument("--channel-map", type=Path, default=None, help="channel map of --test")
-    p.add_argument("--lenient", action="store_true", help="lenient reading of --test")
     p.add_argument("--model", type=Path, default=None, help="model file (metadata only)")
     p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
     p.add_argument("--idle-timeout", type=float, default=None,
                    help="stop after S seconds without a frame")
     p.add_argument("--chunk-kb", type=int, default=512, help="MCAP chunk size (%(default)s)")
+    add_test_options(p)  # of --test
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from dynval import bus
+    from dynval.mcap_log import McapLog, log_bus
+    from dynval.runloop import recording_meta
+
     meta: dict[str, Any] = {}
     names: list[str] = []
     if args.test is not None:

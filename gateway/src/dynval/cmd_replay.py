@@ -8,8 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from dynval import bus
-from dynval.cli_common import add_test_options, fmt_timing, progress, read_with_options
+from dynval.cli_common import Progress, add_test_options, fmt_timing, read_with_options
 
 
 def add_parser(sub: Any) -> None:
@@ -29,14 +28,16 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from dynval import bus
+
     rec = read_with_options(args.test, args)
     plan = bus.make_plan(rec, args.record_id)
     b = bus.open_bus(args.bus, args.channel)
-    upd, close = progress(plan.n_sample_frames, rec.name, args)
     try:
-        res = bus.replay(b, plan, speed=args.speed, asap=args.asap, on_progress=upd)
+        with Progress(args) as bars:
+            res = bus.replay(b, plan, speed=args.speed, asap=args.asap,
+                             on_progress=bars.counter(rec.name, plan.n_sample_frames))
     finally:
-        close()
         b.shutdown()
     if args.json:
         json.dump({"test": rec.name, "frames_sent": res.frames_sent,

@@ -8,47 +8,37 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from dynval import model as mdl
-from dynval.errors import InputFileError
-from dynval.io import read_test
+from dynval.cli_common import add_test_options, read_tests
+from dynval.io import Recording
 
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser("residual", help="per-channel RMSE / NRMSE of a model against tests")
     p.add_argument("model", type=Path, help="model file (dynval format or declared_model.json)")
-    p.add_argument("tests", type=Path, nargs="+", help="recorded tests (CSV) or folders of them")
+    p.add_argument("tests", type=Path, nargs="+", help="recorded tests (files or folders)")
     p.add_argument("--oversample", type=int, default=None,
                    help="band-limited input interpolation factor (default: the model's, 4)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    add_test_options(p)
     p.set_defaults(run=run)
 
 
-def expand(paths: list[Path]) -> list[Path]:
-    """Tests named directly, and the *.csv files of named folders (sorted)."""
-    out: list[Path] = []
-    for p in paths:
-        if p.is_dir():
-            found = sorted(p.glob("*.csv"))
-            if not found:
-                raise InputFileError(p, "folder holds no *.csv tests")
-            out.extend(found)
-        else:
-            out.append(p)
-    return out
+def compute(model_path: Path, recs: list[Recording],
+            oversample: int | None = None) -> dict[str, Any]:
+    from dynval import model as mdl
 
-
-def compute(model_path: Path, tests: list[Path], oversample: int | None = None) -> dict[str, Any]:
     m = mdl.load(model_path)
     res = []
-    for t in expand(tests):
-        r = mdl.residual(m, read_test(t), oversample=oversample).summary()
-        r["file"] = str(t)
+    for rec in recs:
+        r = mdl.residual(m, rec, oversample=oversample).summary()
+        r["file"] = str(rec.source or rec.name)
         res.append(r)
     return {"model": str(model_path), "tests": res}
 
 
 def run(args: argparse.Namespace) -> int:
-    res = compute(args.model, args.tests, args.oversample)
+    recs = read_tests(args.tests, args, besides=args.model)
+    res = compute(args.model, recs, args.oversample)
     if args.json:
         json.dump(res, sys.stdout, indent=1)
         sys.stdout.write("\n")

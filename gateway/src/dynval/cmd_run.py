@@ -11,14 +11,16 @@ import math
 from pathlib import Path
 from typing import Any
 
-from dynval import model as dvmodel
-from dynval import runloop
-from dynval.cli_common import add_test_options, fmt_timing, progress, read_with_options
-from dynval.errors import ConfigError, InputFileError
-from dynval.io import TEST_SUFFIXES
+from dynval.cli_common import (
+    Progress,
+    add_test_options,
+    fmt_timing,
+    read_with_options,
+    test_files,
+)
+from dynval.errors import ConfigError
 from dynval.io.mcapfile import iter_messages
-
-SKIP_NAMES = {"meta.json", "declared_model.json"}
+from dynval.topics import T_RESID
 
 
 def add_parser(sub: Any) -> None:
@@ -50,34 +52,20 @@ def add_parser(sub: Any) -> None:
     p.set_defaults(run=run)
 
 
-def collect(paths: list[Path]) -> list[Path]:
-    out: list[Path] = []
-    for p in paths:
-        if p.is_dir():
-            found = sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower() in
-                           TEST_SUFFIXES and f.name not in SKIP_NAMES)
-            if not found:
-                raise InputFileError(p, "no recorded tests in this folder")
-            out += found
-        elif p.is_file():
-            out.append(p)
-        else:
-            raise InputFileError(p, "no such file or folder")
-    return out
-
-
 def _model_for(test: Path, args: argparse.Namespace) -> Any:
     if args.no_model:
         return None
     path = args.model or (test.parent / "declared_model.json")
     if args.model is None and not path.is_file():
         return None
-    return dvmodel.load(path)
+    from dynval import model as mdl
+
+    return mdl.load(path)
 
 
 def resid_rms(mcap: Path) -> dict[str, float]:
     acc: dict[str, list[float]] = {}
-    for m in iter_messages(mcap, topics={"/dv/residuals"}):
+    for m in iter_messages(mcap, topics={T_RESID}):
         v = m.data["value"]
         a = acc.setdefault(m.data["name"], [0.0, 0.0])
         a[0] += v * v
@@ -86,7 +74,10 @@ def resid_rms(mcap: Path) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    tests = collect(args.tests)
+    from dynval import model as mdl
+    from dynval import runloop
+
+    tests = test_files(args.tests, besides=args.model)
     choice = runloop.choose_bus(args.bus, args.channel, args.firmware)
     print(f"bus: {choice.interface}:{choice.channel}, firmware: {choice.firmware}")
     fw_kw = {"win_len": args.win, "seg_len": args.seg, "n_seg": args.nseg,
@@ -100,14 +91,12 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"{test}: the model needs an input channel (use --channel-map)")
         stem = f"{runloop.safe_name(test.parent.name)}_{runloop.safe_name(rec.name)}"
         out = args.output / f"{stem}.mcap"
-        upd, close = progress(rec.n_samples * len(rec.channels) // 3, rec.name, args)
-        try:
+        with Progress(args) as bars:
             r = runloop.run_test(rec, out, choice, model=m,
-                                 model_meta=dvmodel.to_dict(m) if m is not None else None,
+                                 model_meta=mdl.to_dict(m) if m is not None else None,
                                  speed=args.speed, asap=args.asap, fw_kw=fw_kw, record_id=i,
-                                 on_progress=upd)
-        finally:
-            close()
+                                 on_progress=bars.counter(
+                                     rec.name, rec.n_samples * len(rec.channels) // 3))
         rms = resid_rms(out)
         seq = r.log_summary["sequence"]
         lost = sum(v["lost"] for v in seq.values())

@@ -9,9 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from dynval import model as mdl
+from dynval.cli_common import add_test_options, read_with_options
 from dynval.errors import InputFileError
-from dynval.io import read_test
+from dynval.io import Recording
 
 log = logging.getLogger(__name__)
 
@@ -24,6 +24,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--oversample", type=int, default=None,
                    help="band-limited input interpolation factor (default: the model's, 4; "
                         "1 = the samples as they are, first-order hold)")
+    add_test_options(p)
     p.set_defaults(run=run)
 
 
@@ -37,11 +38,12 @@ def time_column(path: Path) -> str:
     return first.split(",")[0].strip() or "time_s"
 
 
-def write_prediction(model_path: Path, test: Path, out: Path,
+def write_prediction(model_path: Path, rec: Recording, test: Path, out: Path,
                      oversample: int | None = None) -> list[str]:
-    """Simulate and write; returns the written column names."""
+    """Simulate the test rec (read from the file test) and write; returns the column names."""
+    from dynval import model as mdl
+
     m = mdl.load(model_path)
-    rec = read_test(test)
     pred = mdl.simulate_recording(m, rec, oversample=oversample)
     inp = mdl.input_channel(m, rec)
     order = [c for c in rec.names if c in pred] + [c for c in pred if c not in rec.names]
@@ -59,6 +61,7 @@ def write_prediction(model_path: Path, test: Path, out: Path,
 
 
 def run(args: argparse.Namespace) -> int:
-    cols = write_prediction(args.model, args.test, args.output, args.oversample)
+    rec = read_with_options(args.test, args)
+    cols = write_prediction(args.model, rec, args.test, args.output, args.oversample)
     log.info("wrote %s (%s)", args.output, ", ".join(cols))
     return 0

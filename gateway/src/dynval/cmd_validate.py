@@ -5,51 +5,20 @@ optional design of experiments (Latin hypercube or full factorial), RMSE, ANOVA 
 from __future__ import annotations
 
 import argparse
-import contextlib
-import logging
-import sys
-from collections.abc import Callable, Iterator
-from pathlib import Path
 from typing import Any
 
-from dynval import model as mdl
-from dynval.cli_common import add_test_options, read_with_options
-from dynval.cmd_residual import expand
-from dynval.io.recording import Recording
-
-log = logging.getLogger(__name__)
-
-
-def add_common(p: Any) -> None:
-    """Options shared by validate and calibrate."""
-    p.add_argument("--model", type=Path, required=True, help="model file (dynval format or "
-                   "declared_model.json)")
-    p.add_argument("--experiments", type=Path, nargs="+", required=True, metavar="TEST",
-                   help="recorded tests (files or folders of *.csv), the experimental baseline")
-    p.add_argument("--features", required=True, metavar="SPEC",
-                   help="feature vector, e.g. 'peak,std@acc3,acc4' or 'segstd64@acc4' "
-                   "(see gateway/docs/validate-schema.md)")
-    p.add_argument("--param", action="append", default=[], metavar="NAME=LO:HI",
-                   help="uncertain parameter with a uniform range (repeat), e.g. zeta2=0.01:0.08")
-    p.add_argument("--rmse-channel", action="append", default=None, metavar="CH",
-                   help="channel(s) of the RMSE (eq. 47) (default: the feature channels)")
-    p.add_argument("--seed", type=int, default=0, help="design / MCMC seed (%(default)s)")
-    p.add_argument("--workers", type=int, default=None,
-                   help="worker processes (default: all cores)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run the sweeps on a Dask distributed scheduler (tcp://host:8786)")
-    p.add_argument("--shrink", choices=("auto", "always", "never"), default="auto",
-                   help="Ledoit-Wolf covariance shrinkage (auto: when tests <= features + 1)")
-    p.add_argument("--json", dest="json_out", type=Path, default=None, metavar="OUT",
-                   help="write the JSON result here")
-    p.add_argument("--html", dest="html_out", type=Path, default=None, metavar="OUT",
-                   help="write the self-contained HTML report here")
-    add_test_options(p)
+from dynval.cli_common import (
+    Progress,
+    add_study_options,
+    runner_for,
+    study_inputs,
+    write_study_reports,
+)
 
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser("validate", help="Mahalanobis validation + DOE sweep against tests")
-    add_common(p)
+    add_study_options(p)
     p.add_argument("--runs", type=int, default=200, help="Latin hypercube runs (%(default)s)")
     p.add_argument("--doe", choices=("lhs", "factorial"), default="lhs",
                    help="design of experiments (%(default)s)")
@@ -59,61 +28,17 @@ def add_parser(sub: Any) -> None:
     p.set_defaults(run=run)
 
 
-def read_tests(args: argparse.Namespace) -> list[Recording]:
-    return [read_with_options(t, args) for t in expand(args.experiments)]
-
-
-@contextlib.contextmanager
-def bars(args: argparse.Namespace) -> Iterator[Callable[[str], Callable[[int, int], None] | None]]:
-    """A progress factory for the study functions: one tqdm bar per stage, only on a TTY."""
-    opened: list[Any] = []
-
-    def factory(stage: str) -> Callable[[int, int], None] | None:
-        if getattr(args, "quiet", False) or not sys.stderr.isatty():
-            return None
-        import importlib
-
-        bar: Any = importlib.import_module("tqdm").tqdm(desc=stage, leave=False)
-        opened.append(bar)
-
-        def cb(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
-        return cb
-
-    try:
-        yield factory
-    finally:
-        for b in opened:
-            b.close()
-
-
-def runner_for(args: argparse.Namespace) -> Any:
-    from dynval.validate.doe import Runner
-
-    return Runner(workers=args.workers, scheduler=args.scheduler)
-
-
 def run(args: argparse.Namespace) -> int:
-    from dynval.validate import report, study
-    from dynval.validate.doe import parse_param
+    from dynval.validate import study
 
-    m = mdl.load(args.model)
-    recs = read_tests(args)
-    ranges = [parse_param(t) for t in args.param]
-    with runner_for(args) as rn, bars(args) as prog:
+    m, recs, ranges = study_inputs(args)
+    with runner_for(args) as rn, Progress(args) as bars:
         res, art = study.validate(m, recs, args.features, ranges, runs=args.runs,
                                   design=args.doe, ref_test=args.ref_test,
                                   rmse_channels=args.rmse_channel, seed=args.seed,
                                   levels=args.levels, shrink=args.shrink, runner=rn,
-                                  progress=prog)
-    if args.json_out:
-        report.write_json(res, args.json_out)
-        log.info("wrote %s", args.json_out)
-    if args.html_out:
-        report.write_html(res, art, args.html_out)
-        log.info("wrote %s", args.html_out)
+                                  progress=bars.stage)
+    write_study_reports(args, res, art)
     v = res["nominal"]["verdict"]
     print(f"baseline: {res['baseline']['n_tests']} tests x {res['baseline']['n_features']} "
           f"features ({res['baseline']['covariance']} covariance)")

@@ -20,14 +20,14 @@ from typing import IO, Any
 
 from mcap.writer import CompressionType, Writer
 
-from dynval import __version__, bus
+from dynval import __version__, _core, bus
+from dynval.contract import IR_COUNTERS
 from dynval.errors import DynvalError
+from dynval.topics import T_CONTROL, T_EVENTS, T_FEATURES, T_RAW, T_RESID, T_SAMPLES, T_STATUS
 
 log = logging.getLogger(__name__)
 
 PROFILE = ""  # plain JSON messages
-T_RAW, T_FEATURES, T_RESID, T_STATUS = "/can/raw", "/dv/features", "/dv/residuals", "/dv/status"
-T_CONTROL, T_EVENTS, T_SAMPLES = "/dv/control", "/dv/events", "/dv/samples/"
 
 _INT = {"type": "integer"}
 _NUM = {"type": "number"}
@@ -54,6 +54,15 @@ SCHEMAS: dict[str, dict[str, Any]] = {
 TOPIC_SCHEMA = {T_RAW: "dynval.CanFrame", T_FEATURES: "dynval.Feature",
                 T_RESID: "dynval.Residual", T_STATUS: "dynval.Status",
                 T_CONTROL: "dynval.Control", T_EVENTS: "dynval.Event"}
+
+
+_COUNTER_AT = {a: name for name, a in IR_COUNTERS.items()}
+
+
+def refused_event(status: int) -> str:
+    """The event of a frame the codec refused with status: the name of the firmware counter
+    that counts it (sim_refused_counter, the one table firmware and log share)."""
+    return _COUNTER_AT[int(_core.sim_lib.sim_refused_counter(status))]
 
 
 class LogError(DynvalError):
@@ -185,9 +194,8 @@ class McapLog:
                                     "data": data.hex()})
         d = bus.decode(can_id, data, extended)
         if isinstance(d, int):
-            ev = {-2: "bad_dlc", -6: "unknown_id", -4: "bad_value", -1: "bad_frame"}.get(
-                d, f"refused_{-d}")
-            self.event(t_ns, ev, can_id=can_id, detail=f"dlc {len(data)}")
+            self.event(t_ns, refused_event(d), can_id=can_id,
+                       detail=f"{_core.status_name(d)}, dlc {len(data)}")
         elif d.kind == "samples":
             self._samples(t_ns, d.fields)
         elif d.kind == "feature":
@@ -238,7 +246,7 @@ class McapLog:
             k = prev - ((prev - f["seq"]) & 0xFF)
         if verdict in ("ok", "gap") or prev is None:
             self._frame_no[ch] = k
-        lsb = self.lsb.get(ch, 2.0 ** -10)
+        lsb = self.lsb.get(ch, bus.DEFAULT_LSB)
         vals = [bus.sample_value(r, lsb) for r in f["raw"]]
         self._put(T_SAMPLES + self.channel_name(ch), t_ns,
                   {"channel": ch, "seq": f["seq"], "index": k * bus.SAMPLES_PER_FRAME,

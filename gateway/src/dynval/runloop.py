@@ -15,7 +15,6 @@ import select
 import shutil
 import signal
 import socket
-import struct
 import subprocess
 import threading
 import time
@@ -25,40 +24,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cffi import FFI
-
-from dynval import __version__, bus
+from dynval import __version__, _core, bus
 from dynval.bus import ReplayResult
-from dynval.errors import ConfigError, CoreNotBuiltError, DynvalError
+from dynval.contract import IR_COUNTERS, const, named
+from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
 from dynval.mcap_log import McapLog, log_bus
+from dynval.topics import T_FEATURES, T_RESID
 
 log = logging.getLogger(__name__)
 
-_LIB_DIR = Path(__file__).resolve().parent / "_lib"
-
-# holding registers of firmware_sim/sim_regmap.h (register map version 1)
-HR_N_CHAN, HR_WIN_LEN, HR_SEG_LEN, HR_N_SEG = 0, 1, 2, 3
-HR_AR_ORDER, HR_RESID_DECIM, HR_FORCE_CHAN, HR_HEARTBEAT_MS = 5, 7, 8, 9
-HR_LSB, HR_FS_CH, HR_MODEL = 40, 60, 100
-N_HOLDING, N_INPUT, N_MODEL, MAX_CHAN = 164, 500, 32, 8
-IR_COUNTERS = {"rx_frames": 10, "tx_frames": 12, "dropped": 14, "lost": 16, "dup": 18,
-               "late": 20, "stale": 22, "bad_dlc": 24, "unknown_id": 26, "nan_samples": 28,
-               "bad_chan": 30, "ignored": 32, "bad_cfg": 34, "samples": 36, "tx_errors": 38,
-               "obs_steps": 42, "obs_overrun": 44}
-MAX_OUT = 3072  # SIM_CORE_MAX_OUT
-
-_CDEF = """
-typedef struct { uint32_t id; uint8_t dlc; uint8_t data[8]; } dv_can_frame_t;
-void *sim_core_new(const void *cfg);
-void sim_core_delete(void *c);
-size_t sim_core_handle(void *c, const dv_can_frame_t *in, dv_can_frame_t *out);
-size_t sim_core_tick(void *c, uint64_t now_ns, dv_can_frame_t *out);
-void sim_core_input_regs(const void *c, uint16_t *ir);
-void sim_config_default(void *cfg);
-void sim_config_to_regs(const void *cfg, uint16_t *hr);
-void sim_config_from_regs(void *cfg, const uint16_t *hr);
-"""
+MAX_CHAN, N_MODEL = const("SIM_MAX_CHAN"), const("SIM_N_MODEL")
+N_INPUT, MAX_OUT = const("SIM_N_INPUT"), const("SIM_CORE_MAX_OUT")
+#: the observer's model parameters: SIM_MODEL_* offsets (n_dof, mass, k, zeta, q, r, ...)
+MODEL = named("SIM_MODEL_")
+MAX_DOF = MODEL["k"] - MODEL["mass"]  # masses of DOF 1..n fill the slots before the k's
 
 
 @dataclass
@@ -88,15 +68,16 @@ class FirmwareConfig:
 
 
 def model_params(model: Any, rec: Recording, q: float = 0.0, r: float = 0.0) -> list[float]:
-    """The firmware observer's 29 parameters (SIM_MODEL_*) from a dynval Model: a chain with
+    """The firmware observer's parameters (SIM_MODEL_*) from a dynval Model: a chain with
     modal damping loaded at its input DOF; the firmware measures every non-force channel, in
     order, as the acceleration of DOF 1, 2, ... — so the test's outputs must be exactly that.
     The input hold is the model's: `foh` stays linear; `cubic` and the offline default
     `bandlimited` (which firmware cannot do: it needs the whole record) use the cubic hold,
     which reaches the same noise floor on band-limited forces one sample later."""
     n = model.n_dof
-    if n > 8:
-        raise ConfigError(f"{model.source}: the firmware observer takes at most 8 DOF, not {n}")
+    if n > MAX_DOF:
+        raise ConfigError(f"{model.source}: the firmware observer takes at most {MAX_DOF} DOF, "
+                          f"not {n}")
     if model.damping.type != "modal" or len(model.damping.zeta) != n:
         raise ConfigError(f"{model.source}: the firmware observer needs modal damping with "
                           f"{n} ratios")
@@ -110,14 +91,15 @@ def model_params(model: Any, rec: Recording, q: float = 0.0, r: float = 0.0) -> 
     if want != list(range(1, len(outs) + 1)):
         log.warning("%s: outputs are DOF %s; the firmware reads channel order as DOF 1..%d",
                     rec.name, want, len(outs))
-    p = [0.0] * 29
-    p[0] = float(n)
+    p = [0.0] * (MODEL["hold"] + 1)
+    p[MODEL["n_dof"]] = float(n)
     for i in range(n):
-        p[1 + i] = float(model.masses_kg[i])
-        p[9 + i] = float(model.stiffness_n_per_m[i])
-        p[17 + i] = float(model.damping.zeta[i])
-    p[25], p[26], p[27] = q, r, float(model.input.dof - 1)
-    p[28] = 0.0 if model.interpolation == "foh" else 1.0
+        p[MODEL["mass"] + i] = float(model.masses_kg[i])
+        p[MODEL["k"] + i] = float(model.stiffness_n_per_m[i])
+        p[MODEL["zeta"] + i] = float(model.damping.zeta[i])
+    p[MODEL["q"]], p[MODEL["r"]] = q, r
+    p[MODEL["input_dof"]] = float(model.input.dof - 1)
+    p[MODEL["hold"]] = 0.0 if model.interpolation == "foh" else 1.0
     return p
 
 
@@ -136,35 +118,23 @@ def firmware_config(rec: Recording, model: Any = None, **kw: Any) -> FirmwareCon
 
 # ---- in-process firmware ---------------------------------------------------------------------
 class SimCore:
-    """firmware_sim's loop (sim_core.c) in this process, through cffi."""
+    """firmware_sim's loop (sim_core.c) in this process, through the binding (_core.sim_lib)."""
 
     def __init__(self, cfg: FirmwareConfig) -> None:
-        libs = sorted(_LIB_DIR.glob("libdv_simcore-f64*"))
-        if not libs:
-            raise CoreNotBuiltError(f"libdv_simcore-f64 is missing from {_LIB_DIR}: reinstall "
-                                    "with `pip install ./gateway`")
-        self.ffi: Any = FFI()
-        self.ffi.cdef(_CDEF)
-        self.lib: Any = self.ffi.dlopen(str(libs[0]))
-        ffi: Any = self.ffi
-        lib: Any = self.lib
-        buf = ffi.new("uint64_t[]", 1024)  # >= sizeof(struct sim_config), opaque here
-        hr = ffi.new("uint16_t[]", N_HOLDING)
-        lib.sim_config_default(buf)
-        lib.sim_config_to_regs(buf, hr)
-        for reg, v in ((HR_N_CHAN, cfg.n_chan), (HR_WIN_LEN, cfg.win_len),
-                       (HR_SEG_LEN, cfg.seg_len), (HR_N_SEG, cfg.n_seg),
-                       (HR_AR_ORDER, cfg.ar_order), (HR_RESID_DECIM, cfg.resid_decim),
-                       (HR_FORCE_CHAN, cfg.force_chan), (HR_HEARTBEAT_MS, cfg.heartbeat_ms)):
-            hr[reg] = v
+        ffi: Any = _core.ffi
+        lib: Any = _core.sim_lib
+        self.ffi, self.lib = ffi, lib
+        c = ffi.new("struct sim_config *")
+        lib.sim_config_default(c)
+        c.n_chan, c.win_len, c.seg_len, c.n_seg = cfg.n_chan, cfg.win_len, cfg.seg_len, cfg.n_seg
+        c.ar_order, c.resid_decim, c.force_chan = cfg.ar_order, cfg.resid_decim, cfg.force_chan
+        c.heartbeat_ms = cfg.heartbeat_ms
         for ch in range(MAX_CHAN):
-            hr[HR_FS_CH + ch] = cfg.fs_hz
+            c.fs_hz[ch] = cfg.fs_hz
         params = [float(v) for v in cfg.model] + [0.0] * (N_MODEL - len(cfg.model))
         for i, pv in enumerate(params):
-            (w,) = struct.unpack(">I", struct.pack(">f", pv))
-            hr[HR_MODEL + 2 * i], hr[HR_MODEL + 2 * i + 1] = w >> 16, w & 0xFFFF
-        lib.sim_config_from_regs(buf, hr)
-        self.core: Any = lib.sim_core_new(buf)
+            c.model[i] = pv
+        self.core: Any = lib.sim_core_new(c)
         if self.core == ffi.NULL:
             raise ConfigError(f"the firmware refused the configuration {cfg}")
         self._in: Any = ffi.new("dv_can_frame_t *")
@@ -215,7 +185,7 @@ class InProcessFirmware:
             while not self._stop.is_set():
                 m = self.bus.recv(timeout=0.05)
                 outs = [] if m is None else self.core.handle(m.arbitration_id | (
-                    0x80000000 if m.is_extended_id else 0), bytes(m.data))
+                    bus.EFF_FLAG if m.is_extended_id else 0), bytes(m.data))
                 outs += self.core.tick(time.monotonic_ns())
                 for cid, data in outs:
                     self.bus.send(can.Message(arbitration_id=cid, data=data,
@@ -376,8 +346,6 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
     try:
         rx = bus.open_bus(choice.interface, choice.channel, receive_own_messages=False)
         tx = bus.open_bus(choice.interface, choice.channel, receive_own_messages=False)
-        if choice.interface == "socketcan":
-            _enlarge_rcvbuf(rx)
         stop = threading.Event()
         state = _LoggerState()
         t = threading.Thread(target=_logger_loop, args=(rx, logger, stop, state),
@@ -402,8 +370,8 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
     finally:
         counters = fw.stop()
         summary = logger.close()
-    feats = logger.counts.get("/dv/features", 0)
-    resid = logger.counts.get("/dv/residuals", 0)
+    feats = logger.counts.get(T_FEATURES, 0)
+    resid = logger.counts.get(T_RESID, 0)
     return RunResult(rec.name, out, f"{choice.interface}:{choice.channel}", choice.firmware,
                      res, summary, counters, feats, resid)
 
@@ -428,16 +396,6 @@ def _logger_loop(rx: Any, logger: McapLog, stop: threading.Event, st: _LoggerSta
         logger.on_frame(t_ns, m.arbitration_id, bytes(m.data), m.is_extended_id)
         if st.armed and m.arbitration_id == bus.ID_STATUS and not m.is_extended_id:
             st.status.set()
-
-
-def _enlarge_rcvbuf(b: Any) -> None:
-    try:
-        b.socket.setsockopt(socket.SOL_SOCKET, 33, 8 << 20)  # SO_RCVBUFFORCE (root)
-    except (OSError, AttributeError):
-        try:
-            b.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 8 << 20)
-        except (OSError, AttributeError):
-            pass
 
 
 def recording_meta(rec: Recording, plan: bus.Plan | None = None) -> dict[str, Any]:

@@ -7,6 +7,7 @@ the BRFD JSON layout (.json), the DROPBEAR LabVIEW text (.txt with its header) a
 written by dynval (.mcap). A channel map (io.channelmap) selects, renames and scales."""
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 from dynval.errors import InputFileError
@@ -17,10 +18,31 @@ from dynval.io.dropbear import looks_like_dropbear, read_dropbear
 from dynval.io.recording import Channel, Recording
 from dynval.io.text import read_text
 
-__all__ = ["Channel", "ChannelMap", "Recording", "apply_channel_map", "load_channel_map",
-           "read_brfd", "read_csv", "read_dropbear", "read_test", "read_text", "TEST_SUFFIXES"]
+__all__ = ["Channel", "ChannelMap", "Recording", "apply_channel_map", "collect_tests",
+           "load_channel_map", "read_brfd", "read_csv", "read_dropbear", "read_test",
+           "read_text", "TEST_SUFFIXES"]
 
 TEST_SUFFIXES = (".csv", ".txt", ".dat", ".asc", ".json", ".mcap")
+NOT_TESTS = ("meta.json", "declared_model.json")  # names (or name endings) in test folders
+
+
+def collect_tests(paths: Sequence[Path | str]) -> list[Path]:
+    """The tests the paths name: a file as given; a folder's files with a test suffix, sorted by
+    name, except its metadata and model (names ending in NOT_TESTS). InputFileError for a path
+    that does not exist or a folder without tests. Every command that reads tests uses this."""
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found = sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower() in
+                           TEST_SUFFIXES and not f.name.endswith(NOT_TESTS))
+            if not found:
+                raise InputFileError(p, f"folder holds no tests ({', '.join(TEST_SUFFIXES)})")
+            out += found
+        elif p.is_file():
+            out.append(p)
+        else:
+            raise InputFileError(p, "no such file or folder")
+    return out
 
 
 def read_test(path: Path | str, *, lenient: bool = False, fs_hz: float | None = None,

@@ -20,6 +20,7 @@ import numpy as np
 
 from dynval.errors import InputFileError
 from dynval.io.recording import Channel, Recording, file_sha256
+from dynval.topics import T_SAMPLES
 
 log = logging.getLogger(__name__)
 
@@ -152,7 +153,7 @@ def read_mcap(path: Path | str, *, lenient: bool = False) -> Recording:
     sc = Scan()
     per: dict[int, dict[int, list[float | None]]] = {}
     names: dict[int, str] = {}
-    for m in iter_messages(p, prefix="/dv/samples/", scan_out=sc):
+    for m in iter_messages(p, prefix=T_SAMPLES, scan_out=sc):
         if m.data.get("verdict") not in ("ok", "gap"):
             continue
         ch = int(m.data["channel"])
