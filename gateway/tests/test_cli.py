@@ -176,7 +176,12 @@ def test_a_missing_core_is_one_line_and_exit_2(tmp_path: Path, cmd: str) -> None
     import sys
 
     (tmp_path / "t.csv").write_text(GOOD)
-    (tmp_path / "m.json").write_text("{}")
+    # a valid model, so that the command gets as far as needing the core
+    (tmp_path / "m.json").write_text(json.dumps({
+        "format": "dynval-model/1", "masses_kg": [1.0], "stiffness_n_per_m": [1000.0],
+        "damping": {"type": "modal", "zeta": [0.02]},
+        "input": {"kind": "force", "dof": 1, "channel": "force_N"},
+        "outputs": {"acc1_mps2": {"kind": "acc", "dof": 1}}, "fs_hz": 100.0}))
     argv = [cmd, *(a if a not in ("t.csv", "m.json") else str(tmp_path / a)
                    for a in MINIMAL_ARGS[cmd])]
     if cmd == "log":

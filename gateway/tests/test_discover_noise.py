@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -154,3 +155,21 @@ def test_discover_on_a_cheap_daq_keeps_a_right_model_and_reads_its_noise() -> No
         true = float(np.sqrt(np.mean(np.concatenate(added[c]) ** 2)))
         assert r.noise_floors[c].method == "out of band"
         assert true / 1.6 < r.noise[c] < 1.6 * true, (c, r.noise[c], true)  # measured 1.36-1.46 x
+
+
+def test_cli_noise_in_channel_units_and_a_wrong_channel(repo: Path, tmp_path: Path) -> None:
+    import json
+
+    from dynval import cli
+
+    folder = repo / "data" / "lanl4dof-sim" / "clean"
+    out = tmp_path / "d.json"
+    args = ["-q", "discover", str(folder / "declared_model.json"), str(folder),
+            "--max-effects", "0", "--json", str(out)]
+    assert cli.main([*args, "--noise", "acc2_mps2=0.04"]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["noise_floor"]["acc2_mps2"] == 0.04
+    assert doc["noise_method"]["acc2_mps2"]["method"] == "stated"
+    assert doc["noise_method"]["acc1_mps2"]["method"] == "out of band"
+    assert cli.main([*args, "--noise", "acc9=0.04"]) == 2
+    assert cli.main([*args, "--noise", "acc2_mps2=-1"]) == 2

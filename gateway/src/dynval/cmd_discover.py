@@ -27,9 +27,11 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--max-effects", type=int, default=3, help="at most this many effects")
     p.add_argument("--min-gain", type=float, default=0.10,
                    help="held-out SSE reduction an effect must bring (default 0.10)")
-    p.add_argument("--noise", type=float, default=None, metavar="FRACTION",
-                   help="stated sensor noise as a fraction of each channel's RMS (default: "
-                        "estimated from the residual's high-frequency PSD)")
+    p.add_argument("--noise", default=None, metavar="FRACTION|CH=RMS,...",
+                   help="stated sensor noise: one number is a fraction of each channel's RMS; "
+                        "CH=RMS pairs give a channel's noise RMS in its own units (default: "
+                        "estimated from the data: repeated or periodic inputs, input-off "
+                        "stretches, or the residual outside the input band)")
     p.add_argument("--uncertain", default="", metavar="P1,P2",
                    help="declared parameters that are uncertain (model parameter names, e.g. "
                         "zeta2,zeta4 or k1,beta): calibrated first, then re-adjusted jointly "
@@ -45,17 +47,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     m = mdl.load(args.model)
     recs = read_tests(args.tests, args, besides=args.model)
-    noise = None
-    if args.noise is not None:
-        if not args.noise > 0:
-            raise ConfigError(f"--noise must be > 0, got {args.noise}")
-        noise = {}
-        for c in m.outputs:
-            vals = [r.channel(c).data for r in recs if c in r.names]
-            if vals:
-                import numpy as np
-
-                noise[c] = args.noise * float(np.sqrt(np.mean(np.concatenate(vals) ** 2)))
+    noise = _stated_noise(args.noise, m, recs) if args.noise is not None else None
     unc = tuple(x.strip() for x in args.uncertain.split(",") if x.strip())
     opts = loop.Options(max_effects=args.max_effects, min_gain=args.min_gain, noise=noise,
                         uncertain=unc)
@@ -73,14 +65,52 @@ def run(args: argparse.Namespace) -> int:
                        f"{v['unit']}" for k, v in e["parameters"].items())
         print(f"  {e['label']}: {ps}")
     width = max(8, *(len(c) for c in res.chans))
-    print(f"  {'channel':<{width}} {'held-out rmse before':>21} {'after':>12} {'noise':>10}")
+    print(f"  {'channel':<{width}} {'held-out rmse before':>21} {'after':>12} {'noise':>10}"
+          "  noise from")
     for c in res.chans:
         b = doc["rmse_before"]["held_out"][c]
         a = doc["rmse_after"]["held_out"][c]
-        print(f"  {c:<{width}} {b:>21.5g} {a:>12.5g} {doc['noise_floor'][c]:>10.4g}")
+        how = doc["noise_method"].get(c, {}).get("method", "")
+        print(f"  {c:<{width}} {b:>21.5g} {a:>12.5g} {doc['noise_floor'][c]:>10.4g}  {how}")
     mah = doc["mahalanobis"]
-    print(f"  Mahalanobis before {mah.get('before')}, after {mah.get('after')} "
-          f"(measured reference {mah.get('measured_reference')})")
+    print(f"  Mahalanobis before {_g(mah.get('before'))}, after {_g(mah.get('after'))} "
+          f"(measured reference {_g(mah.get('measured_reference'))})")
     log.info("discover: %d tests in %.1f s", len(recs), time.perf_counter() - t0)
     sys.stdout.flush()
     return 0
+
+
+def _g(x: Any) -> str:
+    return f"{x:.3g}" if isinstance(x, float) else "n/a"
+
+
+def _stated_noise(text: str, m: Any, recs: Any) -> dict[str, float]:
+    """--noise: a fraction of each channel's RMS, or CH=RMS pairs in channel units."""
+    import numpy as np
+
+    def number(s: str) -> float:
+        try:
+            v = float(s)
+        except ValueError:
+            raise ConfigError(f"--noise: '{s}' is not a number") from None
+        if not (v > 0 and np.isfinite(v)):
+            raise ConfigError(f"--noise must be > 0 and finite, got {s}")
+        return v
+
+    if "=" not in text:
+        frac = number(text)
+        out = {}
+        for c in m.outputs:
+            vals = [r.channel(c).data for r in recs if c in r.names]
+            if vals:
+                out[c] = frac * float(np.sqrt(np.mean(np.concatenate(vals) ** 2)))
+        return out
+    out = {}
+    for item in text.split(","):
+        name, _, value = item.partition("=")
+        name = name.strip()
+        if name not in m.outputs:
+            raise ConfigError(f"--noise: '{name}' is not an output channel of the model "
+                              f"(outputs: {', '.join(m.outputs)})")
+        out[name] = number(value)
+    return out
