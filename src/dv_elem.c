@@ -40,6 +40,14 @@ dv_real_t dv_elem_stiffness_bound(const dv_elem_desc_t *e)
     }
 }
 
+dv_real_t dv_elem_damping_bound(const dv_elem_desc_t *e)
+{
+    if (e == NULL || e->law != DV_ELEM_FRICTION) {
+        return DV_R(0.0);
+    }
+    return e->kb_n_per_m / e->delta_m;
+}
+
 dv_real_t dv_elem_force(const dv_elem_desc_t *e, dv_real_t x)
 {
     return e == NULL ? DV_R(0.0) : dv_priv_elem_g(e, x);

@@ -96,6 +96,14 @@ dv_status_t dv_elem_check(const dv_elem_desc_t *e);
 dv_real_t dv_elem_stiffness_bound(const dv_elem_desc_t *e);
 
 /**
+ * @brief The largest damping the element adds, N s/m: F / eps for friction (the slope of its
+ *        regularised law at V = 0), 0 for the laws whose slope is unbounded (v|v|) or that act
+ *        on X. The model's sub-step check uses it beside dv_elem_stiffness_bound().
+ * @return the bound; 0 for NULL
+ */
+dv_real_t dv_elem_damping_bound(const dv_elem_desc_t *e);
+
+/**
  * @brief The element's force law g (N) without history: g(X) for the contact, cubic and
  *        stick-slip (virgin curve) laws, g(V) for friction and the v|v| damper (@p x is then
  *        the relative velocity V, m/s).

@@ -27,10 +27,10 @@
  *   DV_INPUT_GROUND_ACC). Each pushes DOF a by +g and DOF b by -g. init checks the sub-step
  *   against the stiffest element: with every element at its dv_elem_stiffness_bound() (contact
  *   kB, stick-slip F / z) the highest natural frequency w must keep w h <= DV_MODEL_ELEM_MAX_WH
- *   (h = T / n_sub); a friction element's slope F / eps must keep F / eps h (1/m_a + 1/m_b)
- *   under the same bound (the fixed-point iterations contract). The cubic law's tangent
- *   stiffness 3 k3 X^2 is not checked: keep it of the order of that limit. The observer keeps
- *   the stick-slip law's history (dv_obs_t; zero after reset).
+ *   (h = T / n_sub); a friction element's slope F / eps (dv_elem_damping_bound()) must keep
+ *   F / eps h (1/m_a + 1/m_b) under the same bound (the fixed-point iterations contract). The
+ *   cubic law's tangent stiffness 3 k3 X^2 is not checked: keep it of the order of that limit.
+ *   The observer keeps the stick-slip law's history (dv_obs_t; zero after reset).
  *
  * Discretisation, sample period T: the linear part is exact for an input linear between
  * samples (first-order hold), from the exponential of the augmented matrix

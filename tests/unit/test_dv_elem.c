@@ -368,6 +368,10 @@ static void test_elem_force_block(void **state)
     assert_int_equal(dv_elem_check(&c), DV_EINVAL);
     c.law = DV_ELEM_STICKSLIP;
     assert_true(dv_test_close(dv_elem_stiffness_bound(&c), 2e4, tol, 0));
+    assert_true(dv_elem_damping_bound(&c) == 0); /* on X: no damping-like slope */
+    c.law = DV_ELEM_FRICTION; /* F / eps */
+    assert_true(dv_test_close(dv_elem_damping_bound(&c), 2e4, tol, 0));
+    assert_true(dv_elem_stiffness_bound(&c) == 0 && dv_elem_damping_bound(NULL) == 0);
 }
 
 int main(void)
