@@ -265,7 +265,7 @@ def test_discover_brfd_finds_stick_slip_friction(shared_data: Path) -> None:
     m = brfd_declared(recs)
     r = loop.discover(m, recs, loop.Options(uncertain=("k1", "beta")))
     top = r.rounds[0].evidence[0]
-    assert top.cand.type in ("stick_slip", "friction") and top.cand.location == {"dof": 1}
+    assert top.cand.type in ("stick_slip", "friction") and top.cand.location["between"] == [0, 1]
     assert r.effects[0]["type"] == "stick_slip"
     before = r.before.pooled(r.held_names, r.chans)["friction_force"]
     after = r.after.pooled(r.held_names, r.chans)["friction_force"]
@@ -276,3 +276,27 @@ def test_cli_discover_bad_model_exits_2(tmp_path: Path) -> None:
     bad = tmp_path / "m.json"
     bad.write_text("{}")
     assert cli.main(["-q", "discover", str(bad), str(tmp_path)]) == 2
+
+
+# ---- elements between any two DOFs (issue 16, item 7) -------------------------------------
+@pytest.mark.parametrize(("truth", "want"), [
+    (gen.Truth(elements=(mdl.Friction(1, 2, 0.8, 1e-4),)), ("friction", [1, 2])),
+    (gen.Truth(elements=(mdl.Friction(1, 3, 0.8, 1e-4),)), ("friction", [1, 3])),
+    (gen.Truth(elements=(mdl.CubicSpring(2, 4, 5e12),)), ("cubic_stiffness", [2, 4])),
+])
+def test_trace_ranks_an_element_between_any_two_dofs(truth: gen.Truth,
+                                                     want: tuple[str, list[int]]) -> None:
+    m = declared()
+    recs = gen.generate(m, truth, n_tests=3, seed=9)
+    view = tr.force_view(m, rs.prepare(m, recs))
+    assert view is not None
+    top = tr.score(view, fx.catalogue(m))[0]
+    assert (top.cand.type, top.cand.location["between"]) == want
+
+
+def test_discover_a_sliding_joint_between_two_dofs() -> None:
+    r = run(gen.Truth(elements=(mdl.Friction(1, 2, 0.6, 1e-4),), label="joint"), 85)
+    e = only_effect(r)
+    assert e["type"] == "friction" and e["location"]["between"] == [1, 2]
+    assert e["parameters"]["force_n"]["value"] == pytest.approx(0.6, rel=0.1)
+    assert held_reduction(r) > 0.8

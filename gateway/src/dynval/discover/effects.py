@@ -11,7 +11,9 @@ Each effect type is a small unit (a subclass of EffectType) that says:
   DOF, given the states reconstructed from the measurements (see trace.py).
 
 Numbering follows the model (1-based): story s ties DOF s-1 to DOF s (story 1: ground to
-DOF 1); X = x_s - x_{s-1} is the story drift.
+DOF 1); X = x_s - x_{s-1} is the story drift. Elements sit between any two DOFs a < b (a = 0:
+the ground), X = x_b - x_a: a sliding joint between DOF 1 and DOF 2 is as much a candidate as
+a bumper across a story.
 
 Effects that add an element (contact, friction, stick-slip, cubic spring, v|v| damper) are
 built from the element registry (dynval.model.elements): their parameters carry the registry's
@@ -89,6 +91,50 @@ def drift(st: States, story: int) -> tuple[np.ndarray, np.ndarray]:
     return st.x[s] - st.x[s - 1], st.v[s] - st.v[s - 1]
 
 
+def relative(st: States, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+    """X = x_b - x_a and V = v_b - v_a of DOFs a < b (1-based; a = 0: the ground, which moves
+    with a ground-displacement input)."""
+    if a == 0:
+        return drift(st, b) if b == 1 else (st.x[b - 1], st.v[b - 1])
+    return st.x[b - 1] - st.x[a - 1], st.v[b - 1] - st.v[a - 1]
+
+
+def pair_basis(st: States, a: int, b: int, g: np.ndarray) -> np.ndarray:
+    """Missing forces on all DOFs of an element force g between DOF a and DOF b (it pushes
+    DOF b by -g and DOF a by +g): as restoring forces, +g at DOF b and -g at DOF a."""
+    out = np.zeros((st.x.shape[0], g.size))
+    out[b - 1] = g
+    if a >= 1:
+        out[a - 1] = -g
+    return out
+
+
+def pairs(n_dof: int) -> list[dict[str, Any]]:
+    """Every place an element can sit: DOFs a < b (a = 0 the ground), with the names users
+    know where they apply (story s: DOF s-1 to DOF s; dof j: DOF j to the ground)."""
+    out = []
+    for b in range(1, n_dof + 1):
+        for a in range(0, b):
+            loc: dict[str, Any] = {"between": [a, b]}
+            if b == a + 1:
+                loc["story"] = b
+            if a == 0:
+                loc["dof"] = b
+            out.append(loc)
+    return out
+
+
+def pair_label(loc: dict[str, Any]) -> str:
+    a, b = loc["between"]
+    if a == 0 and b == 1:
+        return "story 1 (ground-DOF 1)"
+    if a == 0:
+        return f"DOF {b} (to ground)"
+    if b == a + 1:
+        return f"story {b} (DOF {a}-DOF {b})"
+    return f"between DOF {a} and DOF {b}"
+
+
 def _unit_force(type_name: str, x: np.ndarray | None = None, v: np.ndarray | None = None, *,
                 side: str = "pos", **shape: float) -> np.ndarray:
     """The force of a registry element with the given shape parameters and 1 for the others
@@ -107,17 +153,6 @@ def _add_element(m: mdl.Model, type_name: str, dof_a: int, dof_b: int,
                  values: Sequence[float], name: str, side: str = "pos") -> mdl.Model:
     e = el.make(type_name, dof_a, dof_b, [float(v) for v in values], side=side, name=name)
     return dataclasses.replace(m, elements=(*m.elements, e))
-
-
-def _story_basis(st: States, story: int, g: np.ndarray) -> np.ndarray:
-    """Missing forces on all DOFs of a story force g (pushes DOF s by -g, DOF s-1 by +g):
-    as restoring forces, +g at DOF s and -g at DOF s-1."""
-    n = st.x.shape[0]
-    b = np.zeros((n, g.size))
-    b[story - 1] = g
-    if story >= 2:
-        b[story - 2] = -g
-    return b
 
 
 class EffectType:
@@ -205,8 +240,9 @@ class StiffnessChange(EffectType):
         return f"stiffness change, story {loc['story']} (DOF {loc['story'] - 1}-{loc['story']})"
 
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
-        d, _ = drift(st, cand.location["story"])
-        return [({}, _story_basis(st, cand.location["story"], d))]
+        s = cand.location["story"]
+        d, _ = drift(st, s)
+        return [({}, pair_basis(st, s - 1, s, d))]
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         k = m.stiffness_n_per_m[cand.location["story"] - 1]
@@ -383,32 +419,30 @@ class Contact(EffectType):
            "beyond; a dv_model contact element")
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
-        return [{"story": s, "between": [s - 1, s], "side": side}
-                for s in range(1, m.n_dof + 1) for side in ("pos", "neg")]
+        return [{**loc, "side": side} for loc in pairs(m.n_dof) for side in ("pos", "neg")]
 
     def label(self, loc: dict[str, Any]) -> str:
-        a = "ground" if loc["story"] == 1 else f"DOF {loc['story'] - 1}"
-        return f"contact, story {loc['story']} ({a}-DOF {loc['story']}), {loc['side']} side"
+        return f"contact, {pair_label(loc)}, {loc['side']} side"
 
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
-        d, _ = drift(st, cand.location["story"])
+        a, b = cand.location["between"]
+        d, _ = relative(st, a, b)
         side = cand.location["side"]
         y = d if side == "pos" else -d
         out = []
         for q in _QUANTILES:  # a bilinear contact (delta = 0, kB = 1) at the drift's quantiles
             gap = max(float(np.quantile(y, q)), 0.0)
             g = st.hp(_unit_force("contact", d, side=side, gap_m=gap, delta_m=0.0))
-            out.append(({"gap_m": gap, "quantile": q},
-                        _story_basis(st, cand.location["story"], g)))
+            out.append(({"gap_m": gap, "quantile": q}, pair_basis(st, a, b, g)))
         return out
 
     def motion_scales(self, st: States, cand: Candidate) -> dict[str, float]:
-        d, _ = drift(st, cand.location["story"])
+        a, b = cand.location["between"]
+        d, _ = relative(st, a, b)
         return {"drift_rms_m": float(np.std(d))}
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
-        s = cand.location["story"]
-        k = max(m.stiffness_n_per_m[s - 1], max(m.stiffness_n_per_m))
+        k = max(m.stiffness_n_per_m)
         dscale = float(cand.shape.get("drift_rms_m", 1e-4))
         return [_param("contact", "gap_m", 0.0, 10 * dscale),
                 _param("contact", "delta_m", 1e-3 * dscale, 10 * dscale, log=True),
@@ -422,8 +456,8 @@ class Contact(EffectType):
         return [float(np.clip(gap, 0.0, ps[0].upper * 0.9)), 0.3 * dscale, kb]
 
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
-        s = cand.location["story"]
-        return _add_element(m, "contact", s - 1, s, values, f"discovered contact story {s}",
+        a, b = cand.location["between"]
+        return _add_element(m, "contact", a, b, values, f"discovered contact {a}-{b}",
                             cand.location["side"])
 
 
@@ -440,44 +474,36 @@ class _ElementEffect(EffectType):
         return a if a > 0 else default
 
 
-class _GroundElement(_ElementEffect):
-    """An element between the ground and DOF j."""
+class _PairElement(_ElementEffect):
+    """An element between DOF a and DOF b (a = 0: the ground), at every pair of the model."""
 
-    location_kind = "dof"
+    location_kind = "pair"
     what = ""
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
-        return [{"dof": j} for j in range(1, m.n_dof + 1)]
+        return pairs(m.n_dof)
 
     def label(self, loc: dict[str, Any]) -> str:
-        return f"{self.what}, DOF {loc['dof']} (to ground)"
+        return f"{self.what}, {pair_label(loc)}"
 
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
-        j = cand.location["dof"]
-        return _add_element(m, self.element, 0, j, values,
-                            f"discovered {self.tag} DOF {j}")
+        a, b = cand.location["between"]
+        return _add_element(m, self.element, a, b, values, f"discovered {self.tag} {a}-{b}")
 
     @staticmethod
     def _rel(st: States, cand: Candidate) -> tuple[np.ndarray, np.ndarray]:
-        """X and V of DOF j against the ground (the ground's motion for a ground input)."""
-        j = cand.location["dof"] - 1
-        x = st.x[j] - (st.xg if st.xg is not None and j == 0 else 0.0)
-        v = st.v[j] - (st.vg if st.vg is not None and j == 0 else 0.0)
-        return x, v
+        a, b = cand.location["between"]
+        return relative(st, a, b)
+
+    def _basis(self, st: States, cand: Candidate, g: np.ndarray) -> np.ndarray:
+        a, b = cand.location["between"]
+        return pair_basis(st, a, b, st.hp(g))
 
 
-class _StoryElement(_ElementEffect):
-    """An element across story s (DOF s-1 to DOF s) with one coefficient."""
+class _OneCoefficient(_PairElement):
+    """A pair element with one coefficient (its amplitude)."""
 
-    location_kind = "story"
-    what = ""
     default_scale = 1.0
-
-    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
-        return [{"story": s, "between": [s - 1, s]} for s in range(1, m.n_dof + 1)]
-
-    def label(self, loc: dict[str, Any]) -> str:
-        return f"{self.what}, story {loc['story']}"
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         c = self._scale(cand, self.default_scale)
@@ -487,23 +513,17 @@ class _StoryElement(_ElementEffect):
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         return [self._scale(cand, self.default_scale)]
 
-    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
-        s = cand.location["story"]
-        return _add_element(m, self.element, s - 1, s, values,
-                            f"discovered {self.tag} story {s}")
-
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
-        x, v = drift(st, cand.location["story"])
-        return [({}, _story_basis(st, cand.location["story"],
-                                  st.hp(_unit_force(self.element, x, v))))]
+        x, v = self._rel(st, cand)
+        return [({}, self._basis(st, cand, _unit_force(self.element, x, v)))]
 
 
-class Friction(_GroundElement):
+class Friction(_PairElement):
     tag = "friction"
     type = "friction"
     element = "friction"
     what = "friction"
-    law = ("Coulomb friction between DOF j and the ground on the relative velocity V: "
+    law = ("Coulomb friction between DOF a and DOF b (or the ground) on the relative velocity V: "
            "F V / sqrt(V^2 + eps^2) (a dv_model friction element, -> F sign(V))")
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
@@ -526,37 +546,31 @@ class Friction(_GroundElement):
         return {"v_rms": float(np.std(self._rel(st, cand)[1]))}
 
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
-        j = cand.location["dof"] - 1
         _, v = self._rel(st, cand)
         vs = float(np.std(v)) or 1.0
-        out = []
-        for eps in (0.02, 0.1):  # the core's friction law, eps relative to the velocity's STD
-            b = np.zeros_like(st.v)
-            b[j] = st.hp(_unit_force("friction", v=v, v_eps_m_per_s=eps * vs))
-            out.append(({"v_eps_rel": eps}, b))
-        return out
+        # the core's friction law, eps relative to the velocity's STD
+        return [({"v_eps_rel": eps},
+                 self._basis(st, cand, _unit_force("friction", v=v, v_eps_m_per_s=eps * vs)))
+                for eps in (0.02, 0.1)]
 
 
-class StickSlipFriction(_GroundElement):
+class StickSlipFriction(_PairElement):
     tag = "stick-slip"
     type = "stick_slip"
     element = "stick_slip"
     what = "stick-slip friction"
-    law = ("stick-slip (Jenkins) friction between DOF j and the ground: a stick spring F/z in "
-           "series with a slider at F, rate-independent hysteresis (a dv_model stick_slip "
-           "element)")
+    law = ("stick-slip (Jenkins) friction between DOF a and DOF b (or the ground): a stick "
+           "spring F/z in series with a slider at F, rate-independent hysteresis (a dv_model "
+           "stick_slip element)")
     _FR = (0.003, 0.01, 0.05, 0.15, 0.4, 0.8)
 
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
-        j = cand.location["dof"] - 1
         x, _ = self._rel(st, cand)
         xs = float(np.std(x)) or 1.0
-        out = []
-        for f in self._FR:  # the core's stick-slip law (from the virgin state) over slip_m
-            b = np.zeros_like(st.v)
-            b[j] = st.hp(_unit_force("stick_slip", x, slip_m=f * xs))
-            out.append(({"slip_m": f * xs, "x_rms": xs}, b))
-        return out
+        # the core's stick-slip law (from the virgin state) over slip_m
+        return [({"slip_m": f * xs, "x_rms": xs},
+                 self._basis(st, cand, _unit_force("stick_slip", x, slip_m=f * xs)))
+                for f in self._FR]
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         f = self._scale(cand, 1.0)
@@ -570,22 +584,22 @@ class StickSlipFriction(_GroundElement):
                 float(cand.shape.get("slip_m", 0.05 * xs))]
 
 
-class CubicStiffness(_StoryElement):
+class CubicStiffness(_OneCoefficient):
     tag = "cubic"
     type = "cubic_stiffness"
     element = "cubic_spring"
     what = "cubic stiffness"
     default_scale = 1e12
-    law = "cubic story spring: k3 X^3 (a dv_model cubic_spring element)"
+    law = "cubic spring between two DOFs: k3 X^3 (a dv_model cubic_spring element)"
 
 
-class VelocitySquaredDamping(_StoryElement):
+class VelocitySquaredDamping(_OneCoefficient):
     tag = "v|v| damper"
     type = "vv_damping"
     element = "vv_damper"
     what = "velocity-squared damping"
     default_scale = 1e3
-    law = "quadratic story damper: c2 V |V| on the drift velocity (a dv_model vv_damper)"
+    law = "quadratic damper between two DOFs: c2 V |V| (a dv_model vv_damper)"
 
 
 LIBRARY: tuple[EffectType, ...] = (

@@ -142,6 +142,11 @@ def _mahal(m0: mdl.Model, m1: mdl.Model, tests: Sequence[rs.TestData],
                                      "tests <= features + 1: dynval.validate.mahalanobis); "
                                      "reference: the measured vectors' own leave-one-out "
                                      "distance"}
+    if len(tests) < 3:  # a covariance of the measured features needs a few tests
+        out.update(before=math.nan, after=math.nan, measured_reference=math.nan,
+                   note=f"not computed: {len(tests)} test(s), a feature distribution needs 3 "
+                        "or more")
+        return out
     for key, mm in (("before", m0), ("after", m1)):
         sims = []
         rng = np.random.default_rng(12345)
