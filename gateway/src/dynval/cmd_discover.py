@@ -36,6 +36,10 @@ def add_parser(sub: Any) -> None:
                    help="declared parameters that are uncertain (model parameter names, e.g. "
                         "zeta2,zeta4 or k1,beta): calibrated first, then re-adjusted jointly "
                         "with every candidate effect")
+    p.add_argument("--no-readjust", action="store_true",
+                   help="keep the declared stiffness, mass and damping fixed while testing "
+                        "effects (default: re-adjust those at each candidate's location and "
+                        "the modal damping, as a best-linear declared model needs)")
     add_test_options(p)
     p.set_defaults(run=run)
 
@@ -50,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     noise = _stated_noise(args.noise, m, recs) if args.noise is not None else None
     unc = tuple(x.strip() for x in args.uncertain.split(",") if x.strip())
     opts = loop.Options(max_effects=args.max_effects, min_gain=args.min_gain, noise=noise,
-                        uncertain=unc)
+                        uncertain=unc, readjust=not args.no_readjust)
     res = loop.discover(m, recs, opts, on_progress=lambda s: log.debug("%s", s))
     if args.model_out is not None:
         mdl.save(res.model, args.model_out)
@@ -64,6 +68,9 @@ def run(args: argparse.Namespace) -> int:
         ps = ", ".join(f"{k} = {v['value']:.5g} +/- {v['uncertainty'] or float('nan'):.2g} "
                        f"{v['unit']}" for k, v in e["parameters"].items())
         print(f"  {e['label']}: {ps}")
+        for k, v in e.get("readjusted", {}).items():
+            print(f"    re-adjusted {k}: {v['before']:.5g} -> {v['value']:.5g} {v['unit']} "
+                  f"({100 * v['change_rel']:+.1f} %)")
     width = max(8, *(len(c) for c in res.chans))
     print(f"  {'channel':<{width}} {'held-out rmse before':>21} {'after':>12} {'noise':>10}"
           "  noise from")

@@ -135,6 +135,31 @@ def pair_label(loc: dict[str, Any]) -> str:
     return f"between DOF {a} and DOF {b}"
 
 
+def damping_params(m: mdl.Model, band_hz: tuple[float, float]) -> list[str]:
+    """The declared damping parameters the tests can inform: modal ratios of the flexible
+    modes in (or near) the input band, or the Rayleigh coefficients; zeros stay fixed."""
+    p = m.parameters()
+    names = [n for n in ("alpha", "beta") if p.get(n, 0.0) > 0]
+    if m.damping.type == "modal":
+        f = mdl.natural_frequencies(m)
+        names += [f"zeta{i + 1}" for i, fi in enumerate(f)
+                  if 1.0 < fi and 0.5 * band_hz[0] <= fi <= 1.2 * band_hz[1]
+                  and p.get(f"zeta{i + 1}", 0.0) > 0]
+    return names
+
+
+def readjust_local(m: mdl.Model, dofs: Sequence[int], band_hz: tuple[float, float]
+                   ) -> tuple[str, ...]:
+    """Stiffness and mass at the DOFs an element touches (the story springs on either side of
+    each, the DOFs' masses) and the damping: what a best-linear declared model adjusted to
+    absorb the effect, re-adjusted with it (zeros and the ground stay fixed)."""
+    p = m.parameters()
+    names: list[str] = []
+    for j in sorted(set(d for d in dofs if d >= 1)):
+        names += [n for n in (f"k{j}", f"k{j + 1}", f"m{j}") if p.get(n, 0.0) > 0]
+    return tuple(dict.fromkeys([*names, *damping_params(m, band_hz)]))
+
+
 def _unit_force(type_name: str, x: np.ndarray | None = None, v: np.ndarray | None = None, *,
                 side: str = "pos", **shape: float) -> np.ndarray:
     """The force of a registry element with the given shape parameters and 1 for the others
@@ -198,6 +223,12 @@ class EffectType:
         set its parameter bounds)."""
         return {}
 
+    def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
+                 ) -> tuple[str, ...]:
+        """Declared parameters re-adjusted while this candidate is fitted: a declared model
+        is often a best linear fit that absorbed part of the effect (see readjust_local)."""
+        return ()
+
 
 class NoEffect(EffectType):
     type = "none"
@@ -231,6 +262,11 @@ class StiffnessChange(EffectType):
     type = "stiffness_change"
     location_kind = "story"
     law = "k_s -> k_s + dk: extra story force dk X (linear)"
+
+    def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
+                 ) -> tuple[str, ...]:
+        # modal damping on the changed modes is not the structure's damping: fit it jointly
+        return tuple(damping_params(m, band_hz))
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         # story 1 is often a soft support (rails): a change there is still a candidate
@@ -268,6 +304,11 @@ class MassChange(EffectType):
     type = "mass_change"
     location_kind = "dof"
     law = "m_j -> m_j + dm: extra inertia force dm a_j at DOF j"
+
+    def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
+                 ) -> tuple[str, ...]:
+        # modal damping on the changed modes is not the structure's damping: fit it jointly
+        return tuple(damping_params(m, band_hz))
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         return [{"dof": j} for j in range(1, m.n_dof + 1)]
@@ -460,6 +501,10 @@ class Contact(EffectType):
         return _add_element(m, "contact", a, b, values, f"discovered contact {a}-{b}",
                             cand.location["side"])
 
+    def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
+                 ) -> tuple[str, ...]:
+        return readjust_local(m, cand.location["between"], band_hz)
+
 
 class _ElementEffect(EffectType):
     """An effect that is a new model element (a registry type, model/elements.py): its
@@ -489,6 +534,10 @@ class _PairElement(_ElementEffect):
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
         a, b = cand.location["between"]
         return _add_element(m, self.element, a, b, values, f"discovered {self.tag} {a}-{b}")
+
+    def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
+                 ) -> tuple[str, ...]:
+        return readjust_local(m, cand.location["between"], band_hz)
 
     @staticmethod
     def _rel(st: States, cand: Candidate) -> tuple[np.ndarray, np.ndarray]:

@@ -31,6 +31,7 @@ log = logging.getLogger(__name__)
 least_squares: Any = importlib.import_module("scipy.optimize").least_squares
 
 _PENALTY = 1e3  # residual value for a parameter set the core refuses
+READJUSTED = " (declared, re-adjusted)"  # suffix of a re-adjusted declared parameter's name
 
 
 @dataclass
@@ -193,7 +194,7 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
             sig[i] = float(abs(dvdz) * math.sqrt(max(cov_z[i, i], 0.0)))
     except (np.linalg.LinAlgError, ValueError):
         pass
-    names = [p.name for p in ps] + [f"{p.name} (declared, re-adjusted)" for p in xs]
+    names = [p.name for p in ps] + [f"{p.name}{READJUSTED}" for p in xs]
     units = [p.unit for p in ps_all]
     return FitResult(cand, names, units, vals, sig, mm, nsse, int(sol.nfev), bool(sol.success),
                      str(sol.message), factor)

@@ -52,6 +52,9 @@ class Options:
     max_nfev: int = 40
     evidence_cut: float = 0.2  # fit only candidates with >= this share of the top evidence
     uncertain: tuple[str, ...] = ()  # declared parameters to calibrate first and re-adjust
+    # re-adjust the declared stiffness, mass and damping at each candidate's location (and
+    # the modal damping) while it is fitted
+    readjust: bool = True
 
 
 @dataclass
@@ -161,7 +164,7 @@ def _mahal(m0: mdl.Model, m1: mdl.Model, tests: Sequence[rs.TestData],
             out[key] = math.nan
             continue
         try:
-            d, ref = mh.mean_distance(meas, np.array(sims), out["features"])
+            d, ref = mh.mean_distance(meas, np.array(sims), out["features"], quiet=True)
         except DynvalError as exc:
             log.info("no Mahalanobis baseline of the measured features: %s", exc)
             d, ref = math.nan, math.nan
@@ -170,7 +173,7 @@ def _mahal(m0: mdl.Model, m1: mdl.Model, tests: Sequence[rs.TestData],
         vm = _validate_mahalanobis()
         if vm is not None:  # the project's validation module (report eq. 39-41), if usable
             try:
-                base = vm.fit(meas, out["features"])
+                base = vm.fit(meas, out["features"], quiet=True)
                 dq = np.asarray(base.distance(np.array(sims)))
                 out[f"validate_{key}"] = {"median_d": float(np.median(dq)),
                                           **vm.verdict(base, dq)}
@@ -302,43 +305,18 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
                 # resonance by more than its bandwidth can rank low; screen them all
                 pool += _screen_linear(cur, [e for e in full if e not in pool], fit_t, chans,
                                        scales, cur_table.total(fit_names))
-        held_before = cur_table.total(held_names)
-        nsse_fit_before = cur_table.total(fit_names)
+        judge = _Judge(cur, cur_table, fit_t, held_t, chans, scales, o, band)
         best: dict[str, Any] | None = None
         for e in pool:
-            cand = _with_shape(e)
-            et = fx.by_type(cand.type)
-            res = None
-            starts = et.starts(cur, cand, e.amp)
-            if len(starts) > 2:
-                starts = ft.screen(cur, cand, starts, fit_t, chans, scales)
-            for init in starts:
-                try:
-                    r1 = ft.fit(cur, cand, init, fit_t, chans, scales, o.max_nfev, o.uncertain)
-                except ConfigError as exc:
-                    log.info("%s: fit failed: %s", cand.label, exc)
-                    continue
-                if res is None or r1.nsse_fit < res.nsse_fit:
-                    res = r1
-            if res is None:
+            info = judge.candidate(e)
+            if info is None:
                 continue
-            tab, _ = rs.error_table(res.model, held_t, chans, scales)
-            held_after = tab.total(held_names)
-            gain = 1.0 - held_after / held_before if held_before > 0 else 0.0
-            worst = max((tab.nsse[h] / cur_table.nsse[h] - 1.0 for h in held_names
-                         if cur_table.nsse[h] > 0), default=0.0)
-            n_eff = sum(t.n for t in fit_t for c in chans) / res.n_eff_factor
-            dbic = (_bic(res.nsse_fit, n_eff, len(res.values))
-                    - _bic(nsse_fit_before, n_eff, 0))
-            ok = gain >= o.min_gain and worst <= o.max_worse and dbic < 0
-            info = {"candidate": cand, "evidence": e.r2, "fit": res, "held_gain": gain,
-                    "held_worst_test_change": worst, "delta_bic": dbic, "accepted": ok,
-                    "nsse_fit_before": nsse_fit_before, "nsse_fit_after": res.nsse_fit,
-                    "nsse_held_before": held_before, "nsse_held_after": held_after}
             rd.fits.append(info)
             log.info("round %d: %s: held-out gain %.3f, worst test %+.3f, dBIC %.1f -> %s",
-                     rnd, cand.label, gain, worst, dbic, "accept" if ok else "reject")
-            if ok and (best is None or gain > best["held_gain"]):
+                     rnd, info["candidate"].label, info["held_gain"],
+                     info["held_worst_test_change"], info["delta_bic"],
+                     "accept" if info["accepted"] else "reject")
+            if info["accepted"] and (best is None or info["held_gain"] > best["held_gain"]):
                 best = info
         timing[f"round_{rnd}"] = time.perf_counter() - t0
         if best is None:
@@ -347,10 +325,10 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
             break
         rd.accepted = best
         res_b: ft.FitResult = best["fit"]
+        effects.append(_effect_entry(res_b, best, cur))
         cur = res_b.model
         cur_table, _ = rs.error_table(cur, evals, chans, scales)
         accepted_keys.add(_key(res_b.cand))
-        effects.append(_effect_entry(res_b, best))
         rd.decision = f"accepted {res_b.cand.label}"
     after, res_after = rs.error_table(cur, evals, chans, scales)
     mah = _mahal(m, cur, tests, chans, band, noise)
@@ -358,6 +336,83 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
     return DiscoverResult(m, cur, evals, fit_names, held_names, chans, scales, noise, before,
                           after, res_before, res_after, rounds, effects, mah, band, modes_hz,
                           notes, timing, calibration, floors)
+
+
+class _Judge:
+    """Fits the candidates of one round and judges each against its reference: the current
+    model with the same declared parameters re-adjusted and no effect (a best-linear declared
+    model absorbed part of the effect; re-adjusting it alone must not count as the effect)."""
+
+    def __init__(self, cur: mdl.Model, cur_table: rs.ErrorTable, fit_t: list[rs.TestData],
+                 held_t: list[rs.TestData], chans: list[str], scales: dict[str, float],
+                 o: Options, band: tuple[float, float]) -> None:
+        self.cur, self.cur_table = cur, cur_table
+        self.fit_t, self.held_t, self.chans, self.scales, self.o = fit_t, held_t, chans, scales, o
+        self.band = band
+        self.fit_names = [t.name for t in fit_t]
+        self.held_names = [t.name for t in held_t]
+        self._refs: dict[tuple[str, ...], tuple[mdl.Model, rs.ErrorTable, int]] = {}
+
+    def readjusted(self, cand: fx.Candidate) -> tuple[str, ...]:
+        local = fx.by_type(cand.type).readjust(self.cur, cand, self.band) \
+            if self.o.readjust else ()
+        return tuple(dict.fromkeys([*self.o.uncertain, *local]))
+
+    def reference(self, names: tuple[str, ...]) -> tuple[mdl.Model, rs.ErrorTable, int]:
+        """(model, its error table, its free parameter count) a candidate must beat."""
+        if not names:
+            return self.cur, self.cur_table, 0
+        if names not in self._refs:
+            ref = (self.cur, self.cur_table, 0)
+            try:
+                cal = ft.fit(self.cur, fx.NONE.candidates(self.cur)[0], [], self.fit_t,
+                             self.chans, self.scales, self.o.max_nfev, names)
+                tab, _ = rs.error_table(cal.model, [*self.fit_t, *self.held_t], self.chans,
+                                        self.scales)
+                if tab.total(self.held_names) < self.cur_table.total(self.held_names):
+                    ref = (cal.model, tab, len(names))
+            except ConfigError as exc:
+                log.info("re-adjusting %s alone failed: %s", ", ".join(names), exc)
+            self._refs[names] = ref
+        return self._refs[names]
+
+    def candidate(self, e: tr.Evidence) -> dict[str, Any] | None:
+        cand = _with_shape(e)
+        et = fx.by_type(cand.type)
+        names = self.readjusted(cand)
+        starts = et.starts(self.cur, cand, e.amp)
+        if len(starts) > 2:
+            starts = ft.screen(self.cur, cand, starts, self.fit_t, self.chans, self.scales)
+        res = None
+        for init in starts:
+            try:
+                r1 = ft.fit(self.cur, cand, init, self.fit_t, self.chans, self.scales,
+                            self.o.max_nfev, names)
+            except ConfigError as exc:
+                log.info("%s: fit failed: %s", cand.label, exc)
+                continue
+            if res is None or r1.nsse_fit < res.nsse_fit:
+                res = r1
+        if res is None:
+            return None
+        ref_model, ref_table, ref_p = self.reference(names)
+        tab, _ = rs.error_table(res.model, self.held_t, self.chans, self.scales)
+        held_before = ref_table.total(self.held_names)
+        held_after = tab.total(self.held_names)
+        gain = 1.0 - held_after / held_before if held_before > 0 else 0.0
+        worst = max((tab.nsse[h] / ref_table.nsse[h] - 1.0 for h in self.held_names
+                     if ref_table.nsse[h] > 0), default=0.0)
+        n_eff = sum(t.n for t in self.fit_t for c in self.chans) / res.n_eff_factor
+        nsse_fit_before = ref_table.total(self.fit_names)
+        dbic = (_bic(res.nsse_fit, n_eff, len(res.values))
+                - _bic(nsse_fit_before, n_eff, ref_p))
+        ok = gain >= self.o.min_gain and worst <= self.o.max_worse and dbic < 0
+        return {"candidate": cand, "evidence": e.r2, "fit": res, "held_gain": gain,
+                "held_worst_test_change": worst, "delta_bic": dbic, "accepted": ok,
+                "reference": ("the current model with " + ", ".join(names) +
+                              " re-adjusted, no effect") if ref_p else "the current model",
+                "nsse_fit_before": nsse_fit_before, "nsse_fit_after": res.nsse_fit,
+                "nsse_held_before": held_before, "nsse_held_after": held_after}
 
 
 _LINEAR = ("stiffness_change", "mass_change")
@@ -407,11 +462,23 @@ def _diverse(pool: list[tr.Evidence], k: int) -> list[tr.Evidence]:
     return [e for e in out if e.r2 > 0.0] or out[:1]
 
 
-def _effect_entry(res: ft.FitResult, info: dict[str, Any]) -> dict[str, Any]:
+def _effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model
+                  ) -> dict[str, Any]:
+    """The accepted effect's JSON entry: its parameters, and each declared parameter that was
+    re-adjusted with it (value before and after, relative change)."""
     et = fx.by_type(res.cand.type)
-    params = {n: {"value": v, "uncertainty": s, "unit": u}
-              for n, v, s, u in zip(res.names, res.values, res.sigma, res.units, strict=True)}
+    params, readjusted = {}, {}
+    declared = before.parameters()
+    for n, v, s, u in zip(res.names, res.values, res.sigma, res.units, strict=True):
+        if n.endswith(ft.READJUSTED):
+            name = n[: -len(ft.READJUSTED)]
+            was = float(declared[name])
+            readjusted[name] = {"before": was, "value": v, "uncertainty": s, "unit": u,
+                                "change_rel": (v - was) / was if was else math.nan}
+        else:
+            params[n] = {"value": v, "uncertainty": s, "unit": u}
     return {"type": res.cand.type, "location": dict(res.cand.location),
             "label": res.cand.label, "law": et.law, "parameters": params,
+            "readjusted": readjusted, "reference": info["reference"],
             "evidence": info["evidence"], "held_out_gain": info["held_gain"],
             "delta_bic": info["delta_bic"]}

@@ -141,13 +141,15 @@ def fit(x_exp: np.ndarray, labels: list[str] | tuple[str, ...] = (), *,
 
 
 def mean_distance(x_exp: np.ndarray, x_model: np.ndarray,
-                  labels: list[str] | tuple[str, ...] = ()) -> tuple[float, float]:
+                  labels: list[str] | tuple[str, ...] = (), quiet: bool = False
+                  ) -> tuple[float, float]:
     """Mean distance sqrt(D) of the model's feature vectors (rows of x_model) from the
     experimental baseline fit(x_exp), and the reference a valid model should land near: the
     mean leave-one-out distance of the experimental vectors themselves (each from the baseline
     of the others; NaN with fewer than 3 tests). ConfigError when no baseline can be fitted."""
     x = np.asarray(x_exp, dtype=np.float64)
-    d_model = float(np.mean(np.sqrt(fit(x, labels).distance(np.asarray(x_model)))))
+    d_model = float(np.mean(np.sqrt(fit(x, labels, quiet=quiet).distance(
+        np.asarray(x_model)))))
     if x.shape[0] < 3:
         return d_model, float("nan")
     loo = [float(np.sqrt(fit(np.delete(x, i, axis=0), labels, quiet=True).distance(x[i])[0]))

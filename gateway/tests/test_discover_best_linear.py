@@ -1,0 +1,65 @@
+"""discover on a best-linear declared model (issue 16, item 1): users fit their linear model to
+the same kind of data, so part of the nonlinearity hides in its stiffness and damping. The
+default re-adjusts the declared parameters at each candidate's location (and the modal
+damping) while fitting it, against a reference with the same re-adjustment and no effect.
+Without it (measured here before the change) a hardening spring was named a contact and left
+0.44 of the held-out error; with it, the cubic spring is named and the held-out error is the
+true model's (0.99-1.02 x)."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from dynval import model as mdl
+from dynval import synth as gen
+from dynval.discover import effects as fx
+from dynval.discover import fit as ft
+from dynval.discover import loop
+from dynval.discover import residual as rs
+from dynval.io.recording import Recording
+
+MASSES = (6.54, 6.66, 6.86, 6.80)
+KS = (10.0, 399790.0, 399790.0, 399790.0)
+ACC = {f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, 5)}
+
+
+def declared() -> mdl.Model:
+    return mdl.Model(masses_kg=MASSES, stiffness_n_per_m=KS,
+                     damping=mdl.Damping("modal", (0.01, 0.05, 0.01, 0.01)),
+                     input=mdl.Input("force", 1, "force_N"), outputs=dict(ACC), fs_hz=640.0)
+
+
+def best_linear(m: mdl.Model, recs: list[Recording]) -> mdl.Model:
+    """The linear model a user would fit to the tests: story stiffnesses and modal damping."""
+    tests = rs.prepare(m, recs)
+    chans = rs.common_channels(m, tests)
+    cal = ft.fit(m, fx.NONE.candidates(m)[0], [], tests, chans, rs.channel_scales(tests, chans),
+                 60, ("k2", "k3", "k4", "zeta1", "zeta2", "zeta3", "zeta4"))
+    return cal.model
+
+
+@pytest.mark.parametrize(("kind", "seed"), [("cubic", 1), ("cubic", 2), ("contact", 3)])
+def test_best_linear_declared_model_gets_the_right_effect(kind: str, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    story = int(rng.integers(2, 5))
+    el: mdl.Element = (mdl.CubicSpring(story - 1, story, float(10 ** rng.uniform(12.3, 12.8)))
+                       if kind == "cubic" else
+                       mdl.Contact(story - 1, story, 0.9e-4, 1e-4, 1.925e6))
+    m0 = declared()
+    recs = gen.generate(m0, gen.Truth(elements=(el,), label=kind), n_tests=6, seed=seed)
+    mbl = best_linear(m0, recs)
+    assert mbl.parameters() != m0.parameters()  # the linear model did absorb something
+    r = loop.discover(mbl, recs)
+    assert len(r.effects) == 1, [e["label"] for e in r.effects]
+    e = r.effects[0]
+    want = "cubic_stiffness" if kind == "cubic" else "contact"
+    assert e["type"] == want and e["location"]["between"] == [story - 1, story]
+    assert e["readjusted"], "the re-adjusted declared parameters are reported"
+    for v in e["readjusted"].values():
+        assert abs(v["change_rel"]) < 2.0
+    # within 1.3 x of the ideal: the true model driven by the measured input
+    truth = dataclasses.replace(m0, elements=(el,))
+    ideal, _ = rs.error_table(truth, r.tests, r.chans, r.scales)
+    assert r.after.total(r.held_names) < 1.3 * ideal.total(r.held_names)
