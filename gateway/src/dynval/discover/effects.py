@@ -229,6 +229,12 @@ class EffectType:
         is often a best linear fit that absorbed part of the effect (see readjust_local)."""
         return ()
 
+    def direct_evidence(self, cand: Candidate, residuals: Sequence[dict[str, np.ndarray]]
+                        ) -> tuple[float, float] | None:
+        """Evidence (share, amplitude) read from the output residuals themselves, for effects
+        the restoring-force view cannot see; None: use the view."""
+        return None
+
 
 class NoEffect(EffectType):
     type = "none"
@@ -449,6 +455,48 @@ class SensorGain(EffectType):
         return dataclasses.replace(m, outputs=outs)
 
 
+class SensorOffset(EffectType):
+    type = "sensor_offset"
+    location_kind = "channel"
+    law = ("the channel reads its quantity + b (a DC offset of the sensor or its amplifier); "
+           "handled on the output")
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"channel": c} for c in m.outputs]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"sensor offset, channel {loc['channel']}"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        return []  # the state reconstruction high-passes a constant away: see direct_evidence
+
+    def direct_evidence(self, cand: Candidate, residuals: Sequence[dict[str, np.ndarray]]
+                        ) -> tuple[float, float] | None:
+        """(share of the channel's residual energy a constant explains, that constant)."""
+        c = cand.location["channel"]
+        rs = [r[c] for r in residuals if c in r]
+        if not rs:
+            return None
+        v = np.concatenate(rs)
+        ms = float(np.mean(v * v))
+        mean = float(np.mean(v))
+        return (mean * mean / ms if ms > 0 else 0.0), mean
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        b0 = m.outputs[cand.location["channel"]].offset
+        span = 10 * abs(float(cand.shape.get("amp", 0.0))) + 1e-12
+        return [Param("offset", "channel unit", b0 - span, b0 + span)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        return [m.outputs[cand.location["channel"]].offset + amp]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        c = cand.location["channel"]
+        outs = dict(m.outputs)
+        outs[c] = dataclasses.replace(outs[c], offset=float(values[0]))
+        return dataclasses.replace(m, outputs=outs)
+
+
 _QUANTILES = (0.6, 0.75, 0.85, 0.9, 0.95, 0.98, 0.99, 0.995, 0.998)
 
 
@@ -652,7 +700,7 @@ class VelocitySquaredDamping(_OneCoefficient):
 
 
 LIBRARY: tuple[EffectType, ...] = (
-    Contact(), StiffnessChange(), MassChange(), DampingChange(), SensorGain(),
+    Contact(), StiffnessChange(), MassChange(), DampingChange(), SensorGain(), SensorOffset(),
     Friction(), StickSlipFriction(), CubicStiffness(), VelocitySquaredDamping())
 NONE = NoEffect()
 

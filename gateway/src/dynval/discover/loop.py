@@ -271,6 +271,7 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
                          "acc/vel/disp outputs, or a reaction output): every candidate is "
                          "fitted instead")
             evidence = [tr.Evidence(c, 0.0, 0.0) for c in cands]
+        evidence = _direct_evidence(evidence, list(res_cur.values()))
         # "no effect": the share of the residual energy the noise floor explains
         noise_share = float(np.mean([min(1.0, 1.0 / max(r, 1e-12) ** 2)
                                      for r in ratio.values()]))
@@ -434,6 +435,17 @@ def _screen_linear(m: mdl.Model, evs: Sequence[tr.Evidence], tests: Sequence[rs.
             scored.append((sc[0][0], e))
     scored.sort(key=lambda p: p[0])
     return [e for _, e in scored[:keep]]
+
+
+def _direct_evidence(evidence: list[tr.Evidence], residuals: list[dict[str, np.ndarray]]
+                     ) -> list[tr.Evidence]:
+    """Evidence of the effects read from the output residuals (sensor offsets) instead of
+    the restoring-force view."""
+    out = []
+    for e in evidence:
+        d = fx.by_type(e.cand.type).direct_evidence(e.cand, residuals)
+        out.append(e if d is None else tr.Evidence(e.cand, d[0], d[1]))
+    return out
 
 
 def _key(c: fx.Candidate) -> str:

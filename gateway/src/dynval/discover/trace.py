@@ -172,7 +172,8 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
     fs_list: list[np.ndarray] = []
     trim_frac = 0.04
     for t in tests:
-        a = np.vstack([t.y[dofs[j]] / m.outputs[dofs[j]].gain for j in range(1, n + 1)])
+        a = np.vstack([(t.y[dofs[j]] - m.outputs[dofs[j]].offset) / m.outputs[dofs[j]].gain
+                       for j in range(1, n + 1)])
         ah, vh, xh = _integrate(a, fs, f_hp)
         u = _hp(t.u, fs, f_hp)
         fext = np.zeros_like(ah)
@@ -221,7 +222,7 @@ def reaction_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
         f[0] = (t.y[c0] - p[c0]) / m.outputs[c0].gain
         fl.append(f)
         for ch, o in m.outputs.items():
-            pred[ch].append(p[ch] / o.gain)
+            pred[ch].append((p[ch] - o.offset) / o.gain)
         if m.input.kind == "ground_disp":
             xg.append(t.u)
             vg.append(np.gradient(t.u) * t.fs_hz)

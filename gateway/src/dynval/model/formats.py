@@ -144,7 +144,8 @@ def _from_dynval(d: Mapping[str, Any], ctx: Ctx) -> Model:
         ok = ctx.choice(ctx.get(o, "kind", w), f"{w}.kind", OUTPUT_KINDS)
         key = OUTPUT_INDEX_KEY.get(ok)
         outs[str(name)] = Output(ok, ctx.int_(ctx.get(o, key, w), f"{w}.{key}") if key else 0,
-                                 gain=ctx.num(o.get("gain", 1.0), f"{w}.gain"))
+                                 gain=ctx.num(o.get("gain", 1.0), f"{w}.gain"),
+                                 offset=ctx.num(o.get("offset", 0.0), f"{w}.offset"))
     er = d.get("elements", [])
     if not isinstance(er, (list, tuple)):
         raise ctx.err("elements", "expected a list of elements")
@@ -256,6 +257,8 @@ def to_dict(m: Model) -> dict[str, Any]:
         outs[name] = {"kind": o.kind, key: o.index} if key else {"kind": o.kind}
         if o.gain != 1.0:
             outs[name]["gain"] = o.gain
+        if o.offset != 0.0:
+            outs[name]["offset"] = o.offset
     elems: list[dict[str, Any]] = []
     for e in m.elements:
         ed: dict[str, Any] = {"type": e.type}

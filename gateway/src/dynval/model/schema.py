@@ -60,11 +60,13 @@ class Input:
 class Output:
     """One predicted channel. ``index``: DOF (acc/vel/disp, 1-based), story (story_force: story i
     is k_i), element (contact_force: 1-based into Model.elements); ignored for reaction. ``gain``:
-    the sensor's gain (1 = calibrated); the prediction is gain x the model's quantity."""
+    the sensor's gain (1 = calibrated) and ``offset`` (channel units): the prediction is
+    gain x the model's quantity + offset."""
 
     kind: str
     index: int = 0
     gain: float = 1.0  # sensor gain: the channel reads gain x the model's quantity (< 0: reversed)
+    offset: float = 0.0  # sensor offset, channel units: the channel reads gain x quantity + offset
 
 
 @dataclass(frozen=True)

@@ -282,8 +282,15 @@ def simulate(m: Model, force_or_motion: Any, fs_hz: float, *,
         else:
             _core.check(st, "dv_obs_simulate")
     y = y[::r]
-    return {name: np.ascontiguousarray(y[:, j]) * o.gain if o.gain != 1.0 else
-            np.ascontiguousarray(y[:, j]) for j, (name, o) in enumerate(m.outputs.items())}
+    return {name: _sensor(np.ascontiguousarray(y[:, j]), o)
+            for j, (name, o) in enumerate(m.outputs.items())}
+
+
+def _sensor(q: np.ndarray, o: Output) -> np.ndarray:
+    """What the channel reads of the model's quantity q: gain x q + offset."""
+    if o.gain != 1.0:
+        q = q * o.gain
+    return q + o.offset if o.offset != 0.0 else q
 
 
 def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
@@ -333,8 +340,11 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
         if on_progress is not None:
             on_progress(i + 1, len(param_sets))
     gains = np.array([o.gain for o in m.outputs.values()])
+    offsets = np.array([o.offset for o in m.outputs.values()])
     if np.any(gains != 1.0):
         out *= gains
+    if np.any(offsets != 0.0):
+        out += offsets
     return out
 
 

@@ -194,6 +194,8 @@ def _check_io(m: Model, c: Ctx, max_out: int) -> None:
         if not (math.isfinite(o.gain) and o.gain != 0):
             raise c.err(f"{w}.gain", f"sensor gain must be finite and non-zero (negative: "
                         f"the sensor's sign convention is reversed), got {o.gain!r}")
+        if not math.isfinite(o.offset):
+            raise c.err(f"{w}.offset", f"sensor offset must be finite, got {o.offset!r}")
 
 
 def _check_element(e: el.Element, n: int, c: Ctx, w: str) -> None:
