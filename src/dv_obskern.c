@@ -10,9 +10,6 @@
 #if DV_SIMD_X86
 #include <immintrin.h>
 
-#define DV_TGT_AVX2 __attribute__((target("avx2,fma")))
-#define DV_TGT_AVX512 __attribute__((target("avx512f,avx512dq,avx512vl,avx2,fma")))
-
 /* always inlined into the entry points below, so the common sizes get fixed trip counts */
 /* The next step reads the state back one element at a time (broadcast loads); scalar stores
  * keep each of those loads served by store-to-load forwarding from one store of its own size

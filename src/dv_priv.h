@@ -91,10 +91,24 @@ void dv_priv_stats_fill(dv_stats_t *out, const dv_priv_cm_t *cm, uint64_t count,
 #define DV_SIMD_X86 0
 #endif
 
+#if DV_SIMD_X86
+/* The target attributes of the kernels, one definition: exactly the features
+ * dv_priv_simd_kern() checks before it hands out kernel 2 (AVX-512) or 1 (AVX2). */
+#define DV_TGT_AVX2 __attribute__((target("avx2,fma")))
+#define DV_TGT_AVX512 __attribute__((target("avx512f,avx512dq,avx512vl,avx2,fma")))
+#endif
+
 /* The vector unit this CPU offers the kernels: 0 portable C, 1 AVX2 + FMA, 2 AVX-512 F, DQ and
- * VL (always 0 without DV_SIMD_X86). Asked at init (or once per block call), kept by the
- * caller. */
+ * VL (always 0 without DV_SIMD_X86). Instances (features, AR residual, observer) ask at init
+ * and keep it; one-shot record functions ask once per call. */
+#if DV_SIMD_X86
 uint32_t dv_priv_simd_kern(void);
+#else
+static inline uint32_t dv_priv_simd_kern(void)
+{
+    return 0u; /* no call where there is nothing to ask (Cortex-M flash) */
+}
+#endif
 
 /* ---- AR kernels (src/dv_arkern.c); kern from dv_priv_simd_kern(). ---- */
 
