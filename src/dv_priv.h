@@ -82,8 +82,8 @@ void dv_priv_stats_fill(dv_stats_t *out, const dv_priv_cm_t *cm, uint64_t count,
 
 /* ---- Vector kernels: on x86-64 double builds (gcc, clang) the hot loops also exist as AVX2/FMA
  * and AVX-512F functions (target attributes), picked at run time (dv_arkern.c, dv_featkern.c,
- * dv_obskern.c); float and Cortex-M builds see only C. include/dynval/dv_obs.h repeats this
- * condition for DV_OBS_MODAL_LEN (a public header cannot include this one). ---- */
+ * dv_obskern.c); float and Cortex-M builds see only C. No public size depends on this
+ * condition (DV_OBS_MODAL_LEN reserves the modal form in every double build). ---- */
 #if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
     !defined(DV_NO_SIMD)
 #define DV_SIMD_X86 1
