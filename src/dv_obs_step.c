@@ -149,7 +149,8 @@ static void kernel_8x4_c(size_t nin, size_t iy, size_t ny, const dv_real_t *rest
                        dv_real_t *restrict resid)
 {
     dv_real_t a[8], b[8], c[8], ya[4], yb[4];
-    colsum8(nin, fx + DV_OBS8_NS * DV_OBS8_COL_UPREV, sv + 8, a); /* inputs, off the state chain */
+    /* inputs, off the state chain */
+    colsum8(nin, fx + DV_OBS8_NS * DV_OBS8_COL_UPREV, sv + DV_OBS8_COL_UPREV, a);
     if (ny > 0u) {
         colsum8(ny, fx + DV_OBS8_NS * (DV_OBS8_COL_UPREV + iy), y, c);
     } else {
@@ -158,7 +159,7 @@ static void kernel_8x4_c(size_t nin, size_t iy, size_t ny, const dv_real_t *rest
         }
     }
     colsum8(8u, fx, sv, b);
-    colsum4(nin, fy + DV_OBS8_NO * DV_OBS8_COL_UPREV, sv + 8, ya);
+    colsum4(nin, fy + DV_OBS8_NO * DV_OBS8_COL_UPREV, sv + DV_OBS8_COL_UPREV, ya);
     colsum4(8u, fy, sv, yb);
     for (size_t r = 0; r < 8u; r++) {
         sv[r] = (a[r] + c[r]) + b[r];
@@ -410,11 +411,11 @@ static void contact_step_8x4(dv_obs_t *o, const dv_real_t *y)
 {
     dv_real_t *sv = o->sv;
     const size_t ny = o->has_gain ? 4u : 0u;
-    const dv_real_t *fy = o->f + 8u * (size_t)o->ncol_gain;
+    const dv_real_t *fy = o->f + DV_OBS8_NS * (size_t)o->ncol_gain;
     const bool open = dv_priv_obs_contact_forces(o, sv, 8u);
     const size_t nfc = open ? 0u : o->nf;
     o->contact_hot = !open;
-    kernel_8x4(o, 2u + nfc, 2u + o->nf, ny, o->f, fy, sv, y, o->z + 8, o->resid);
+    kernel_8x4(o, 2u + nfc, 2u + o->nf, ny, o->f, fy, sv, y, o->z + DV_OBS8_NS, o->resid);
 }
 
 /* The regular step of the 4-DOF, 4-channel case (first-order hold, vector kernel, past the
@@ -431,14 +432,14 @@ static inline bool fast_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y)
         return false;
     }
     dv_real_t *sv = o->sv;
-    sv[9] = u;
+    sv[DV_OBS8_COL_UPREV + 1] = u; /* u[k] */
     if (o->nf > 0u) {
         contact_step_8x4(o, y);
     } else {
-        kernel_8x4(o, 2u, 2u, o->has_gain ? 4u : 0u, o->f, o->f + 8u * (size_t)o->ncol_gain, sv,
-                   y, o->z + 8, o->resid);
+        kernel_8x4(o, 2u, 2u, o->has_gain ? 4u : 0u, o->f,
+                   o->f + DV_OBS8_NS * (size_t)o->ncol_gain, sv, y, o->z + DV_OBS8_NS, o->resid);
     }
-    sv[8] = u;
+    sv[DV_OBS8_COL_UPREV] = u; /* u[k-1] of the next step */
     dv_priv_obs_tally(o, 0u, 0u, 1u, 1u);
     return true;
 }

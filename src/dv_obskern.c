@@ -291,7 +291,7 @@ DV_TGT_AVX512 static inline __attribute__((always_inline)) bool
 modal_step(dv_obs_t *o, double u, const double *y, bool contact)
 {
     double *sv = o->sv;
-    const __m512d up = _mm512_set1_pd(sv[8]), uk = _mm512_set1_pd(u);
+    const __m512d up = _mm512_set1_pd(sv[DV_OBS8_COL_UPREV]), uk = _mm512_set1_pd(u);
     if (contact && !modal_open(o, sv, up, uk)) {
         return false;
     }
@@ -299,11 +299,11 @@ modal_step(dv_obs_t *o, double u, const double *y, bool contact)
     const __m512d qn = modal_core(modal_cols(o), o->modal_form, o->has_gain, _mm512_loadu_pd(sv),
                                   up, uk, y, &yh);
     _mm512_storeu_pd(sv, qn);
-    _mm256_storeu_pd(o->z + 8, yh);
+    _mm256_storeu_pd(o->z + DV_OBS8_NS, yh);
     /* no measurement: the residual is the prediction's own, 0 */
     _mm256_storeu_pd(o->resid, y != NULL ? _mm256_sub_pd(_mm256_loadu_pd(y), yh)
                                          : _mm256_setzero_pd());
-    sv[8] = u;
+    sv[DV_OBS8_COL_UPREV] = u;
     const uint32_t flags = y != NULL ? 0u : DV_OBS_FLAG_NO_MEAS;
     dv_priv_obs_tally(o, flags, flags, 1u, 1u);
     return true;
@@ -358,8 +358,8 @@ DV_TGT_AVX512 size_t dv_priv_obs_run8x4_modal_avx512(dv_obs_t *o, const double *
     const bool gain = o->has_gain;
     const bool contact = o->nf != 0u;
     __m512d q = _mm512_loadu_pd(sv);
-    double up = sv[8];
-    __m256d yh = _mm256_loadu_pd(o->z + 8), r = _mm256_loadu_pd(o->resid);
+    double up = sv[DV_OBS8_COL_UPREV];
+    __m256d yh = _mm256_loadu_pd(o->z + DV_OBS8_NS), r = _mm256_loadu_pd(o->resid);
     size_t k = 0;
     for (; k < n; k++) {
         const double *yk = y != NULL ? y + 4u * k : NULL;
@@ -386,9 +386,9 @@ DV_TGT_AVX512 size_t dv_priv_obs_run8x4_modal_avx512(dv_obs_t *o, const double *
     }
     if (k > 0u) {
         _mm512_storeu_pd(sv, q);
-        _mm256_storeu_pd(o->z + 8, yh);
+        _mm256_storeu_pd(o->z + DV_OBS8_NS, yh);
         _mm256_storeu_pd(o->resid, r);
-        sv[8] = up;
+        sv[DV_OBS8_COL_UPREV] = up;
         const uint32_t flags = y != NULL ? 0u : DV_OBS_FLAG_NO_MEAS;
         dv_priv_obs_tally(o, flags, flags, k, k);
     }
