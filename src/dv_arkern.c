@@ -166,8 +166,6 @@ static void burg2_c(dv_real_t *f, dv_real_t *b, size_t len, dv_real_t k1, dv_rea
 /* x86-64, double: AVX2 + FMA                                                                  */
 #if DV_SIMD_X86
 
-#define DV_TGT_AVX2 __attribute__((target("avx2,fma")))
-#define DV_TGT_AVX512 __attribute__((target("avx512f,avx2,fma")))
 #define DV_FALLTHROUGH __attribute__((fallthrough))
 
 DV_TGT_AVX2 static double hsum256(__m256d v)

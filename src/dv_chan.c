@@ -199,7 +199,7 @@ DV_COLD static dv_status_t close_ring_block(dv_chan_t *s)
     const bool starts = s->seg_pos == 0u;
     blk_acc_t acc;
     acc_clear(&acc);
-    const uint32_t kern = dv_priv_simd_kern();
+    const uint32_t kern = s->win.kern; /* chosen at init (dv_sliding_init()) */
     if (end >= n) {
         add_span(s, kern, &acc, s->win.ring + (end - n), n, starts);
     } else { /* the block wraps around the ring's end */
@@ -230,7 +230,7 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
         return DV_EINVAL;
     }
     size_t used = 0u;
-    uint32_t kern = UINT32_MAX; /* asked once per call */
+    const uint32_t kern = s->win.kern; /* chosen at init (dv_sliding_init()) */
     while (used < n) {
         /* Whole blocks from here to the record's end (or the input's end) go straight from the
          * caller's array, up to the first block with a NaN/Inf; an open block, a short tail or
@@ -254,9 +254,6 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
         const dv_real_t *p = x + used;
         size_t done = 0u;
         dv_status_t st = DV_OK;
-        if (whole > 0u && kern == UINT32_MAX) {
-            kern = dv_priv_simd_kern();
-        }
         while (done < whole) {
             const uint32_t m = block_len(s, s->seg_pos);
             blk_acc_t acc;

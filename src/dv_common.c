@@ -1,9 +1,9 @@
 /* Status strings and the exact moment-merge arithmetic every feature module builds on. */
 #include "dv_priv.h"
 
+#if DV_SIMD_X86
 uint32_t dv_priv_simd_kern(void)
 {
-#if DV_SIMD_X86
     /* libgcc/compiler-rt check CPUID and that the OS saves the wide registers (XGETBV). */
     __builtin_cpu_init();
     /* F for every AVX-512 kernel; DQ and VL for the observer's (every AVX-512 x86-64 CPU
@@ -15,9 +15,9 @@ uint32_t dv_priv_simd_kern(void)
     if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
         return 1u;
     }
-#endif
     return 0u;
 }
+#endif
 
 const char *dv_status_str(dv_status_t st)
 {

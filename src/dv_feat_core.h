@@ -18,14 +18,15 @@ void dv_priv_sliding_turn_over(dv_sliding_t *s, const dv_real_t *src);
 
 /* One block of DV_BLOCK_LEN samples: p[k] = sum (x - k0)^(k+1), mm = {min, max} folded
  * into the given {min, max}, w[k] = sum x^2 tau^k with tau = 0, 1, ... kern is
- * dv_priv_simd_kern(), asked once by the caller. A NaN/Inf sample makes w[0] non-finite (so
+ * dv_priv_simd_kern(), asked once at init (dv_sliding_t.kern). A NaN/Inf sample makes w[0] non-finite (so
  * does a finite |x| > ~1e154: callers treat both as "take the per-sample path"). */
 void dv_priv_feat_block(uint32_t kern, const dv_real_t *x, dv_real_t k0, dv_real_t p[4],
                         dv_real_t mm[2], dv_real_t w[5]);
 
 /* ring[0..n) = src[0..n) (src may be ring), s[k] = sum (ring - k0)^(k+1), bmax[b] / bmin[b] =
- * extremes of ring[b DV_SLIDING_BLK .. (b + 1) DV_SLIDING_BLK) (the last block may be short). */
-void dv_priv_feat_turn(const dv_real_t *src, dv_real_t *ring, uint32_t n, dv_real_t k0,
+ * extremes of ring[b DV_SLIDING_BLK .. (b + 1) DV_SLIDING_BLK) (the last block may be short).
+ * kern as for dv_priv_feat_block(). */
+void dv_priv_feat_turn(uint32_t kern, const dv_real_t *src, dv_real_t *ring, uint32_t n, dv_real_t k0,
                        dv_real_t *bmax, dv_real_t *bmin, dv_real_t s[4]);
 
 /* dv_sliding_update_block() for samples known to be finite (the caller checked). */

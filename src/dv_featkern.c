@@ -84,8 +84,6 @@ static void turn_from(const dv_real_t *restrict r, uint32_t i, uint32_t n, dv_re
 
 #if DV_SIMD_X86
 
-#define DV_TGT_AVX2 __attribute__((target("avx2,fma")))
-#define DV_TGT_AVX512 __attribute__((target("avx512f,avx2,fma")))
 
 DV_TGT_AVX2 static double hsum4(__m256d v)
 {
@@ -284,11 +282,11 @@ void dv_priv_feat_block(uint32_t kern, const dv_real_t *x, dv_real_t k, dv_real_
     block_c(x, k, p, mm, w);
 }
 
-void dv_priv_feat_turn(const dv_real_t *src, dv_real_t *ring, uint32_t n, dv_real_t k,
-                       dv_real_t *bmax, dv_real_t *bmin, dv_real_t s[4])
+void dv_priv_feat_turn(uint32_t kern, const dv_real_t *src, dv_real_t *ring, uint32_t n,
+                       dv_real_t k, dv_real_t *bmax, dv_real_t *bmin, dv_real_t s[4])
 {
+    (void)kern;
 #if DV_SIMD_X86
-    const uint32_t kern = dv_priv_simd_kern();
     if (kern == 2u) {
         turn_avx512(src, ring, n, k, bmax, bmin, s);
         return;

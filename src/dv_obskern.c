@@ -5,13 +5,9 @@
  * go in four independent partial sums of two columns each, with the inputs' sum (ready early)
  * as the first one's start, so the chain is two FMAs and two additions long. */
 #include "dv_obskern.h"
-#include "dynval/dv_obs.h"
 
 #if DV_SIMD_X86
 #include <immintrin.h>
-
-#define DV_TGT_AVX2 __attribute__((target("avx2,fma")))
-#define DV_TGT_AVX512 __attribute__((target("avx512f,avx512dq,avx512vl,avx2,fma")))
 
 /* always inlined into the entry points below, so the common sizes get fixed trip counts */
 /* The next step reads the state back one element at a time (broadcast loads); scalar stores
@@ -35,9 +31,9 @@ DV_TGT_AVX2 static inline __attribute__((always_inline)) void
 kern8x4(size_t nin, size_t iy, size_t ny, const double *fx, const double *fy, double *sv,
         const double *y, double *yo, double *resid)
 {
-    const double *in = sv + 8;
-    const double *fxi = fx + 64;
-    const double *fyi = fy + 32;
+    const double *in = sv + DV_OBS8_COL_UPREV;
+    const double *fxi = fx + DV_OBS8_NS * DV_OBS8_COL_UPREV;
+    const double *fyi = fy + DV_OBS8_NO * DV_OBS8_COL_UPREV;
     /* inputs (u window, contact forces) and measurements: off the state chain */
     __m256d s = _mm256_broadcast_sd(in);
     __m256d a0 = _mm256_mul_pd(_mm256_loadu_pd(fxi), s);
@@ -151,53 +147,72 @@ DV_TGT_AVX2 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, 
     _mm256_maskstore_pd(xl + 8, m2, a2);
 }
 
-/* The modal prediction: C T q as sum_k M_k (q permuted by lane ^ k) (see make_modal()), the
- * low half holding the state columns 0-3, the high half 4-7, plus the input window's terms. */
+/* The modal prediction: C T q as sum_k pred[k] (q permuted by lane ^ k) (struct dv_obs_modal),
+ * the low half holding the state columns 0-3, the high half 4-7, plus the input window's terms
+ * (fyu: the output rows' u[k-1] column, u[k]'s after it). */
 DV_TGT_AVX512 static inline __attribute__((always_inline)) __m256d
-modal_pred(const double *fy, const double *fm, __m512d q, __m512d qs, __m512d up, __m512d uk)
+modal_pred(const double *fyu, const dv_obs_modal_t *mf, __m512d q, __m512d qs, __m512d up,
+           __m512d uk)
 {
     const __m512d q2 = _mm512_permutex_pd(q, 0x4E), q3 = _mm512_permutex_pd(q, 0x1B);
-    __m512d ya = _mm512_mul_pd(_mm512_loadu_pd(fm + 16), q);
-    __m512d yb = _mm512_mul_pd(_mm512_loadu_pd(fm + 24), qs);
-    ya = _mm512_fmadd_pd(_mm512_loadu_pd(fm + 32), q2, ya);
-    yb = _mm512_fmadd_pd(_mm512_loadu_pd(fm + 40), q3, yb);
+    __m512d ya = _mm512_mul_pd(_mm512_loadu_pd(mf->pred[0]), q);
+    __m512d yb = _mm512_mul_pd(_mm512_loadu_pd(mf->pred[1]), qs);
+    ya = _mm512_fmadd_pd(_mm512_loadu_pd(mf->pred[2]), q2, ya);
+    yb = _mm512_fmadd_pd(_mm512_loadu_pd(mf->pred[3]), q3, yb);
     ya = _mm512_add_pd(ya, yb);
     __m256d yh = _mm256_add_pd(_mm512_castpd512_pd256(ya), _mm512_extractf64x4_pd(ya, 1));
-    yh = _mm256_fmadd_pd(_mm256_loadu_pd(fy + 32), _mm512_castpd512_pd256(up), yh);
-    return _mm256_fmadd_pd(_mm256_loadu_pd(fy + 36), _mm512_castpd512_pd256(uk), yh);
+    yh = _mm256_fmadd_pd(_mm256_loadu_pd(fyu), _mm512_castpd512_pd256(up), yh);
+    return _mm256_fmadd_pd(_mm256_loadu_pd(fyu + DV_OBS8_NO), _mm512_castpd512_pd256(uk), yh);
+}
+
+/* The columns of the folded rows the modal step reads (dv_obs_priv.h): the state rows' u[k-1]
+ * column (u[k]'s after it) and first y column (after the contact forces' columns, which an
+ * open step skips), and the output rows' u[k-1] column. */
+typedef struct {
+    const double *fxu;
+    const double *fxy;
+    const double *fyu;
+} modal_cols_t;
+
+static inline __attribute__((always_inline)) modal_cols_t modal_cols(const dv_obs_t *o)
+{
+    const double *fy = o->f + DV_OBS8_NS * (size_t)o->ncol_gain;
+    const modal_cols_t c = {o->f + DV_OBS8_NS * DV_OBS8_COL_UPREV,
+                            o->f + DV_OBS8_NS * (DV_OBS8_COL_G + (size_t)o->nf),
+                            fy + DV_OBS8_NO * DV_OBS8_COL_UPREV};
+    return c;
 }
 
 /* One modal step's arithmetic (dv_priv_obs_step8x4_modal_avx512() and the block loop share it,
  * so both give the same bits): the prediction yh from q and the input window (up = u[k-1],
- * uk = u[k]), and the next state from q, the inputs and, with the gain, the measurements y
- * (their columns from fxy on: after the contact forces' columns, which an open step skips),
+ * uk = u[k]), and the next state from q, the inputs and, with the gain, the measurements y,
  * or with y NULL the prediction itself (open loop: x+ = x- + L (yhat - yhat)). */
 DV_TGT_AVX512 static inline __attribute__((always_inline)) __m512d
-modal_core(const double *fx, const double *fxy, const double *fy, const double *fm, bool gain,
-           __m512d q, __m512d up, __m512d uk, const double *y, __m256d *yh_out)
+modal_core(modal_cols_t c, const dv_obs_modal_t *mf, bool gain, __m512d q, __m512d up,
+           __m512d uk, const double *y, __m256d *yh_out)
 {
     const __m512d qs = _mm512_permute_pd(q, 0x55);
     const bool open_gain = gain && y == NULL; /* the prediction feeds the state update */
     double yp[4];
     if (open_gain) {
-        *yh_out = modal_pred(fy, fm, q, qs, up, uk);
+        *yh_out = modal_pred(c.fyu, mf, q, qs, up, uk);
         _mm256_storeu_pd(yp, *yh_out);
         y = yp;
     }
     /* inputs and (with the gain) measurements */
-    __m512d a = _mm512_mul_pd(_mm512_loadu_pd(fx + 64), up);
-    a = _mm512_fmadd_pd(_mm512_loadu_pd(fx + 72), uk, a);
+    __m512d a = _mm512_mul_pd(_mm512_loadu_pd(c.fxu), up);
+    a = _mm512_fmadd_pd(_mm512_loadu_pd(c.fxu + DV_OBS8_NS), uk, a);
     if (gain) {
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(fxy), _mm512_set1_pd(y[0]), a);
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(fxy + 8), _mm512_set1_pd(y[1]), a);
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(fxy + 16), _mm512_set1_pd(y[2]), a);
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(fxy + 24), _mm512_set1_pd(y[3]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(c.fxy), _mm512_set1_pd(y[0]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(c.fxy + 8), _mm512_set1_pd(y[1]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(c.fxy + 16), _mm512_set1_pd(y[2]), a);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(c.fxy + 24), _mm512_set1_pd(y[3]), a);
     }
     /* q+ = diag * q + off * (q with each pair swapped) + inputs */
-    __m512d qn = _mm512_fmadd_pd(_mm512_loadu_pd(fm), q, a);
-    qn = _mm512_fmadd_pd(_mm512_loadu_pd(fm + 8), qs, qn);
+    __m512d qn = _mm512_fmadd_pd(_mm512_loadu_pd(mf->lam_diag), q, a);
+    qn = _mm512_fmadd_pd(_mm512_loadu_pd(mf->lam_off), qs, qn);
     if (!open_gain) {
-        *yh_out = modal_pred(fy, fm, q, qs, up, uk);
+        *yh_out = modal_pred(c.fyu, mf, q, qs, up, uk);
     }
     return qn;
 }
@@ -214,17 +229,17 @@ DV_TGT_AVX512 static inline __attribute__((always_inline)) bool modal_finite(dou
     return _kortestz_mask8_u8(bu, _mm256_fpclass_pd_mask(_mm256_loadu_pd(y), NAN_INF)) != 0u;
 }
 
-/* The contact element's X at 8 sub-nodes from a block of its modal rows (10 columns of 8: q, then
- * u[k-1], u[k]); two partial sums (the open check is off the state's chain, but decides a
- * branch). */
+/* The contact element's X at 8 sub-nodes from a block of its modal rows (struct dv_obs_modal
+ * rx: the columns q, then u[k-1], u[k]); two partial sums (the open check is off the state's
+ * chain, but decides a branch). */
 DV_TGT_AVX512 static inline __attribute__((always_inline)) __m512d
-nodes_x(const double *rb, const double *q, __m512d up, __m512d uk)
+nodes_x(const double (*rb)[DV_OBS_MODAL_BLOCK], const double *q, __m512d up, __m512d uk)
 {
-    __m512d a = _mm512_mul_pd(_mm512_loadu_pd(rb + 64), up);
-    __m512d b = _mm512_mul_pd(_mm512_loadu_pd(rb + 72), uk);
+    __m512d a = _mm512_mul_pd(_mm512_loadu_pd(rb[DV_OBS8_NS]), up);
+    __m512d b = _mm512_mul_pd(_mm512_loadu_pd(rb[DV_OBS8_NS + 1]), uk);
     for (size_t j = 0; j < 8u; j += 2u) {
-        a = _mm512_fmadd_pd(_mm512_loadu_pd(rb + 8u * j), _mm512_set1_pd(q[j]), a);
-        b = _mm512_fmadd_pd(_mm512_loadu_pd(rb + 8u * j + 8u), _mm512_set1_pd(q[j + 1u]), b);
+        a = _mm512_fmadd_pd(_mm512_loadu_pd(rb[j]), _mm512_set1_pd(q[j]), a);
+        b = _mm512_fmadd_pd(_mm512_loadu_pd(rb[j + 1u]), _mm512_set1_pd(q[j + 1u]), b);
     }
     return _mm512_add_pd(a, b);
 }
@@ -246,7 +261,7 @@ shut_lanes(const dv_elem_desc_t *c, __m512d x)
 }
 
 /* With the contact element (o->nf > 0, at most 24 nodes; a gap law, one element): its X at every
- * sub-node of the step from q and the input window (the rows o->rxq) all on the open side of
+ * sub-node of the step from q and the input window (the modal form's rows) all on the open side of
  * the gap. Then the forces are all zero and the step is the linear one (dv_obs.c all_open():
  * the node chain would only add zeros; the gap law keeps no element history). False when any
  * node engages (or is NaN). */
@@ -255,14 +270,14 @@ modal_open(const dv_obs_t *o, const double *q, __m512d up, __m512d uk)
 {
     const dv_elem_desc_t *c = &o->m->elem[0];
     const size_t nf = o->nf;
-    const double *rx = o->rxq;
-    __m512d x = nodes_x(rx, q, up, uk);
+    const dv_obs_modal_t *mf = o->modal_form;
+    __m512d x = nodes_x(mf->rx[0], q, up, uk);
     __mmask8 shut = shut_lanes(c, x);
     if (nf > 8u) {
-        x = nodes_x(rx + 80, q, up, uk);
+        x = nodes_x(mf->rx[1], q, up, uk);
         shut |= shut_lanes(c, x);
         if (nf > 16u) {
-            x = nodes_x(rx + 160, q, up, uk);
+            x = nodes_x(mf->rx[2], q, up, uk);
             shut |= shut_lanes(c, x);
         }
     }
@@ -276,23 +291,21 @@ DV_TGT_AVX512 static inline __attribute__((always_inline)) bool
 modal_step(dv_obs_t *o, double u, const double *y, bool contact)
 {
     double *sv = o->sv;
-    const double *fx = o->f;
-    const __m512d up = _mm512_set1_pd(sv[8]), uk = _mm512_set1_pd(u);
+    const __m512d up = _mm512_set1_pd(sv[DV_OBS8_COL_UPREV]), uk = _mm512_set1_pd(u);
     if (contact && !modal_open(o, sv, up, uk)) {
         return false;
     }
     __m256d yh;
-    const __m512d qn = modal_core(fx, fx + 80 + 8u * (size_t)o->nf, fx + 8u * (size_t)o->ncol_gain,
-                                  o->fm, o->has_gain, _mm512_loadu_pd(sv), up, uk, y, &yh);
+    const __m512d qn = modal_core(modal_cols(o), o->modal_form, o->has_gain, _mm512_loadu_pd(sv),
+                                  up, uk, y, &yh);
     _mm512_storeu_pd(sv, qn);
-    _mm256_storeu_pd(o->z + 8, yh);
+    _mm256_storeu_pd(o->z + DV_OBS8_NS, yh);
     /* no measurement: the residual is the prediction's own, 0 */
     _mm256_storeu_pd(o->resid, y != NULL ? _mm256_sub_pd(_mm256_loadu_pd(y), yh)
                                          : _mm256_setzero_pd());
-    sv[8] = u;
-    o->flags = y != NULL ? 0u : DV_OBS_FLAG_NO_MEAS;
-    o->n_pred++;
-    o->n_steps++;
+    sv[DV_OBS8_COL_UPREV] = u;
+    const uint32_t flags = y != NULL ? 0u : DV_OBS_FLAG_NO_MEAS;
+    dv_priv_obs_tally(o, flags, flags, 1u, 1u);
     return true;
 }
 
@@ -340,15 +353,13 @@ DV_TGT_AVX512 size_t dv_priv_obs_run8x4_modal_avx512(dv_obs_t *o, const double *
                                                      double *resid)
 {
     double *sv = o->sv;
-    const double *fx = o->f;
-    const double *fy = fx + 8u * (size_t)o->ncol_gain;
-    const double *fxy = fx + 80 + 8u * (size_t)o->nf;
-    const double *fm = o->fm;
+    const modal_cols_t cols = modal_cols(o);
+    const dv_obs_modal_t *mf = o->modal_form;
     const bool gain = o->has_gain;
     const bool contact = o->nf != 0u;
     __m512d q = _mm512_loadu_pd(sv);
-    double up = sv[8];
-    __m256d yh = _mm256_loadu_pd(o->z + 8), r = _mm256_loadu_pd(o->resid);
+    double up = sv[DV_OBS8_COL_UPREV];
+    __m256d yh = _mm256_loadu_pd(o->z + DV_OBS8_NS), r = _mm256_loadu_pd(o->resid);
     size_t k = 0;
     for (; k < n; k++) {
         const double *yk = y != NULL ? y + 4u * k : NULL;
@@ -363,7 +374,7 @@ DV_TGT_AVX512 size_t dv_priv_obs_run8x4_modal_avx512(dv_obs_t *o, const double *
                 break;
             }
         }
-        q = modal_core(fx, fxy, fy, fm, gain, q, upv, ukv, yk, &yh);
+        q = modal_core(cols, mf, gain, q, upv, ukv, yk, &yh);
         r = yk != NULL ? _mm256_sub_pd(_mm256_loadu_pd(yk), yh) : _mm256_setzero_pd();
         if (y_pred != NULL) {
             _mm256_storeu_pd(y_pred + 4u * k, yh);
@@ -375,12 +386,11 @@ DV_TGT_AVX512 size_t dv_priv_obs_run8x4_modal_avx512(dv_obs_t *o, const double *
     }
     if (k > 0u) {
         _mm512_storeu_pd(sv, q);
-        _mm256_storeu_pd(o->z + 8, yh);
+        _mm256_storeu_pd(o->z + DV_OBS8_NS, yh);
         _mm256_storeu_pd(o->resid, r);
-        sv[8] = up;
-        o->flags = y != NULL ? 0u : DV_OBS_FLAG_NO_MEAS;
-        o->n_pred += k;
-        o->n_steps += k;
+        sv[DV_OBS8_COL_UPREV] = up;
+        const uint32_t flags = y != NULL ? 0u : DV_OBS_FLAG_NO_MEAS;
+        dv_priv_obs_tally(o, flags, flags, k, k);
     }
     return k;
 }

@@ -3,18 +3,11 @@
 #ifndef DV_OBSKERN_H
 #define DV_OBSKERN_H
 
-#include "dynval/dv_types.h"
-#include "dynval/dv_obs.h"
-
-#include "dv_priv.h"
-
-/* dv_obs_step() without the modal step: the direct path when it applies, else the general
- * one (dv_obs.c). */
-dv_status_t dv_priv_obs_step_slow(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas);
+#include "dv_obs_priv.h"
 
 #if DV_SIMD_X86
 /* The 8-state, 4-output step product with AVX2 + FMA: the same contract as kernel_8x4() in
- * dv_obs.c (fx: 8-row column-major state rows over [x, inputs (nin), y (ny)], fy: 4-row
+ * dv_obs_step.c (fx: 8-row column-major state rows over [x, inputs (nin), y (ny)], fy: 4-row
  * column-major output rows over [x, inputs]; sv[0..8) becomes the new state, yo the
  * prediction, and with y, resid = y - yo). Only call when dv_priv_simd_kern() != 0. */
 void dv_priv_obs_kern8x4_avx2(size_t nin, size_t ny, const dv_real_t *fx, const dv_real_t *fy,
@@ -27,22 +20,22 @@ void dv_priv_obs_kern8x4_open_avx2(size_t iy, size_t ny, const dv_real_t *fx,
                                    const dv_real_t *fy, dv_real_t *sv, const dv_real_t *y,
                                    dv_real_t *yo, dv_real_t *resid);
 
-/* The force-free X at every contact sub-node (dv_obs.c nodes_x_free(), first-order hold):
+/* The force-free X at every contact sub-node (dv_obs_contact.c nodes_x_free(), first-order hold):
  * xl = R [x; u[k-1]; u[k]], the vector = sv[0 .. ns + 2), node f of column j of R at
  * rx[(f / 8) bs + j cs + f % 8]: the model's column-major rows (bs 8, cs nf) or the modal form's
- * blocks of 8 nodes (bs 8 (ns + 2), cs 8). */
+ * blocks of 8 nodes (struct dv_obs_modal rx: bs 80, cs 8). */
 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, size_t bs, size_t cs,
                             const double *sv, double *xl);
 
 /* The same step in modal coordinates (o->modal, past the first sample): q+ = Lam q + inputs,
- * with Lam's 2 x 2 blocks from o->fm, and the prediction from the C T rows in o->fm; y NULL:
+ * with Lam's 2 x 2 blocks and the prediction's C T rows from o->modal_form; y NULL:
  * open loop, as dv_obs_step(). A non-finite u or y goes to dv_priv_obs_step_slow(). Returns
  * dv_obs_step()'s status. With a contact element (the next entry) the step is taken here only
  * when the element stays open at every sub-node (then the forces are zero); a step that
  * engages it goes to dv_priv_obs_step_slow() too. */
 dv_status_t dv_priv_obs_step8x4_modal_avx512(dv_obs_t *o, double u, const double *y);
 
-/* The same for a model with one gap element (o->nf > 0, o->modal_ready 2). */
+/* The same for a model with one gap element (o->nf > 0, o->path DV_OBS_PATH_MODAL_CONTACT). */
 dv_status_t dv_priv_obs_step8x4_modal_contact_avx512(dv_obs_t *o, double u, const double *y);
 
 /* n such steps with the state in registers (the same arithmetic, bit for bit), predictions and

@@ -82,8 +82,8 @@ void dv_priv_stats_fill(dv_stats_t *out, const dv_priv_cm_t *cm, uint64_t count,
 
 /* ---- Vector kernels: on x86-64 double builds (gcc, clang) the hot loops also exist as AVX2/FMA
  * and AVX-512F functions (target attributes), picked at run time (dv_arkern.c, dv_featkern.c,
- * dv_obskern.c); float and Cortex-M builds see only C. include/dynval/dv_obs.h repeats this
- * condition for DV_OBS_MODAL_LEN (a public header cannot include this one). ---- */
+ * dv_obskern.c); float and Cortex-M builds see only C. No public size depends on this
+ * condition (DV_OBS_MODAL_LEN reserves the modal form in every double build). ---- */
 #if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
     !defined(DV_NO_SIMD)
 #define DV_SIMD_X86 1
@@ -91,10 +91,24 @@ void dv_priv_stats_fill(dv_stats_t *out, const dv_priv_cm_t *cm, uint64_t count,
 #define DV_SIMD_X86 0
 #endif
 
+#if DV_SIMD_X86
+/* The target attributes of the kernels, one definition: exactly the features
+ * dv_priv_simd_kern() checks before it hands out kernel 2 (AVX-512) or 1 (AVX2). */
+#define DV_TGT_AVX2 __attribute__((target("avx2,fma")))
+#define DV_TGT_AVX512 __attribute__((target("avx512f,avx512dq,avx512vl,avx2,fma")))
+#endif
+
 /* The vector unit this CPU offers the kernels: 0 portable C, 1 AVX2 + FMA, 2 AVX-512 F, DQ and
- * VL (always 0 without DV_SIMD_X86). Asked at init (or once per block call), kept by the
- * caller. */
+ * VL (always 0 without DV_SIMD_X86). Instances (features, AR residual, observer) ask at init
+ * and keep it; one-shot record functions ask once per call. */
+#if DV_SIMD_X86
 uint32_t dv_priv_simd_kern(void);
+#else
+static inline uint32_t dv_priv_simd_kern(void)
+{
+    return 0u; /* no call where there is nothing to ask (Cortex-M flash) */
+}
+#endif
 
 /* ---- AR kernels (src/dv_arkern.c); kern from dv_priv_simd_kern(). ---- */
 

@@ -26,6 +26,7 @@ dv_status_t dv_sliding_init(dv_sliding_t *s, size_t len, dv_real_t *buf, size_t 
     s->sufmax = buf + len;
     s->sufmin = buf + len + nb;
     s->len = (uint32_t)len;
+    s->kern = dv_priv_simd_kern(); /* asked once here, not per turn-over */
     dv_sliding_reset(s);
     return DV_OK;
 }
@@ -66,7 +67,7 @@ void dv_priv_sliding_turn_over(dv_sliding_t *s, const dv_real_t *src)
     /* the first turn's sums were about an arbitrary shift: centre on a sample of the window */
     const dv_real_t k = s->fill == n ? s->shift : src[0];
     s->fill = n;
-    dv_priv_feat_turn(src, s->ring, n, k, s->sufmax, s->sufmin, s->s);
+    dv_priv_feat_turn(s->kern, src, s->ring, n, k, s->sufmax, s->sufmin, s->s);
     block_suffix_extremes(s);
     const dv_real_t delta = s->s[0] / (dv_real_t)n; /* window mean - shift */
     dv_priv_sums_shift(s->s, (dv_real_t)n, -delta);

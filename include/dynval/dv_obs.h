@@ -18,7 +18,8 @@
  *
  * On x86-64 double builds the step uses AVX2/AVX-512 kernels picked at init; with AVX-512 the
  * linear 4-DOF, 4-output first-order-hold step keeps its state in modal coordinates q = T^-1 x
- * (the folded state block in real 2 x 2 block-diagonal form, dv_obs.c), which halves it.
+ * (the folded state block in real 2 x 2 block-diagonal form, src/dv_obs_modal.c), which halves
+ * it.
  * dv_obs_get_state() returns x in every case; results agree with the portable code to rounding.
  *
  * Cubic input hold (model built with DV_HOLD_CUBIC, dv_model.h): the step from t_k-1 to t_k
@@ -56,16 +57,21 @@ typedef struct {
     dv_real_t r_meas[DV_MAX_OUT];     /**< measurement noise variance per output, > 0 */
 } dv_obs_noise_t;
 
-/** Storage of the modal form of the 4-DOF, 4-output step (dv_obs.c), in elements: T (64), the
- *  kernel's blocks and output rows (48), with one contact element (at most 24 sub-nodes) its
- *  sub-node X rows in modal coordinates (ns + 2 columns, in blocks of 8 rows), and 28 of slack
- *  to put the step's vectors on 64-byte lines;
- *  x86-64 double builds only, where the AVX-512 step uses it (the condition of DV_SIMD_X86 in
- *  src/dv_priv.h). */
-#if defined(DV_REAL_DOUBLE) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
-    !defined(DV_NO_SIMD)
+/** The modal form of the AVX-512 step applies to this model: 4 DOFs, at most one contact
+ *  element with at most 24 sub-nodes, 4 outputs, first-order hold (@p nin 2). */
+#define DV_OBS_MODAL_FITS(n, nc, nsub, nout, nin)                                              \
+    ((n) == 4u && (nc) <= 1u && DV_MODEL_NF(nc, nsub) <= 24u && (nout) == 4u && (nin) == 2u)
+
+/** Storage of the modal form of the 4-DOF, 4-output step, in elements: T and the step's blocks
+ *  and prediction rows (112), with a contact element its sub-node X rows in modal coordinates
+ *  (10 columns of 8 per block of 8 sub-nodes), and 28 of slack to put the step's vectors on
+ *  64-byte lines (layout: struct dv_obs_modal, src/dv_obs_priv.h). Only the AVX-512 step of
+ *  x86-64 builds uses it, a choice the library makes at run time; every double build reserves
+ *  it whatever the compiler, CPU or DV_NO_SIMD, so the size depends on nothing but dv_real_t
+ *  (which must match the library's anyway). Float builds never use it and reserve nothing. */
+#ifdef DV_REAL_DOUBLE
 #define DV_OBS_MODAL_LEN(n, nc, nsub, nout, nin)                                                \
-    (((n) == 4u && (nc) <= 1u && DV_MODEL_NF(nc, nsub) <= 24u && (nout) == 4u && (nin) == 2u) \
+    (DV_OBS_MODAL_FITS(n, nc, nsub, nout, nin)                                                \
          ? 140u + (DV_MODEL_NS(n) + 2u) * ((DV_MODEL_NF(nc, nsub) + 7u) / 8u * 8u)            \
          : 0u)
 #else
@@ -103,6 +109,23 @@ typedef struct {
 /** Init scratch (either hold), in elements. */
 #define DV_OBS_SCRATCH_LEN(n, nc, nsub, nout) DV_OBS_SCRATCH_LEN_HOLD(n, nc, nsub, nout, 2u)
 
+/** @brief Vector kernel of the observer's step, chosen at init from the CPU (dv_obs_t.kern). */
+typedef enum {
+    DV_OBS_KERN_C = 0,     /**< portable C */
+    DV_OBS_KERN_AVX2 = 1,  /**< AVX2 + FMA (x86-64 double builds) */
+    DV_OBS_KERN_AVX512 = 2 /**< AVX-512: the modal step where it applies (DV_OBS_MODAL_FITS()) */
+} dv_obs_kern_t;
+
+/** @brief What dv_obs_step() runs for a regular sample (dv_obs_t.path). */
+typedef enum {
+    DV_OBS_PATH_GENERAL = 0,  /**< any sizes, the first sample, the cubic hold */
+    DV_OBS_PATH_DIRECT,       /**< 8 states, 4 outputs, first-order hold, past the first sample */
+    DV_OBS_PATH_MODAL,        /**< the AVX-512 modal step, linear */
+    DV_OBS_PATH_MODAL_CONTACT /**< the AVX-512 modal step with one gap element */
+} dv_obs_path_t;
+
+struct dv_obs_modal; /* the modal form's layout: src/dv_obs_priv.h */
+
 /** @brief Observer instance. Fields are private; arrays point into the caller's buffer. */
 typedef struct {
     const dv_model_t *m; /**< the model (must outlive the observer) */
@@ -115,14 +138,12 @@ typedef struct {
     uint16_t ncol_gain;  /**< ns + nin + nf + no */
     bool has_gain;       /**< L != 0 */
     bool started;        /**< the first sample has been seen */
-    uint8_t simd;        /**< 8 x 4 step kernel: 0 portable, 1 AVX2 + FMA, 2 AVX-512 (the modal
-                              step; AVX2 kernel where the modal form does not apply) */
-    bool fast;           /**< 8 states, 4 outputs, first-order hold: the direct step path */
     bool modal;          /**< the state is kept as q = T^-1 x, the folded rows in that basis */
     bool contact_hot;    /**< the last direct-path contact step engaged: the next measured
                               step skips the AVX-512 open check (dv_obskern.c) */
-    uint8_t modal_ready; /**< dv_obs_step()'s dispatch: 1 the linear modal step, 2 the modal
-                              step with a contact, 0 neither (simd 2, modal and started) */
+    dv_obs_kern_t kern;  /**< the 8 x 4 step's kernel (AVX-512 only where the modal form
+                              fits; AVX2 otherwise) */
+    dv_obs_path_t path;  /**< dv_obs_step()'s dispatch, from the sizes, kern, modal, started */
     uint32_t flags;      /**< DV_OBS_FLAG_* of the last step */
     uint64_t n_steps;    /**< accepted steps */
     uint64_t n_bad_input; /**< steps refused for a NaN/Inf input */
@@ -137,11 +158,8 @@ typedef struct {
                               L; zeros in open loop), then no x ncol_open output rows, each
                               column-major */
     dv_real_t *gain;     /**< L, ns x no row-major */
-    dv_real_t *tq;       /**< modal: T, ns x ns row-major (x = T q); NULL where it never applies */
-    dv_real_t *fm;       /**< modal: the block diagonal, the blocks' off-diagonal, C T rows */
-    const dv_real_t *rxq; /**< modal with a contact: its sub-node X rows over [q, u window],
-                               in blocks of 8 nodes (10 columns of 8 each); NULL: the model's
-                               rows over x */
+    struct dv_obs_modal *modal_form; /**< T, Lam's blocks, C T and (with a contact) its sub-node
+                                          rows over q; NULL where it never applies */
     dv_real_t elem_x[DV_MAX_ELEM]; /**< stick-slip elements: X at the last sub-node, m */
     dv_real_t elem_g[DV_MAX_ELEM]; /**< stick-slip elements: force at the last sub-node, N */
 } dv_obs_t;

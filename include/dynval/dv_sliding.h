@@ -35,6 +35,8 @@ typedef struct {
     uint32_t len;         /**< window length in samples */
     uint32_t head;        /**< next ring slot to write */
     uint32_t fill;        /**< @c len once the ring has turned over (window full), else 0 */
+    uint32_t kern;        /**< vector kernel of the turn-over and of dv_chan_t's blocks, chosen
+                               at init (0 portable C, 1 AVX2 + FMA, 2 AVX-512) */
     dv_real_t premax;     /**< max of ring[0..head-1] in the current turn */
     dv_real_t premin;     /**< min of ring[0..head-1] in the current turn */
     dv_real_t shift;      /**< shift of the power sums */

@@ -146,13 +146,13 @@ static void test_obs_vector_kernels_match_portable(void **state)
             stiffer_truth(&d, NS);
             assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
             assert_int_equal(dv_obs_init(&o, &m, gain ? &nz : NULL, obuf, NBUF), DV_OK);
-            const unsigned simd = o.simd;
-            assert_true(o.fast);
+            const unsigned simd = (unsigned)o.kern;
             for (size_t k = 0; k < NS; k++) {
                 assert_int_equal(dv_obs_step(&o, force_r[k], ytrue + 4 * k), DV_OK);
                 assert_int_equal(dv_obs_get(&o, ypred + 4 * k, res + 4 * k, 4), DV_OK);
             }
-            o.simd = 0; // the portable kernel, same direct path
+            assert_true(o.path != DV_OBS_PATH_GENERAL); // the direct 8 x 4 (or modal) path
+            o.kern = DV_OBS_KERN_C; // the portable kernel, same direct path
             dv_obs_reset(&o);
             for (size_t k = 0; k < NS; k++) {
                 assert_int_equal(dv_obs_step(&o, force_r[k], ytrue + 4 * k), DV_OK);
