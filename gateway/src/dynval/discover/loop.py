@@ -31,6 +31,7 @@ import numpy as np
 from dynval import model as mdl
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
+from dynval.discover import initial
 from dynval.discover import noise as nz
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
@@ -212,6 +213,8 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
     evals = [*fit_t, *held_t]  # every test once, or every test's two views
     band = tr.input_band(tests)
     modes_hz = [float(f) for f in mdl.natural_frequencies(m)]
+    settle = int(_settle_s(modes_hz) * tests[0].fs_hz)
+    notes += initial.apply(m, evals, chans, scales, settle)
 
     before, res_before = rs.error_table(m, evals, chans, scales)
     if not res_before:
@@ -328,6 +331,7 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
         res_b: ft.FitResult = best["fit"]
         effects.append(_effect_entry(res_b, best, cur))
         cur = res_b.model
+        initial.apply(cur, evals, chans, scales, settle)  # the new model's initial states
         cur_table, _ = rs.error_table(cur, evals, chans, scales)
         accepted_keys.add(_key(res_b.cand))
         rd.decision = f"accepted {res_b.cand.label}"

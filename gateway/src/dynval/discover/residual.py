@@ -39,6 +39,9 @@ class TestData:
     u: np.ndarray
     y: dict[str, np.ndarray]
     mask: np.ndarray | None = None  # samples that count in errors and fits; None: all
+    # what the channels read of the free motion from the estimated initial state (a record
+    # that does not start at rest, discover/initial.py); None: the structure starts at rest
+    start: dict[str, np.ndarray] | None = None
 
     def counted(self, a: np.ndarray) -> np.ndarray:
         """The samples of a record-length array that count for this test (or view)."""
@@ -99,10 +102,13 @@ def channel_scales(tests: Sequence[TestData], chans: Sequence[str]) -> dict[str,
 def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     """The model's open-loop prediction, or None when the core refuses the model."""
     try:
-        return mdl.simulate(m, t.u, t.fs_hz)
+        p = mdl.simulate(m, t.u, t.fs_hz)
     except ConfigError as exc:
         log.debug("%s: simulation refused: %s", t.name, exc)
         return None
+    if t.start is not None:
+        p = {c: p[c] + t.start[c] if c in t.start else p[c] for c in p}
+    return p
 
 
 def residuals(m: mdl.Model, t: TestData, chans: Sequence[str]) -> dict[str, np.ndarray] | None:

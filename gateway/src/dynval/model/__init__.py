@@ -39,6 +39,7 @@ from dynval.model.simulation import (
                                    Linear,
                                    _Core,
                                    damping_matrix_explicit,
+                                   free_response,
                                    interpolate_input,
                                    linear,
                                    modes,
@@ -55,6 +56,6 @@ __all__ = ["DAMPING_TYPES", "ELEMENT_TYPES", "FORMAT", "INPUT_KINDS", "INTERPOLA
            "OUTPUT_KINDS", "REGISTRY", "SIDES", "ChannelResidual", "Contact", "CubicSpring",
            "Damping", "Element", "Friction", "Input", "Linear", "Model", "Output",
            "ResidualResult", "StickSlip", "VVDamper", "_Core", "damping_matrix_explicit",
-           "from_dict", "input_channel", "interpolate_input", "linear", "load", "modes",
-           "natural_frequencies", "param_unit", "residual", "save", "simulate", "simulate_batch",
-           "simulate_recording", "stiffness_matrix", "to_dict", "validate"]
+           "free_response", "from_dict", "input_channel", "interpolate_input", "linear", "load",
+           "modes", "natural_frequencies", "param_unit", "residual", "save", "simulate",
+           "simulate_batch", "simulate_recording", "stiffness_matrix", "to_dict", "validate"]

@@ -232,6 +232,24 @@ def modes(m: Model) -> tuple[np.ndarray, np.ndarray]:
 def natural_frequencies(m: Model) -> np.ndarray:
     """Undamped natural frequencies of the linear chain, Hz, ascending (contacts open)."""
     return modes(m)[0]
+def free_response(m: Model, fs_hz: float, n: int) -> np.ndarray:
+    """What the channels read of the linear part's free motion from each unit initial state
+    (displacements, then velocities; relative to the ground for a ground input), no input:
+    an (n, n_outputs, 2 n_dof) array R, so the outputs from initial state x0 are R @ x0. From
+    the core's exact discretisation at 1 / fs_hz (DV_MODEL_MAT_AD, DV_MODEL_MAT_CY)."""
+    lin = dataclasses.replace(m, elements=())
+    core = _Core(lin, 1.0 / fs_hz)
+    core.build_model(lin)
+    ad, cy = core.matrix("AD"), core.matrix("CY")
+    gains = np.array([o.gain for o in m.outputs.values()])[:, None]
+    out = np.empty((n, cy.shape[0], ad.shape[0]))
+    step = cy * gains
+    for k in range(n):
+        out[k] = step
+        step = step @ ad
+    return out
+
+
 def _resolve_oversample(m: Model, oversample: int | None) -> int:
     r = m.oversample if oversample is None else int(oversample)
     if m.interpolation in ("foh", "cubic") and oversample is None:
