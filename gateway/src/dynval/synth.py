@@ -47,6 +47,9 @@ class Truth:
     label: str = "clean"
 
 
+_INPUT_UNIT = {"force": "N", "ground_acc": "m/s^2", "ground_disp": "m"}
+
+
 def band_limited_force(rng: np.random.Generator, n: int, fs_hz: float, rms: float,
                        band_hz: tuple[float, float] = (20.0, 200.0), *,
                        zero_phase: bool = False) -> np.ndarray:
@@ -78,10 +81,9 @@ def truth_model(m: mdl.Model, truth: Truth) -> mdl.Model:
 
 def simulate_truth(m: mdl.Model, truth: Truth, force_fine: np.ndarray,
                    fs_fine_hz: float) -> np.ndarray:
-    """Accelerations (len(force_fine) x n) of the truth driven from rest by a force at the
-    model's input DOF, by the core at the fine rate."""
-    if m.input.kind != "force":
-        raise ConfigError("the generator drives force-input models only")
+    """Accelerations (len(force_fine) x n, absolute) of the truth driven from rest by the
+    model's input (a force at its DOF, a shake table's acceleration or a ground displacement),
+    by the core at the fine rate."""
     y = mdl.simulate(truth_model(m, truth), force_fine, fs_fine_hz, oversample=1)
     return np.column_stack([y[f"__a{j}"] for j in range(1, m.n_dof + 1)])
 
@@ -90,8 +92,9 @@ def generate(m: mdl.Model, truth: Truth, *, n_tests: int = 10,
              levels_n_rms: tuple[float, ...] = (12.0, 7.2), n_samples: int = 8192,
              fs_hz: float = 640.0, fine: int = 16, noise: float = 0.01, seed: int = 0,
              band_hz: tuple[float, float] = (20.0, 200.0)) -> list[Recording]:
-    """n_tests measured tests (levels cycled: test i has force RMS levels[i % len(levels)]),
-    as Recordings whose columns are the model's input channel (default 'force_N') and its
+    """n_tests measured tests (levels cycled: test i has input RMS levels[i % len(levels)],
+    in the input's unit: N, m/s^2 for a shake table, m for a ground displacement), as
+    Recordings whose columns are the model's input channel (default 'force_N') and its
     acceleration outputs (other output kinds are not generated)."""
     rng = np.random.default_rng(seed)
     fs_fine = fs_hz * fine
@@ -113,7 +116,8 @@ def generate(m: mdl.Model, truth: Truth, *, n_tests: int = 10,
             y = signal.sosfilt(aa, x)[::fine]
             y = y + noise * float(np.sqrt(np.mean(y * y))) * rng.standard_normal(y.size)
             chans.append(Channel(name=name, data=np.ascontiguousarray(y),
-                                 unit="N" if name == in_name else "m/s^2",
+                                 unit=_INPUT_UNIT[m.input.kind] if name == in_name
+                                 else "m/s^2",
                                  role="input" if name == in_name else "output"))
         tag = "high" if level == max(levels_n_rms) else "low"
         recs.append(Recording(name=f"{truth.label}_{tag}_{i + 1:02d}", fs_hz=fs_hz,

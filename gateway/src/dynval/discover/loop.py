@@ -270,9 +270,9 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
         if view is not None:
             evidence = tr.score(view, cands)
         else:
-            notes.append("no evidence view for this model (it needs a force input with "
-                         "acc/vel/disp outputs, or a reaction output): every candidate is "
-                         "fitted instead")
+            notes.append("no evidence view for this model (it needs an accelerometer on "
+                         "every DOF, or the model's output view, or a reaction output): every "
+                         "candidate is fitted instead")
             evidence = [tr.Evidence(c, 0.0, 0.0) for c in cands]
         evidence = _direct_evidence(evidence, list(res_cur.values()))
         # "no effect": the share of the residual energy the noise floor explains

@@ -149,11 +149,31 @@ def matrices(m: mdl.Model) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarr
     return lin.mass, lin.k, lin.c, lin.w, lin.phi
 
 
+def _external(m: mdl.Model, t: TestData, mass: np.ndarray, k: np.ndarray, c: np.ndarray,
+              hp: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray | None,
+                                                               np.ndarray | None]:
+    """The input's force on every DOF (n x T) in the model's coordinates, and the ground's
+    displacement and velocity where the elements see them (ground_disp), all high-passed:
+    a force at its DOF; a ground acceleration a_g in relative coordinates, -M 1 a_g; a ground
+    displacement u in absolute ones, K 1 u + C 1 u'."""
+    n = m.n_dof
+    u = hp(t.u)
+    if m.input.kind == "force":
+        f = np.zeros((n, u.size))
+        f[m.input.dof - 1] = u
+        return f, None, None
+    if m.input.kind == "ground_acc":
+        return -mass[:, None] * u[None, :], None, None
+    ug = hp(t.u)
+    vg = hp(np.gradient(t.u) * t.fs_hz)
+    return k.sum(axis=1)[:, None] * ug + c.sum(axis=1)[:, None] * vg, ug, vg
+
+
 def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
-    """Reconstruct states and the missing force, or None when the model's input is not a
-    force or not every DOF carries an accelerometer."""
-    if m.input.kind != "force":
-        return None
+    """Reconstruct states and the missing force, or None when not every DOF carries an
+    accelerometer. A force input, a shake table (ground acceleration: the states relative to
+    the ground, from the measured absolute accelerations minus the table's) and a prescribed
+    ground displacement all give the same view."""
     chan_dof: dict[str, int] = {}
     for name, o in m.outputs.items():
         if o.kind == "acc" and all(name in t.y for t in tests):
@@ -170,15 +190,22 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
     vs: list[np.ndarray] = []
     as_: list[np.ndarray] = []
     fs_list: list[np.ndarray] = []
+    grounds: list[tuple[np.ndarray, np.ndarray]] = []
     trim_frac = 0.04
+
+    def hp(z: np.ndarray) -> np.ndarray:
+        # bases built from nonlinear functions of the states get the same high-pass
+        return _hp(z, fs, f_hp)
+
     for t in tests:
         a = np.vstack([(t.y[dofs[j]] - m.outputs[dofs[j]].offset) / m.outputs[dofs[j]].gain
                        for j in range(1, n + 1)])
+        if m.input.kind == "ground_acc":
+            a = a - t.u[None, :]  # the model's coordinates are relative to the table
         ah, vh, xh = _integrate(a, fs, f_hp)
-        u = _hp(t.u, fs, f_hp)
-        fext = np.zeros_like(ah)
-        fext[m.input.dof - 1] = u
-        f_el = _hp(el.restoring(m.elements, xh, vh), fs, f_hp)
+        fext, ug, vg = _external(m, t, mass, k, c, hp)
+        f_el = hp(el.restoring(m.elements, xh, vh, 0.0 if ug is None else ug,
+                               0.0 if vg is None else vg))
         fm = fext - mass[:, None] * ah - c @ vh - k @ xh - f_el
         cut = int(trim_frac * t.u.size)
         sl = slice(cut, t.u.size - cut)
@@ -186,13 +213,13 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
         vs.append(vh[:, sl])
         as_.append(ah[:, sl])
         fs_list.append(fm[:, sl])
+        if ug is not None and vg is not None:
+            grounds.append((ug[sl], vg[sl]))
 
-    def hp(z: np.ndarray) -> np.ndarray:
-        # bases built from nonlinear functions of the states get the same high-pass
-        return _hp(z, fs, f_hp)
-
+    xg = np.concatenate([g[0] for g in grounds]) if grounds else None
+    vgs = np.concatenate([g[1] for g in grounds]) if grounds else None
     st = fx.States(np.hstack(xs), np.hstack(vs), np.hstack(as_), mass, k, c, w, phi, hp,
-                   chan_dof)
+                   chan_dof, xg, vgs)
     return ForceView(st, np.hstack(fs_list), slice(None))
 
 

@@ -254,18 +254,21 @@ def force(e: Element, x: Any = None, v: Any = None) -> np.ndarray:
     return out
 
 
-def relative(e: Element, z: np.ndarray) -> np.ndarray:
-    """X (or V) of e from per-DOF rows z (n x T, DOF j in row j - 1; DOF 0 is the ground)."""
-    za = z[e.dof_a - 1] if e.dof_a > 0 else 0.0
+def relative(e: Element, z: np.ndarray, ground: np.ndarray | float = 0.0) -> np.ndarray:
+    """X (or V) of e from per-DOF rows z (n x T, DOF j in row j - 1; DOF 0 is the ground,
+    which moves by ``ground``)."""
+    za = z[e.dof_a - 1] if e.dof_a > 0 else ground
     return np.asarray(z[e.dof_b - 1] - za)
 
 
-def restoring(elems: Sequence[Element], x: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Restoring forces (n x T) of the elements on per-DOF displacements and velocities: g at
-    DOF b, -g at DOF a (the element pushes DOF a by +g and DOF b by -g)."""
+def restoring(elems: Sequence[Element], x: np.ndarray, v: np.ndarray,
+              xg: np.ndarray | float = 0.0, vg: np.ndarray | float = 0.0) -> np.ndarray:
+    """Restoring forces (n x T) of the elements on per-DOF displacements and velocities (the
+    ground's xg, vg: a ground-displacement input): g at DOF b, -g at DOF a (the element
+    pushes DOF a by +g and DOF b by -g)."""
     f = np.zeros_like(x)
     for e in elems:
-        g = force(e, relative(e, x), relative(e, v))
+        g = force(e, relative(e, x, xg), relative(e, v, vg))
         f[e.dof_b - 1] += g
         if e.dof_a > 0:
             f[e.dof_a - 1] -= g
