@@ -26,9 +26,22 @@ SIM_BIN = BUILD / "firmware_sim" / "firmware_sim"
 OFFLINE_BIN = BUILD / "firmware_sim" / "dv_sim_offline"
 REGMAP_H = ROOT / "firmware_sim" / "sim_regmap.h"
 
+CODEC_H = ROOT / "include" / "dynval" / "dv_codec.h"
+
+
+def _codec_define(name: str) -> int:
+    """An integer #define of dv_codec.h (the one source of the CAN contract)."""
+    m = re.search(rf"#define {name} (0[xX][0-9a-fA-F]+|\d+)u?\b", CODEC_H.read_text())
+    if m is None:
+        raise KeyError(f"{name} is not an integer #define of {CODEC_H}")
+    return int(m.group(1), 0)
+
+
 ID_STATUS, ID_CTRL, ID_CHCFG, ID_SAMPLES, ID_FEATURE, ID_RESID = (
-    0x080, 0x100, 0x101, 0x200, 0x300, 0x380)
-CTRL_START, CTRL_STOP, CTRL_CLEAR, CTRL_STATUS = 1, 2, 3, 4
+    _codec_define(f"DV_CAN_ID_{n}") for n in ("STATUS", "CTRL", "CHCFG", "SAMPLES", "FEATURE",
+                                              "RESID"))
+CTRL_START, CTRL_STOP, CTRL_CLEAR, CTRL_STATUS = (
+    _codec_define(f"DV_CTRL_{n}") for n in ("START", "STOP", "CLEAR", "STATUS"))
 MISSING = -32768
 
 # small records so a VM run stays short: window 64, 16 segments of 32 = 512-sample records
