@@ -35,6 +35,7 @@ from dynval.discover import initial
 from dynval.discover import noise as nz
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
+from dynval.discover import unexplained as ux
 from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
 from dynval.validate import mahalanobis as mh
@@ -93,6 +94,7 @@ class DiscoverResult:
     timing_s: dict[str, float] = field(default_factory=dict)
     calibration: dict[str, Any] = field(default_factory=dict)
     noise_floors: dict[str, nz.Floor] = field(default_factory=dict)
+    unexplained: dict[str, Any] = field(default_factory=dict)  # traits of a residual left
 
 
 # fewer tests than this: cross-validate over time segments of every test instead of
@@ -336,11 +338,14 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
         accepted_keys.add(_key(res_b.cand))
         rd.decision = f"accepted {res_b.cand.label}"
     after, res_after = rs.error_table(cur, evals, chans, scales)
+    left = _ratio(after, all_names, chans, noise)
+    unexp = (ux.characterise(evals, res_after, chans, noise, modes_hz)
+             if any(r > o.significance_ratio for r in left.values()) else {})
     mah = _mahal(m, cur, tests, chans, band, noise)
     timing["total"] = time.perf_counter() - t_start
     return DiscoverResult(m, cur, evals, fit_names, held_names, chans, scales, noise, before,
                           after, res_before, res_after, rounds, effects, mah, band, modes_hz,
-                          notes, timing, calibration, floors)
+                          notes, timing, calibration, floors, unexp)
 
 
 class _Judge:

@@ -86,15 +86,17 @@ def to_json(r: DiscoverResult, model_path: str = "", model_out: str = "") -> dic
     at_floor = last is not None and last.decision.startswith("residual at the noise floor")
     if r.effects:
         verdict = "the model lacks: " + "; ".join(e["label"] for e in r.effects)
-        if not at_floor:
-            verdict += " (a residual above the noise floor remains)"
+        if r.unexplained:
+            verdict += (" (a residual above the noise floor remains: "
+                        f"{r.unexplained['summary']})")
     elif at_floor:
         verdict = "no effect: the declared model explains the tests to the noise floor"
     else:
         worst = max(last.ratio.values()) if last is not None and last.ratio else math.nan
-        verdict = ("no effect found that improves the held-out tests significantly, but the "
-                   f"residual is {worst:.3g} x the noise floor: the model lacks something "
-                   "this library cannot fit (see the candidate evidence)")
+        verdict = ("no effect in the library improves the held-out tests significantly, but "
+                   f"the residual is {worst:.3g} x the noise floor: the model lacks something "
+                   "this library cannot represent"
+                   + (f"; the residual: {r.unexplained['summary']}" if r.unexplained else ""))
     doc: dict[str, Any] = _clean({
         "format": SCHEMA,
         "model": model_path,
@@ -124,6 +126,7 @@ def to_json(r: DiscoverResult, model_path: str = "", model_out: str = "") -> dic
         "model_modes_hz": r.modes_hz,
         "calibration": r.calibration,
         "notes": r.notes,
+        "unexplained": r.unexplained,
         "timing_s": {k: round(v, 3) for k, v in r.timing_s.items()},
     })
     return doc
