@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -48,6 +48,7 @@ class Truth:
 
 
 _INPUT_UNIT = {"force": "N", "ground_acc": "m/s^2", "ground_disp": "m"}
+_MOTION_UNIT = {"acc": "m/s^2", "vel": "m/s", "disp": "m"}
 
 
 def band_limited_force(rng: np.random.Generator, n: int, fs_hz: float, rms: float,
@@ -64,14 +65,21 @@ def band_limited_force(rng: np.random.Generator, n: int, fs_hz: float, rms: floa
     return np.asarray(x * np.minimum(1.0, np.arange(n) / 64.0))
 
 
-def truth_model(m: mdl.Model, truth: Truth) -> mdl.Model:
-    """The truth as a model: m with the truth's changes and elements, every DOF's acceleration
-    as output (``__a<j>``), the samples held linearly (no interpolation)."""
+MOTION_KINDS = ("acc", "vel", "disp")
+
+
+def truth_model(m: mdl.Model, truth: Truth,
+                motions: Sequence[tuple[str, int]] | None = None) -> mdl.Model:
+    """The truth as a model: m with the truth's changes and elements, as outputs the given
+    motions (kind, DOF) or every DOF's acceleration (``__acc<j>``, ``__vel<j>``,
+    ``__disp<j>``), the samples held linearly (no interpolation)."""
     params = {f"k{s}": m.stiffness_n_per_m[s - 1] * f for s, f in truth.k_scale.items()}
     params.update({f"m{j}": m.masses_kg[j - 1] + dm for j, dm in truth.m_add_kg.items()})
     tm = m.with_params(params) if params else m
     damp = tm.damping if truth.zeta is None else mdl.Damping("modal", zeta=tuple(truth.zeta))
-    outs = {f"__a{j}": mdl.Output("acc", j) for j in range(1, m.n_dof + 1)}
+    if motions is None:
+        motions = [("acc", j) for j in range(1, m.n_dof + 1)]
+    outs = {f"__{k}{j}": mdl.Output(k, j) for k, j in motions}
     tm = dataclasses.replace(tm, damping=damp, outputs=outs,
                              elements=(*m.elements, *truth.elements), interpolation="foh",
                              oversample=1)
@@ -85,7 +93,16 @@ def simulate_truth(m: mdl.Model, truth: Truth, force_fine: np.ndarray,
     model's input (a force at its DOF, a shake table's acceleration or a ground displacement),
     by the core at the fine rate."""
     y = mdl.simulate(truth_model(m, truth), force_fine, fs_fine_hz, oversample=1)
-    return np.column_stack([y[f"__a{j}"] for j in range(1, m.n_dof + 1)])
+    return np.column_stack([y[f"__acc{j}"] for j in range(1, m.n_dof + 1)])
+
+
+def simulate_truth_motion(m: mdl.Model, truth: Truth, force_fine: np.ndarray,
+                          fs_fine_hz: float) -> dict[str, np.ndarray]:
+    """The motions the model's outputs measure (``acc<j>``, ``vel<j>``, ``disp<j>``) of the
+    truth driven from rest by the model's input, by the core at the fine rate."""
+    motions = sorted({(o.kind, o.index) for o in m.outputs.values() if o.kind in MOTION_KINDS})
+    y = mdl.simulate(truth_model(m, truth, motions), force_fine, fs_fine_hz, oversample=1)
+    return {k[2:]: v for k, v in y.items()}
 
 
 def generate(m: mdl.Model, truth: Truth, *, n_tests: int = 10,
@@ -95,29 +112,30 @@ def generate(m: mdl.Model, truth: Truth, *, n_tests: int = 10,
     """n_tests measured tests (levels cycled: test i has input RMS levels[i % len(levels)],
     in the input's unit: N, m/s^2 for a shake table, m for a ground displacement), as
     Recordings whose columns are the model's input channel (default 'force_N') and its
-    acceleration outputs (other output kinds are not generated)."""
+    acceleration, velocity and displacement outputs (other output kinds are not generated)."""
     rng = np.random.default_rng(seed)
     fs_fine = fs_hz * fine
     aa = signal.butter(8, 0.4 * fs_hz, btype="low", fs=fs_fine, output="sos")
     in_name = m.input.channel or "force_N"
-    acc_outs = {name: o for name, o in m.outputs.items() if o.kind == "acc"}
-    if not acc_outs:
-        raise ConfigError("the generator produces accelerations: the model has no acc output")
+    motion_outs = {name: o for name, o in m.outputs.items() if o.kind in MOTION_KINDS}
+    if not motion_outs:
+        raise ConfigError("the generator produces motions: the model has no acc, vel or disp "
+                          "output")
     recs = []
     for i in range(n_tests):
         level = levels_n_rms[i % len(levels_n_rms)]
         f = band_limited_force(rng, n_samples * fine, fs_fine, level, band_hz)
-        acc = simulate_truth(m, truth, f, fs_fine)
+        motion = simulate_truth_motion(m, truth, f, fs_fine)
         cols = {in_name: f}
-        for name, o in acc_outs.items():
-            cols[name] = acc[:, o.index - 1] * truth.gains.get(name, 1.0)
+        for name, o in motion_outs.items():
+            cols[name] = motion[f"{o.kind}{o.index}"] * truth.gains.get(name, 1.0)
         chans = []
         for name, x in cols.items():
             y = signal.sosfilt(aa, x)[::fine]
             y = y + noise * float(np.sqrt(np.mean(y * y))) * rng.standard_normal(y.size)
             chans.append(Channel(name=name, data=np.ascontiguousarray(y),
                                  unit=_INPUT_UNIT[m.input.kind] if name == in_name
-                                 else "m/s^2",
+                                 else _MOTION_UNIT[m.outputs[name].kind],
                                  role="input" if name == in_name else "output"))
         tag = "high" if level == max(levels_n_rms) else "low"
         recs.append(Recording(name=f"{truth.label}_{tag}_{i + 1:02d}", fs_hz=fs_hz,

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from dynval import model as mdl
+from dynval.discover import drift as dr
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
 from dynval.discover import initial
@@ -95,6 +96,8 @@ class DiscoverResult:
     calibration: dict[str, Any] = field(default_factory=dict)
     noise_floors: dict[str, nz.Floor] = field(default_factory=dict)
     unexplained: dict[str, Any] = field(default_factory=dict)  # traits of a residual left
+    prediction: str = "open loop"  # or "observer" (a drifting model: discover/drift.py)
+    open_loop_before: dict[str, float] = field(default_factory=dict)  # held-out, per channel
 
 
 # fewer tests than this: cross-validate over time segments of every test instead of
@@ -215,12 +218,30 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
     evals = [*fit_t, *held_t]  # every test once, or every test's two views
     band = tr.input_band(tests)
     modes_hz = [float(f) for f in mdl.natural_frequencies(m)]
-    settle = int(_settle_s(modes_hz) * tests[0].fs_hz)
+    settle = int(_settle_s([f for f in modes_hz if f > 0.05 * band[0]]) * tests[0].fs_hz)
     notes += initial.apply(m, evals, chans, scales, settle)
 
     before, res_before = rs.error_table(m, evals, chans, scales)
     if not res_before:
         raise ConfigError("the declared model cannot be simulated for these tests")
+    prediction = "open loop"
+    open_loop_before: dict[str, float] = {}
+    worst = dr.drifts(m, before, all_names, chans, scales, band)
+    if worst is not None:
+        open_loop_before = before.pooled(held_names, chans)
+        if dr.apply(m, evals, dr.observer_for(m, evals, chans, scales)):
+            prediction = "observer"
+            notes.append(
+                f"the open-loop simulation drifts (a rigid-body mode; NRMSE up to {worst:.3g}, "
+                "worse than predicting zero): every error here is the one-step-ahead "
+                "prediction error of the core's observer with its steady-state Kalman gain, "
+                "which holds the drift by the measurements while the model's dynamics over a "
+                "sample stay in the error; the open-loop held-out RMSE is in open_loop_before")
+            before, res_before = rs.error_table(m, evals, chans, scales)
+        else:
+            notes.append(f"the open-loop simulation drifts (NRMSE up to {worst:.3g}) and the "
+                         "core refused an observer (no sensor sees the drift): the errors are "
+                         "open loop and may be dominated by the drift")
     fs = tests[0].fs_hz
     # the noise floor from each record once (a test's two views share one residual record)
     once = {str(id(t.u)): res_before[t.name] for t in evals if t.name in res_before}
@@ -333,7 +354,8 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
         res_b: ft.FitResult = best["fit"]
         effects.append(_effect_entry(res_b, best, cur))
         cur = res_b.model
-        initial.apply(cur, evals, chans, scales, settle)  # the new model's initial states
+        if prediction == "open loop":  # the new model's initial states
+            initial.apply(cur, evals, chans, scales, settle)
         cur_table, _ = rs.error_table(cur, evals, chans, scales)
         accepted_keys.add(_key(res_b.cand))
         rd.decision = f"accepted {res_b.cand.label}"
@@ -345,7 +367,8 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
     timing["total"] = time.perf_counter() - t_start
     return DiscoverResult(m, cur, evals, fit_names, held_names, chans, scales, noise, before,
                           after, res_before, res_after, rounds, effects, mah, band, modes_hz,
-                          notes, timing, calibration, floors, unexp)
+                          notes, timing, calibration, floors, unexp, prediction,
+                          open_loop_before)
 
 
 class _Judge:

@@ -127,6 +127,8 @@ def to_json(r: DiscoverResult, model_path: str = "", model_out: str = "") -> dic
         "calibration": r.calibration,
         "notes": r.notes,
         "unexplained": r.unexplained,
+        "prediction": r.prediction,
+        "open_loop_before": {c: _f(v) for c, v in r.open_loop_before.items()},
         "timing_s": {k: round(v, 3) for k, v in r.timing_s.items()},
     })
     return doc

@@ -27,6 +27,15 @@ signal: Any = importlib.import_module("scipy.signal")
 SIGNIFICANCE_RATIO = 1.5
 
 
+@dataclass(frozen=True)
+class Observer:
+    """The noise model of the observer's Kalman gain: white force variance at each DOF (N^2)
+    and measurement noise variance per channel (channel units^2)."""
+
+    q_force_n2: tuple[float, ...]
+    r_meas: dict[str, float]
+
+
 @dataclass
 class TestData:
     """One test prepared for repeated simulation: its input and measured channels. A view of
@@ -42,6 +51,9 @@ class TestData:
     # what the channels read of the free motion from the estimated initial state (a record
     # that does not start at rest, discover/initial.py); None: the structure starts at rest
     start: dict[str, np.ndarray] | None = None
+    # predict with the core's observer (one step ahead, steady-state Kalman gain) instead of
+    # open loop: a model that drifts (discover/drift.py); None: open loop
+    observer: Observer | None = None
 
     def counted(self, a: np.ndarray) -> np.ndarray:
         """The samples of a record-length array that count for this test (or view)."""
@@ -102,7 +114,9 @@ def channel_scales(tests: Sequence[TestData], chans: Sequence[str]) -> dict[str,
 def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     """The model's open-loop prediction, or None when the core refuses the model."""
     try:
-        p = mdl.simulate(m, t.u, t.fs_hz)
+        p = (mdl.simulate(m, t.u, t.fs_hz) if t.observer is None else
+             mdl.predict_observed(m, t.u, t.y, t.fs_hz, t.observer.q_force_n2,
+                                  t.observer.r_meas))
     except ConfigError as exc:
         log.debug("%s: simulation refused: %s", t.name, exc)
         return None

@@ -33,7 +33,7 @@ from dynval.model.schema import (
                                    Input,
                                    Model,
                                    Output,
-    param_unit,
+                                   param_unit,
 )
 from dynval.model.simulation import (
                                    Linear,
@@ -44,6 +44,7 @@ from dynval.model.simulation import (
                                    linear,
                                    modes,
                                    natural_frequencies,
+                                   predict_observed,
                                    simulate,
                                    simulate_batch,
                                    stiffness_matrix,
@@ -57,5 +58,6 @@ __all__ = ["DAMPING_TYPES", "ELEMENT_TYPES", "FORMAT", "INPUT_KINDS", "INTERPOLA
            "Damping", "Element", "Friction", "Input", "Linear", "Model", "Output",
            "ResidualResult", "StickSlip", "VVDamper", "_Core", "damping_matrix_explicit",
            "free_response", "from_dict", "input_channel", "interpolate_input", "linear", "load",
-           "modes", "natural_frequencies", "param_unit", "residual", "save", "simulate",
-           "simulate_batch", "simulate_recording", "stiffness_matrix", "to_dict", "validate"]
+           "modes", "natural_frequencies", "param_unit", "predict_observed", "residual", "save",
+           "simulate", "simulate_batch", "simulate_recording", "stiffness_matrix", "to_dict",
+           "validate"]

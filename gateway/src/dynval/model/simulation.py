@@ -232,6 +232,48 @@ def modes(m: Model) -> tuple[np.ndarray, np.ndarray]:
 def natural_frequencies(m: Model) -> np.ndarray:
     """Undamped natural frequencies of the linear chain, Hz, ascending (contacts open)."""
     return modes(m)[0]
+def predict_observed(m: Model, u: np.ndarray, y: Mapping[str, np.ndarray], fs_hz: float,
+                     q_force_n2: Sequence[float], r_meas: Mapping[str, float]
+                     ) -> dict[str, np.ndarray]:
+    """One-step-ahead predictions of every output by the core's observer with the steady-state
+    Kalman gain (dv_obs_init with a noise model, dv_obs_update_block): before sample k the
+    state is corrected by the measurements up to k - 1, so a drift the open-loop simulation
+    accumulates is pulled back while the dynamics within a sample interval stay the model's.
+    ``y``: measured channels (the model's outputs; a missing one is not corrected by);
+    ``q_force_n2``: white force variance at each DOF, N^2; ``r_meas``: noise variance per
+    channel (channel units^2). The samples are held linearly (first-order hold) at fs_hz.
+    ConfigError when the core refuses the noise model (e.g. an undetectable rigid-body mode)."""
+    mo = dataclasses.replace(m, interpolation="foh", oversample=1)
+    core = _Core(mo, 1.0 / fs_hz)
+    core.build_model(mo)
+    lib, ffi = _core.lib, _core.ffi
+    noise = ffi.new("dv_obs_noise_t *")
+    for j, q in enumerate(q_force_n2):
+        noise.q_force_n2[j] = float(q)
+    names = list(m.outputs)
+    for j, c in enumerate(names):  # in the model's units: the sensor's gain divided out
+        noise.r_meas[j] = float(r_meas.get(c, 1.0)) / m.outputs[c].gain ** 2
+    olen = int(lib.dv_obs_buf_len(core.cm))
+    buf = np.zeros(olen)
+    st = lib.dv_obs_init(core.obs, core.cm, noise, _core.ptr(buf), olen)
+    if st < 0:
+        raise _refused(m, "dv_obs_init (Kalman gain)", st, core.dt)
+    n = u.size
+    meas = np.full((n, len(names)), np.nan)
+    for j, c in enumerate(names):
+        if c in y:
+            o = m.outputs[c]
+            meas[:, j] = (y[c] - o.offset) / o.gain
+    u = np.ascontiguousarray(u, dtype=np.float64)
+    pred = np.zeros((n, len(names)))
+    st = lib.dv_obs_update_block(core.obs, _core.ptr(u), _core.ptr(meas), n, _core.ptr(pred),
+                                 ffi.NULL)
+    if st < 0 and st != lib.DV_ENUMERIC:
+        _core.check(st, "dv_obs_update_block")
+    return {c: _sensor(np.ascontiguousarray(pred[:, j]), m.outputs[c])
+            for j, c in enumerate(names)}
+
+
 def free_response(m: Model, fs_hz: float, n: int) -> np.ndarray:
     """What the channels read of the linear part's free motion from each unit initial state
     (displacements, then velocities; relative to the ground for a ground input), no input:

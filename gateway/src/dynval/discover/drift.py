@@ -1,0 +1,69 @@
+"""Models whose open-loop simulation drifts: a rigid-body mode (a carriage on a guide, a
+structure on rails) integrates every small force error into a displacement that grows without
+bound, far beyond the effect sought. For such a model the residuals are the one-step-ahead
+prediction errors of the core's observer with its steady-state Kalman gain: before each
+sample the state is corrected by the measurements so far, so the drift is held by the data
+while the model's dynamics over a sample interval, where the effect lives, stay in the error.
+
+Chosen per model: the observer is used when the model has a mode below RIGID_FRACTION of the
+input band's lower edge and its open-loop prediction is worse than predicting zero (NRMSE > 1)
+on some channel of the declared model. The Kalman gain's noise model: a white force of
+Q_REL x the input's force RMS at each DOF (small: the observer follows the drift, not the
+dynamics; with a shake table the input's force is m_j a_g) and measurement noise of R_REL x
+each channel's RMS. A model whose drift no sensor observes (a free rigid-body mode seen only
+through accelerations) makes the core refuse the gain: it stays open loop, with a note.
+"""
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from dynval import model as mdl
+from dynval.discover.residual import ErrorTable, Observer, TestData
+from dynval.errors import ConfigError
+
+log = logging.getLogger(__name__)
+
+RIGID_FRACTION = 0.05  # a mode below this x the input band's lower edge is rigid-body-like
+Q_REL = 1e-4  # force noise at each DOF, relative to the input's force RMS
+R_REL = 0.01  # measurement noise, relative to each channel's RMS
+
+
+def drifts(m: mdl.Model, table: ErrorTable, names: Sequence[str], chans: Sequence[str],
+           scales: dict[str, float], band_hz: tuple[float, float]) -> float | None:
+    """The worst open-loop NRMSE when the model is one that drifts (else None)."""
+    f = mdl.natural_frequencies(m)
+    if not np.any(f < RIGID_FRACTION * max(band_hz[0], 1e-3)):
+        return None
+    pooled = table.pooled(names, chans)
+    worst = max(pooled[c] / scales[c] for c in chans)
+    return worst if math.isfinite(worst) and worst > 1.0 else None
+
+
+def observer_for(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
+                 scales: dict[str, float]) -> Observer:
+    u = np.concatenate([t.u for t in tests])
+    if m.input.kind == "force":
+        q = [(Q_REL * float(np.std(u))) ** 2] * m.n_dof
+    else:  # a ground motion's force on each DOF: m_j x its acceleration scale
+        q = [(Q_REL * mj * float(np.std(u))) ** 2 for mj in m.masses_kg]
+    r = {c: (R_REL * scales[c]) ** 2 for c in chans}
+    return Observer(tuple(q), r)
+
+
+def apply(m: mdl.Model, tests: Sequence[TestData], obs: Observer) -> bool:
+    """Switch the tests to observer predictions; False when the core refuses the gain (the
+    tests stay open loop)."""
+    try:
+        mdl.predict_observed(m, tests[0].u[:16], {k: v[:16] for k, v in tests[0].y.items()},
+                             tests[0].fs_hz, obs.q_force_n2, obs.r_meas)
+    except ConfigError as exc:
+        log.warning("the model drifts but no observer can hold it: %s", exc)
+        return False
+    for t in tests:
+        t.observer = obs
+        t.start = None  # the observer finds the state itself
+    return True
