@@ -196,11 +196,39 @@ def _validate_mahalanobis() -> Any:
         return None
 
 
-def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = None,
-             on_progress: Callable[[str], None] | None = None) -> DiscoverResult:
-    """Run the loop on a declared model and measured tests."""
-    o = opts or Options()
-    t_start = time.perf_counter()
+@dataclass
+class _Session:
+    """What every stage of one discover run reads: the tests and their split, the channels
+    and their scales, the input band, the model's modes and the options."""
+
+    o: Options
+    tests: list[rs.TestData]
+    chans: list[str]
+    scales: dict[str, float]
+    fit_t: list[rs.TestData]
+    held_t: list[rs.TestData]
+    band: tuple[float, float]
+    modes_hz: list[float]
+    settle: int
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def evals(self) -> list[rs.TestData]:
+        return [*self.fit_t, *self.held_t]  # every test once, or every test's two views
+
+    @property
+    def fit_names(self) -> list[str]:
+        return [t.name for t in self.fit_t]
+
+    @property
+    def held_names(self) -> list[str]:
+        return [t.name for t in self.held_t]
+
+    def table(self, m: mdl.Model) -> tuple[rs.ErrorTable, dict[str, dict[str, np.ndarray]]]:
+        return rs.error_table(m, self.evals, self.chans, self.scales)
+
+
+def _session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> _Session:
     tests = rs.prepare(m, recs)
     chans = rs.common_channels(m, tests)
     if not chans:
@@ -208,143 +236,172 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
     fs_set = {round(t.fs_hz, 6) for t in tests}
     if len(fs_set) != 1:
         raise ConfigError(f"the tests have different sample rates: {sorted(fs_set)}")
-    notes: list[str] = []
-    scales = rs.channel_scales(tests, chans)
     fit_t, held_t, how = split(tests)
-    notes.append(how)
-    fit_names = [t.name for t in fit_t]
-    held_names = [t.name for t in held_t]
-    all_names = fit_names + held_names
-    evals = [*fit_t, *held_t]  # every test once, or every test's two views
     band = tr.input_band(tests)
     modes_hz = [float(f) for f in mdl.natural_frequencies(m)]
     settle = int(_settle_s([f for f in modes_hz if f > 0.05 * band[0]]) * tests[0].fs_hz)
-    notes += initial.apply(m, evals, chans, scales, settle)
+    return _Session(o, tests, chans, rs.channel_scales(tests, chans), fit_t, held_t, band,
+                    modes_hz, settle, [how])
 
-    before, res_before = rs.error_table(m, evals, chans, scales)
+
+def _open_loop_or_observer(s: _Session, m: mdl.Model, before: rs.ErrorTable
+                           ) -> tuple[str, dict[str, float]]:
+    """Switch the tests to the observer's predictions when the model drifts (drift.py):
+    ("observer", the open-loop held-out RMSE) or ("open loop", {})."""
+    worst = dr.drifts(m, before, s.fit_names + s.held_names, s.chans, s.scales, s.band)
+    if worst is None:
+        return "open loop", {}
+    open_loop = before.pooled(s.held_names, s.chans)
+    if not dr.apply(m, s.evals, dr.observer_for(m, s.evals, s.chans, s.scales)):
+        s.notes.append(f"the open-loop simulation drifts (NRMSE up to {worst:.3g}) and the "
+                       "core refused an observer (no sensor sees the drift): the errors are "
+                       "open loop and may be dominated by the drift")
+        return "open loop", {}
+    s.notes.append(
+        f"the open-loop simulation drifts (a rigid-body mode; NRMSE up to {worst:.3g}, worse "
+        "than predicting zero): every error here is the one-step-ahead prediction error of "
+        "the core's observer with its steady-state Kalman gain, which holds the drift by the "
+        "measurements while the model's dynamics over a sample stay in the error; the "
+        "open-loop held-out RMSE is in open_loop_before")
+    return "observer", open_loop
+
+
+def _calibrate_uncertain(s: _Session, m: mdl.Model, before: rs.ErrorTable
+                         ) -> tuple[mdl.Model, rs.ErrorTable, dict[str, Any]]:
+    """Calibrate the declared uncertain parameters first, so that a plain calibration error
+    is not taken for a missing effect (kept only if the held-out tests improve)."""
+    o = s.o
+    cal = ft.fit(m, fx.NONE.candidates(m)[0], [], s.fit_t, s.chans, s.scales, o.max_nfev,
+                 o.uncertain)
+    tab, _ = s.table(cal.model)
+    pm = m.parameters()
+    held_before = before.total(s.held_names)
+    calibration: dict[str, Any] = {
+        "parameters": {n.split(" ")[0]: {"declared": pm[n.split(" ")[0]], "value": v,
+                                         "uncertainty": sg}
+                       for n, v, sg in zip(cal.names, cal.values, cal.sigma, strict=True)},
+        "held_out_gain": 1.0 - tab.total(s.held_names) / held_before if held_before > 0
+        else 0.0}
+    calibration["accepted"] = bool(calibration["held_out_gain"] > 0)
+    log.info("calibrated the uncertain parameters %s: held-out gain %.3f (%s)",
+             ", ".join(o.uncertain), calibration["held_out_gain"],
+             "kept" if calibration["accepted"] else "rejected")
+    if calibration["accepted"]:
+        return cal.model, tab, calibration
+    s.notes.append("calibrating the uncertain parameters alone made the held-out tests worse: "
+                   "the declared values are kept (they are still re-adjusted jointly with "
+                   "each candidate effect)")
+    return m, before, calibration
+
+
+def _trace(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
+           noise: dict[str, float]) -> Round:
+    """One round's residual traits and the evidence of every candidate."""
+    fs = s.tests[0].fs_hz
+    # significance over every test (or block): a residual only the held-out tests show is
+    # still a residual the model leaves
+    ratio = _ratio(cur_table, s.fit_names + s.held_names, s.chans, noise)
+    _, res_cur = rs.error_table(cur, s.fit_t, s.chans, s.scales)
+    evs = [tr.events(r[c], fs) for r in res_cur.values() for c in s.chans]
+    sps = [tr.spectrum(r[c], fs, s.modes_hz, s.band) for r in res_cur.values() for c in s.chans]
+    view = (tr.force_view(cur, s.fit_t) or tr.output_view(cur, s.fit_t, s.chans, s.scales)
+            or tr.reaction_view(cur, s.fit_t))
+    cands = fx.catalogue(cur, quiet=rnd > 1)
+    if view is not None:
+        evidence = tr.score(view, cands)
+    else:
+        s.notes.append("no evidence view for this model (it needs an accelerometer on every "
+                       "DOF, or the model's output view, or a reaction output): every "
+                       "candidate is fitted instead")
+        evidence = [tr.Evidence(c, 0.0, 0.0) for c in cands]
+    evidence = _direct_evidence(evidence, list(res_cur.values()))
+    # "no effect": the share of the residual energy the noise floor explains
+    noise_share = float(np.mean([min(1.0, 1.0 / max(r, 1e-12) ** 2) for r in ratio.values()]))
+    evidence.append(tr.Evidence(fx.NONE.candidates(cur)[0], noise_share, 0.0))
+    evidence.sort(key=lambda e: -e.r2)
+    return Round(rnd, ratio, tr.describe(evs, sps), evidence, [], None, "", view)
+
+
+def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
+          accepted: set[str]) -> list[tr.Evidence]:
+    """The candidates worth fitting this round."""
+    pool = [e for e in rd.evidence if e.cand.available and e.cand.type != "none"
+            and _key(e.cand) not in accepted]
+    top_e = rd.evidence[0]
+    if not top_e.cand.available and top_e.r2 > 0.2:
+        msg = (f"the strongest evidence ({top_e.r2:.2f}) points to '{top_e.cand.label}', an "
+               f"effect this build's C model cannot represent: {top_e.cand.note}")
+        log.warning(msg)
+        s.notes.append(msg)
+    if rd.view is None:
+        return pool
+    top = max((e.r2 for e in pool), default=0.0)
+    chosen = _diverse([e for e in pool if e.r2 >= s.o.evidence_cut * top], s.o.top_k)
+    if rd.view.propagate is not None:
+        # the output view's evidence is first order: a linear change that shifts a resonance
+        # by more than its bandwidth can rank low; screen them all
+        chosen += _screen_linear(cur, [e for e in pool if e not in chosen], s.fit_t, s.chans,
+                                 s.scales, cur_table.total(s.fit_names))
+    return chosen
+
+
+def _best(s: _Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model,
+          cur_table: rs.ErrorTable) -> dict[str, Any] | None:
+    """Fit and judge the pool; the accepted fit with the largest held-out gain."""
+    judge = _Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band)
+    best: dict[str, Any] | None = None
+    for e in pool:
+        info = judge.candidate(e)
+        if info is None:
+            continue
+        rd.fits.append(info)
+        log.info("round %d: %s: held-out gain %.3f, worst test %+.3f, dBIC %.1f -> %s",
+                 rd.index, info["candidate"].label, info["held_gain"],
+                 info["held_worst_test_change"], info["delta_bic"],
+                 "accept" if info["accepted"] else "reject")
+        if info["accepted"] and (best is None or info["held_gain"] > best["held_gain"]):
+            best = info
+    return best
+
+
+def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = None,
+             on_progress: Callable[[str], None] | None = None) -> DiscoverResult:
+    """Run the loop on a declared model and measured tests."""
+    o = opts or Options()
+    t_start = time.perf_counter()
+    s = _session(m, recs, o)
+    s.notes += initial.apply(m, s.evals, s.chans, s.scales, s.settle)
+    before, res_before = s.table(m)
     if not res_before:
         raise ConfigError("the declared model cannot be simulated for these tests")
-    prediction = "open loop"
-    open_loop_before: dict[str, float] = {}
-    worst = dr.drifts(m, before, all_names, chans, scales, band)
-    if worst is not None:
-        open_loop_before = before.pooled(held_names, chans)
-        if dr.apply(m, evals, dr.observer_for(m, evals, chans, scales)):
-            prediction = "observer"
-            notes.append(
-                f"the open-loop simulation drifts (a rigid-body mode; NRMSE up to {worst:.3g}, "
-                "worse than predicting zero): every error here is the one-step-ahead "
-                "prediction error of the core's observer with its steady-state Kalman gain, "
-                "which holds the drift by the measurements while the model's dynamics over a "
-                "sample stay in the error; the open-loop held-out RMSE is in open_loop_before")
-            before, res_before = rs.error_table(m, evals, chans, scales)
-        else:
-            notes.append(f"the open-loop simulation drifts (NRMSE up to {worst:.3g}) and the "
-                         "core refused an observer (no sensor sees the drift): the errors are "
-                         "open loop and may be dominated by the drift")
-    fs = tests[0].fs_hz
+    prediction, open_loop_before = _open_loop_or_observer(s, m, before)
+    if prediction == "observer":
+        before, res_before = s.table(m)
     # the noise floor from each record once (a test's two views share one residual record)
-    once = {str(id(t.u)): res_before[t.name] for t in evals if t.name in res_before}
-    floors = nz.estimate(tests, chans, once, band, _settle_s(modes_hz), o.noise)
+    once = {str(id(t.u)): res_before[t.name] for t in s.evals if t.name in res_before}
+    floors = nz.estimate(s.tests, s.chans, once, s.band, _settle_s(s.modes_hz), o.noise)
     noise = {c: f.rms for c, f in floors.items()}
-    cur = m
-    cur_table = before
-    calibration: dict[str, Any] = {}
-    if o.uncertain:
-        # calibrate the declared uncertain parameters first, so that a plain calibration
-        # error is not taken for a missing effect
-        cal = ft.fit(m, fx.NONE.candidates(m)[0], [], fit_t, chans, scales, o.max_nfev,
-                     o.uncertain)
-        tab, _ = rs.error_table(cal.model, evals, chans, scales)
-        pm = m.parameters()
-        calibration = {
-            "parameters": {n.split(" ")[0]: {"declared": pm[n.split(" ")[0]], "value": v,
-                                             "uncertainty": s}
-                           for n, v, s in zip(cal.names, cal.values, cal.sigma, strict=True)},
-            "held_out_gain": 1.0 - tab.total(held_names) / before.total(held_names)
-            if before.total(held_names) > 0 else 0.0}
-        calibration["accepted"] = bool(calibration["held_out_gain"] > 0)
-        if calibration["accepted"]:
-            cur = cal.model
-            cur_table = tab
-        else:
-            notes.append("calibrating the uncertain parameters alone made the held-out tests "
-                         "worse: the declared values are kept (they are still re-adjusted "
-                         "jointly with each candidate effect)")
-        log.info("calibrated the uncertain parameters %s: held-out gain %.3f (%s)",
-                 ", ".join(o.uncertain), calibration["held_out_gain"],
-                 "kept" if calibration["accepted"] else "rejected")
+    cur, cur_table, calibration = (_calibrate_uncertain(s, m, before) if o.uncertain
+                                   else (m, before, {}))
     rounds: list[Round] = []
     effects: list[dict[str, Any]] = []
-    accepted_keys: set[str] = set()
+    accepted: set[str] = set()
     timing: dict[str, float] = {}
     for rnd in range(1, o.max_effects + 2):
         t0 = time.perf_counter()
-        # significance over every test (or block): a residual only the held-out tests show
-        # is still a residual the model leaves
-        ratio = _ratio(cur_table, all_names, chans, noise)
-        _, res_cur = rs.error_table(cur, fit_t, chans, scales)
-        evs = [tr.events(r[c], fs) for r in res_cur.values() for c in chans]
-        sps = [tr.spectrum(r[c], fs, modes_hz, band) for r in res_cur.values() for c in chans]
-        traits = tr.describe(evs, sps)
-        view = (tr.force_view(cur, fit_t) or tr.output_view(cur, fit_t, chans, scales)
-                or tr.reaction_view(cur, fit_t))
-        cands = fx.catalogue(cur, quiet=rnd > 1)
-        if view is not None:
-            evidence = tr.score(view, cands)
-        else:
-            notes.append("no evidence view for this model (it needs an accelerometer on "
-                         "every DOF, or the model's output view, or a reaction output): every "
-                         "candidate is fitted instead")
-            evidence = [tr.Evidence(c, 0.0, 0.0) for c in cands]
-        evidence = _direct_evidence(evidence, list(res_cur.values()))
-        # "no effect": the share of the residual energy the noise floor explains
-        noise_share = float(np.mean([min(1.0, 1.0 / max(r, 1e-12) ** 2)
-                                     for r in ratio.values()]))
-        evidence.append(tr.Evidence(fx.NONE.candidates(cur)[0], noise_share, 0.0))
-        evidence.sort(key=lambda e: -e.r2)
-        significant = any(r > o.significance_ratio for r in ratio.values())
-        rd = Round(rnd, ratio, traits, evidence, [], None, "", view)
+        rd = _trace(s, cur, cur_table, rnd, noise)
         rounds.append(rd)
         if on_progress:
             on_progress(f"round {rnd}")
-        if not significant:
+        if not any(r > o.significance_ratio for r in rd.ratio.values()):
             rd.decision = (f"residual at the noise floor (RMSE/noise <= "
                            f"{o.significance_ratio:g} on every channel): stop")
             break
         if len(effects) >= o.max_effects:
             rd.decision = f"max_effects = {o.max_effects} reached: stop"
             break
-        pool = [e for e in evidence if e.cand.available and e.cand.type != "none"
-                and _key(e.cand) not in accepted_keys]
-        for e in evidence:
-            if not e.cand.available and e.r2 > 0.2 and e is evidence[0]:
-                msg = (f"the strongest evidence ({e.r2:.2f}) points to '{e.cand.label}', an "
-                       f"effect this build's C model cannot represent: {e.cand.note}")
-                log.warning(msg)
-                notes.append(msg)
-        if view is not None:
-            top = max((e.r2 for e in pool), default=0.0)
-            full = pool
-            pool = _diverse([e for e in pool if e.r2 >= o.evidence_cut * top], o.top_k)
-            if view.propagate is not None:
-                # the output view's evidence is first order: a linear change that shifts a
-                # resonance by more than its bandwidth can rank low; screen them all
-                pool += _screen_linear(cur, [e for e in full if e not in pool], fit_t, chans,
-                                       scales, cur_table.total(fit_names))
-        judge = _Judge(cur, cur_table, fit_t, held_t, chans, scales, o, band)
-        best: dict[str, Any] | None = None
-        for e in pool:
-            info = judge.candidate(e)
-            if info is None:
-                continue
-            rd.fits.append(info)
-            log.info("round %d: %s: held-out gain %.3f, worst test %+.3f, dBIC %.1f -> %s",
-                     rnd, info["candidate"].label, info["held_gain"],
-                     info["held_worst_test_change"], info["delta_bic"],
-                     "accept" if info["accepted"] else "reject")
-            if info["accepted"] and (best is None or info["held_gain"] > best["held_gain"]):
-                best = info
+        pool = _pool(s, rd, cur, cur_table, accepted)
+        best = _best(s, rd, pool, cur, cur_table)
         timing[f"round_{rnd}"] = time.perf_counter() - t0
         if best is None:
             rd.decision = ("no candidate improved the held-out tests significantly: stop"
@@ -355,19 +412,19 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
         effects.append(_effect_entry(res_b, best, cur))
         cur = res_b.model
         if prediction == "open loop":  # the new model's initial states
-            initial.apply(cur, evals, chans, scales, settle)
-        cur_table, _ = rs.error_table(cur, evals, chans, scales)
-        accepted_keys.add(_key(res_b.cand))
+            initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
+        cur_table, _ = s.table(cur)
+        accepted.add(_key(res_b.cand))
         rd.decision = f"accepted {res_b.cand.label}"
-    after, res_after = rs.error_table(cur, evals, chans, scales)
-    left = _ratio(after, all_names, chans, noise)
-    unexp = (ux.characterise(evals, res_after, chans, noise, modes_hz)
+    after, res_after = s.table(cur)
+    left = _ratio(after, s.fit_names + s.held_names, s.chans, noise)
+    unexp = (ux.characterise(s.evals, res_after, s.chans, noise, s.modes_hz)
              if any(r > o.significance_ratio for r in left.values()) else {})
-    mah = _mahal(m, cur, tests, chans, band, noise)
+    mah = _mahal(m, cur, s.tests, s.chans, s.band, noise)
     timing["total"] = time.perf_counter() - t_start
-    return DiscoverResult(m, cur, evals, fit_names, held_names, chans, scales, noise, before,
-                          after, res_before, res_after, rounds, effects, mah, band, modes_hz,
-                          notes, timing, calibration, floors, unexp, prediction,
+    return DiscoverResult(m, cur, s.evals, s.fit_names, s.held_names, s.chans, s.scales, noise,
+                          before, after, res_before, res_after, rounds, effects, mah, s.band,
+                          s.modes_hz, s.notes, timing, calibration, floors, unexp, prediction,
                           open_loop_before)
 
 
