@@ -198,3 +198,26 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
     units = [p.unit for p in ps_all]
     return FitResult(cand, names, units, vals, sig, mm, nsse, int(sol.nfev), bool(sol.success),
                      str(sol.message), factor)
+
+
+def scatter(m: mdl.Model, res: FitResult, tests: Sequence[TestData], chans: Sequence[str],
+            scales: dict[str, float], uncertain: Sequence[str] = (), max_nfev: int = 15
+            ) -> list[float]:
+    """Model-form uncertainty from the test-to-test scatter: the fit of ``res`` repeated on
+    each test alone (from its joint optimum), and the standard error of their mean per
+    parameter, std / sqrt(k) (NaN with fewer than 2 tests). A model of the right form scatters
+    as its noise says; a wrong form scatters more, and its Gauss-Newton sigma alone (which
+    assumes the form right) would be far too small."""
+    npar = len(res.values) - len(uncertain)
+    per: list[list[float]] = []
+    for t in tests:
+        try:
+            one = fit(m, res.cand, res.values[:npar], [t], chans, scales, max_nfev, uncertain)
+        except ConfigError as exc:
+            log.debug("%s on %s alone: %s", res.cand.label, t.name, exc)
+            continue
+        per.append(one.values)
+    if len(per) < 2:
+        return [math.nan] * len(res.values)
+    v = np.array(per)
+    return [float(x) for x in v.std(axis=0, ddof=1) / math.sqrt(v.shape[0])]

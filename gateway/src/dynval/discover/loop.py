@@ -409,7 +409,8 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
             break
         rd.accepted = best
         res_b: ft.FitResult = best["fit"]
-        effects.append(_effect_entry(res_b, best, cur))
+        spread = ft.scatter(cur, res_b, s.fit_t, s.chans, s.scales, best["readjusted"])
+        effects.append(_effect_entry(res_b, best, cur, spread))
         cur = res_b.model
         if prediction == "open loop":  # the new model's initial states
             initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
@@ -498,6 +499,7 @@ class _Judge:
                 - _bic(nsse_fit_before, n_eff, ref_p))
         ok = gain >= self.o.min_gain and worst <= self.o.max_worse and dbic < 0
         return {"candidate": cand, "evidence": e.r2, "fit": res, "held_gain": gain,
+                "readjusted": names,
                 "held_worst_test_change": worst, "delta_bic": dbic, "accepted": ok,
                 "reference": ("the current model with " + ", ".join(names) +
                               " re-adjusted, no effect") if ref_p else "the current model",
@@ -563,21 +565,26 @@ def _diverse(pool: list[tr.Evidence], k: int) -> list[tr.Evidence]:
     return [e for e in out if e.r2 > 0.0] or out[:1]
 
 
-def _effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model
-                  ) -> dict[str, Any]:
+def _effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
+                  spread: Sequence[float]) -> dict[str, Any]:
     """The accepted effect's JSON entry: its parameters, and each declared parameter that was
-    re-adjusted with it (value before and after, relative change)."""
+    re-adjusted with it (value before and after, relative change). Each uncertainty is the
+    Gauss-Newton sigma and the test-to-test scatter's standard error combined (fit.scatter:
+    the model-form part the first misses)."""
     et = fx.by_type(res.cand.type)
     params, readjusted = {}, {}
     declared = before.parameters()
-    for n, v, s, u in zip(res.names, res.values, res.sigma, res.units, strict=True):
+    for n, v, s, sc, u in zip(res.names, res.values, res.sigma, spread, res.units,
+                              strict=True):
+        unc = {"uncertainty": math.hypot(s, sc) if math.isfinite(sc) else s,
+               "uncertainty_fit": s, "uncertainty_scatter": sc, "unit": u}
         if n.endswith(ft.READJUSTED):
             name = n[: -len(ft.READJUSTED)]
             was = float(declared[name])
-            readjusted[name] = {"before": was, "value": v, "uncertainty": s, "unit": u,
+            readjusted[name] = {"before": was, "value": v, **unc,
                                 "change_rel": (v - was) / was if was else math.nan}
         else:
-            params[n] = {"value": v, "uncertainty": s, "unit": u}
+            params[n] = {"value": v, **unc}
     return {"type": res.cand.type, "location": dict(res.cand.location),
             "label": res.cand.label, "law": et.law, "parameters": params,
             "readjusted": readjusted, "reference": info["reference"],
