@@ -264,26 +264,55 @@ def figures(r: DiscoverResult) -> dict[str, str]:
     return out
 
 
-def write_html(r: DiscoverResult, doc: dict[str, Any], path: Path | str) -> None:
-    figs = figures(r)
-    e = html.escape
-    rows = []
-    for c in r.chans:
-        b = doc["rmse_before"]
-        a = doc["rmse_after"]
+def _g(x: Any) -> str:
+    return "-" if x is None else f"{x:.4g}"
 
-        def g(x: Any) -> str:
-            return "-" if x is None else f"{x:.4g}"
-        rows.append(f"<tr><td>{e(c)}</td><td>{g(b['fitting'][c])}</td>"
-                    f"<td>{g(a['fitting'][c])}</td><td>{g(b['held_out'][c])}</td>"
-                    f"<td>{g(a['held_out'][c])}</td><td>{g(doc['noise_floor'][c])}</td></tr>")
-    eff = []
+
+def _html_effects(doc: dict[str, Any]) -> str:
+    """Each accepted effect: its parameters, the declared parameters re-adjusted with it."""
+    e = html.escape
+    out = []
     for x in doc["effects"]:
         ps = ", ".join(f"{k} = {v['value']:.4g} &plusmn; {v['uncertainty']:.2g} {e(v['unit'])}"
                        for k, v in x["parameters"].items())
-        eff.append(f"<li><b>{e(x['label'])}</b>: {ps} (held-out gain "
-                   f"{100 * x['held_out_gain']:.1f} %, &Delta;BIC {x['delta_bic']:.0f})<br>"
-                   f"<small>{e(x['law'])}</small></li>")
+        ra = ", ".join(f"{e(k)} {v['before']:.4g} &rarr; {v['value']:.4g} "
+                       f"({100 * v['change_rel']:+.1f} %)"
+                       for k, v in x.get("readjusted", {}).items())
+        out.append(f"<li><b>{e(x['label'])}</b>: {ps} (held-out gain "
+                   f"{100 * x['held_out_gain']:.1f} %, &Delta;BIC {x['delta_bic']:.0f})"
+                   + (f"<br>re-adjusted with it: {ra}" if ra else "")
+                   + f"<br><small>{e(x['law'])}</small></li>")
+    return "".join(out)
+
+
+def _html_tests(r: DiscoverResult, doc: dict[str, Any]) -> str:
+    views = any(t.mask is not None for t in r.tests)
+    n = len({id(t.u) for t in r.tests})
+    split = (f"{n} test(s), cross-validated over time ({len(r.fit_names)} fitting and "
+             f"{len(r.held_names)} held-out views)" if views else
+             f"{n} tests ({len(r.fit_names)} fitting, {len(r.held_names)} held-out)")
+    pred = ("errors are the observer's one-step-ahead predictions (the model drifts open "
+            "loop)" if doc.get("prediction") == "observer" else "errors are open-loop")
+    return f"{split}; {pred}"
+
+
+def _html_mahal(mah: dict[str, Any]) -> str:
+    if mah.get("note"):
+        return f"Mahalanobis distance of the features: {html.escape(str(mah['note']))}."
+    return ("Mahalanobis distance of the simulated features from the measured ones: before "
+            f"{_g(mah.get('before'))}, after {_g(mah.get('after'))} (the measured tests' own "
+            f"leave-one-out distance: {_g(mah.get('measured_reference'))}).")
+
+
+def write_html(r: DiscoverResult, doc: dict[str, Any], path: Path | str) -> None:
+    figs = figures(r)
+    e = html.escape
+    b, a = doc["rmse_before"], doc["rmse_after"]
+    rows = [f"<tr><td>{e(c)}</td><td>{_g(b['fitting'][c])}</td><td>{_g(a['fitting'][c])}</td>"
+            f"<td>{_g(b['held_out'][c])}</td><td>{_g(a['held_out'][c])}</td>"
+            f"<td>{_g(doc['noise_floor'][c])}</td>"
+            f"<td>{e(doc['noise_method'].get(c, {}).get('method', ''))}</td></tr>"
+            for c in r.chans]
     cands = []
     for rd in doc["rounds"]:
         for cd in rd["candidates"][:12]:
@@ -296,7 +325,6 @@ def write_html(r: DiscoverResult, doc: dict[str, Any], path: Path | str) -> None
                          f"<td>{'yes' if cd['available'] else 'no'}</td><td>{e(fs_)}</td></tr>")
     imgs = "".join(f"<h3>{e(k)}</h3><img src=\"data:image/png;base64,{v}\">"
                    for k, v in figs.items())
-    mah = doc["mahalanobis"]
     notes = "".join(f"<li>{e(n)}</li>" for n in doc["notes"])
     page = f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>dynval discover</title>
@@ -304,17 +332,14 @@ def write_html(r: DiscoverResult, doc: dict[str, Any], path: Path | str) -> None
 table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:2px 6px;font-size:13px}}
 img{{max-width:100%}}</style></head><body>
 <h1>dynval discover</h1>
-<p>Model: <code>{e(doc['model'])}</code>; tests: {len(r.tests)} ({len(r.fit_names)} fitting,
-{len(r.held_names)} held-out).</p>
-<h2>Verdict</h2><p><b>{e(doc['verdict'])}</b></p><ul>{''.join(eff)}</ul>
+<p>Model: <code>{e(doc['model'])}</code>; {e(_html_tests(r, doc))}.</p>
+<h2>Verdict</h2><p><b>{e(doc['verdict'])}</b></p><ul>{_html_effects(doc)}</ul>
 <p>Held-out normalised SSE reduction: {100 * (doc['held_out_reduction'] or 0):.1f} %.
-Mahalanobis distance of the simulated features from the measured ones: before
-{mah.get('before') or float('nan'):.3g}, after {mah.get('after') or float('nan'):.3g}
-(the measured tests' own leave-one-out distance: {mah.get('measured_reference') or
-float('nan'):.3g}).</p>
+{_html_mahal(doc['mahalanobis'])}</p>
 <h2>RMSE per channel</h2>
 <table><tr><th>channel</th><th>fitting before</th><th>fitting after</th>
-<th>held-out before</th><th>held-out after</th><th>noise floor</th></tr>{''.join(rows)}</table>
+<th>held-out before</th><th>held-out after</th><th>noise floor</th><th>noise from</th></tr>
+{''.join(rows)}</table>
 <h2>Candidates</h2>
 <table><tr><th>round</th><th>rank</th><th>candidate</th><th>evidence</th><th>available</th>
 <th>fit</th></tr>{''.join(cands)}</table>
