@@ -63,3 +63,25 @@ def test_best_linear_declared_model_gets_the_right_effect(kind: str, seed: int) 
     truth = dataclasses.replace(m0, elements=(el,))
     ideal, _ = rs.error_table(truth, r.tests, r.chans, r.scales)
     assert r.after.total(r.held_names) < 1.3 * ideal.total(r.held_names)
+
+
+@pytest.mark.parametrize(("story", "loss", "seed"), [(3, 0.15, 1), (4, 0.08, 2)])
+def test_stiffness_loss_with_the_physical_damping_fixed(story: int, loss: float,
+                                                       seed: int) -> None:
+    """Item 6: a real structure's damping matrix does not follow its modes when a story
+    softens. The truth keeps the declared C; with the damping re-adjusted jointly the one
+    stiffness change is found within 1.3 x the true model's held-out error (fixed damping
+    added a spurious v|v| damper or friction, 1.10-1.62 x)."""
+    m0 = declared()
+    c0 = mdl.linear(m0).c
+    truth = dataclasses.replace(m0.with_params({f"k{story}": KS[story - 1] * (1 - loss)}),
+                                damping=mdl.Damping("matrix",
+                                                    c_n_s_per_m=tuple(tuple(r) for r in c0)))
+    recs = gen.generate(truth, gen.Truth(label="kloss"), n_tests=6, seed=seed)
+    r = loop.discover(m0, recs)
+    assert [(e["type"], e["location"]["story"]) for e in r.effects] == [
+        ("stiffness_change", story)]
+    assert r.effects[0]["parameters"]["dk_n_per_m"]["value"] == pytest.approx(
+        -loss * KS[story - 1], rel=0.05)
+    ideal, _ = rs.error_table(truth, r.tests, r.chans, r.scales)
+    assert r.after.total(r.held_names) < 1.3 * ideal.total(r.held_names)
