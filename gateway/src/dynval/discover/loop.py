@@ -18,6 +18,7 @@ Decisions (all documented in gateway/docs/discover-schema.md):
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import logging
 import math
@@ -294,6 +295,44 @@ def _calibrate_uncertain(s: _Session, m: mdl.Model, before: rs.ErrorTable
     return m, before, calibration
 
 
+OFFSET_SHARE = 0.05  # a channel's constant residual must hold this share of its energy
+
+
+def _sensor_offsets(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
+                    ) -> tuple[mdl.Model, rs.ErrorTable, dict[str, Any] | None]:
+    """Every channel's DC offset at once, before the physical effects: the mean of its
+    residual over the fitting tests (the least-squares offset), kept on the channels where
+    it holds OFFSET_SHARE of the residual energy and when the held-out error drops. One offset
+    per channel is a calibration of the DAQ, not one effect each: fitted one at a time they
+    would crowd out the physics (and max_effects)."""
+    _, res = rs.error_table(cur, s.fit_t, s.chans, s.scales)
+    outs = dict(cur.outputs)
+    params: dict[str, Any] = {}
+    for c in s.chans:
+        r = np.concatenate([t.counted(res[t.name][c]) for t in s.fit_t if t.name in res])
+        mean, ms = float(np.mean(r)), float(np.mean(r * r))
+        if ms > 0 and mean * mean / ms >= OFFSET_SHARE:
+            sigma = float(np.std(r)) / math.sqrt(r.size) * math.sqrt(ft.n_eff_factor(r))
+            outs[c] = dataclasses.replace(outs[c], offset=outs[c].offset + mean)
+            params[f"offset {c}"] = {"value": outs[c].offset, "uncertainty": sigma,
+                                     "unit": "channel unit"}
+    if not params:
+        return cur, cur_table, None
+    m1 = dataclasses.replace(cur, outputs=outs)
+    tab, _ = s.table(m1)
+    held0, held1 = cur_table.total(s.held_names), tab.total(s.held_names)
+    if not held1 < held0:
+        return cur, cur_table, None
+    names = [k.split(" ", 1)[1] for k in params]
+    log.info("sensor offsets on %s: held-out SSE %.3g -> %.3g", ", ".join(names), held0, held1)
+    entry = {"type": "sensor_offset", "location": {"channels": names},
+             "label": "sensor offsets, channels " + ", ".join(names),
+             "law": fx.by_type("sensor_offset").law, "parameters": params, "readjusted": {},
+             "reference": "the current model", "evidence": 1.0,
+             "held_out_gain": 1.0 - held1 / held0 if held0 > 0 else 0.0, "delta_bic": math.nan}
+    return m1, tab, entry
+
+
 def _trace(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
            noise: dict[str, float]) -> Round:
     """One round's residual traits and the evidence of every candidate."""
@@ -385,6 +424,9 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
                                    else (m, before, {}))
     rounds: list[Round] = []
     effects: list[dict[str, Any]] = []
+    cur, cur_table, offsets = _sensor_offsets(s, cur, cur_table)
+    if offsets is not None:
+        effects.append(offsets)
     accepted: set[str] = set()
     timing: dict[str, float] = {}
     for rnd in range(1, o.max_effects + 2):
@@ -397,7 +439,7 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
             rd.decision = (f"residual at the noise floor (RMSE/noise <= "
                            f"{o.significance_ratio:g} on every channel): stop")
             break
-        if len(effects) >= o.max_effects:
+        if len(effects) - (offsets is not None) >= o.max_effects:
             rd.decision = f"max_effects = {o.max_effects} reached: stop"
             break
         pool = _pool(s, rd, cur, cur_table, accepted)

@@ -64,14 +64,17 @@ def estimate(tests: Sequence[Test], chans: Sequence[str],
     ``residuals``: the declared model's residual records (one per test, for method 5);
     ``settle_s``: how long the structure rings after the input stops (method 4)."""
     out: dict[str, Floor] = {}
+    # the input of each residual record, by record (the residuals are keyed by record)
+    by_record = {str(id(t.u)): t.u for t in tests}
     for c in chans:
+        keys = [k for k, r in residuals.items() if c in r]
         if stated and c in stated:
             out[c] = Floor(float(stated[c]), "stated", "given by the user")
             continue
         floor = (from_repeats(tests, c) or from_periods(tests, c)
                  or from_input_off(tests, c, settle_s)
-                 or spectral([r[c] for r in residuals.values() if c in r],
-                             tests[0].fs_hz, band_hz))
+                 or spectral([residuals[k][c] for k in keys], tests[0].fs_hz, band_hz,
+                             [by_record.get(k, tests[0].u) for k in keys]))
         out[c] = floor
         log.info("noise floor of %s: %.4g (%s%s)", c, floor.rms, floor.method,
                  f"; {floor.detail}" if floor.detail else "")
@@ -204,7 +207,37 @@ def out_of_band_power(f: np.ndarray, p: np.ndarray, band_hz: tuple[float, float]
     return float(np.sum(model[1:]) * float(f[1] - f[0]))
 
 
-def spectral(res: Sequence[np.ndarray], fs_hz: float, band_hz: tuple[float, float]) -> Floor:
+MAINS_HZ = (50.0, 60.0)
+LINE_RATIO = 10.0  # a mains line stands this far above the residual's local spectrum
+
+
+def mains_hum(res: Sequence[np.ndarray], inputs: Sequence[np.ndarray], fs_hz: float
+              ) -> tuple[float, list[float]]:
+    """Power (variance) of mains-hum lines in the residuals: narrow peaks at the harmonics of
+    50 or 60 Hz that the input does not have (an electrical pick-up, not the structure's
+    response), and their frequencies. A right model leaves them: they are noise."""
+    power, lines = [], set()
+    for r, u in zip(res, inputs, strict=True):
+        f, p = signal.welch(r, fs=fs_hz, nperseg=min(1024, r.size))
+        _, pu = signal.welch(u, fs=fs_hz, nperseg=min(1024, r.size))
+        df = float(f[1] - f[0])
+        total = 0.0
+        for f0 in MAINS_HZ:
+            for h in range(1, 6):
+                k = int(round(h * f0 / df))
+                if k < 12 or k + 12 >= f.size:
+                    continue
+                side = np.r_[k - 12:k - 2, k + 3:k + 13]
+                base, base_u = float(np.median(p[side])), float(np.median(pu[side]))
+                if p[k] > LINE_RATIO * base and pu[k] < 3 * base_u:
+                    total += float(np.sum(p[k - 2:k + 3]) - 5 * base) * df
+                    lines.add(h * f0)
+        power.append(total)
+    return (float(np.median(power)) if power else 0.0), sorted(lines)
+
+
+def spectral(res: Sequence[np.ndarray], fs_hz: float, band_hz: tuple[float, float],
+             inputs: Sequence[np.ndarray] | None = None) -> Floor:
     """The residual's noise power outside the input band (out_of_band_power), or, when the
     band leaves too little room on either side, the top band's white-equivalent level."""
     oob, tops = [], []
@@ -216,11 +249,14 @@ def spectral(res: Sequence[np.ndarray], fs_hz: float, band_hz: tuple[float, floa
         o = out_of_band_power(f, p, band_hz)
         if o is not None:
             oob.append(o)
+    hum, lines = mains_hum(res, inputs, fs_hz) if inputs is not None else (0.0, [])
+    with_hum = (f"; plus mains hum at {', '.join(f'{x:g}' for x in lines)} Hz"
+                if lines else "")
     if oob and len(oob) == len(res):
-        return Floor(math.sqrt(float(np.median(oob))), "out of band",
+        return Floor(math.sqrt(float(np.median(oob)) + hum), "out of band",
                      "the residual's spectrum outside the input band, across it as a power "
                      "law between its two sides (or the lower side's level where an "
-                     "anti-alias filter rolls the upper side off)")
+                     "anti-alias filter rolls the upper side off)" + with_hum)
     if tops:
         return Floor(math.sqrt(float(np.median(tops))), "top band",
                      "0.45-0.5 fs, white-equivalent: assumes white noise and a steep "
