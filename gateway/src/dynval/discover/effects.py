@@ -81,22 +81,19 @@ class States:
     reaction_only: bool = False  # the missing force is seen only through the reaction
 
 
-def drift(st: States, story: int) -> tuple[np.ndarray, np.ndarray]:
-    """Story drift and drift velocity (X = x_s - x_{s-1})."""
-    s = story - 1
-    if s == 0:
-        if st.xg is not None and st.vg is not None:
-            return st.x[0] - st.xg, st.v[0] - st.vg
-        return st.x[0], st.v[0]
-    return st.x[s] - st.x[s - 1], st.v[s] - st.v[s - 1]
-
-
 def relative(st: States, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
     """X = x_b - x_a and V = v_b - v_a of DOFs a < b (1-based; a = 0: the ground, which moves
-    with a ground-displacement input)."""
-    if a == 0:
-        return drift(st, b) if b == 1 else (st.x[b - 1], st.v[b - 1])
-    return st.x[b - 1] - st.x[a - 1], st.v[b - 1] - st.v[a - 1]
+    with a ground-displacement input, as the core's elements to the ground see it)."""
+    if a > 0:
+        return st.x[b - 1] - st.x[a - 1], st.v[b - 1] - st.v[a - 1]
+    if st.xg is not None and st.vg is not None:
+        return st.x[b - 1] - st.xg, st.v[b - 1] - st.vg
+    return st.x[b - 1], st.v[b - 1]
+
+
+def drift(st: States, story: int) -> tuple[np.ndarray, np.ndarray]:
+    """Story drift and drift velocity (X = x_s - x_{s-1})."""
+    return relative(st, story - 1, story)
 
 
 def pair_basis(st: States, a: int, b: int, g: np.ndarray) -> np.ndarray:

@@ -164,9 +164,8 @@ def _external(m: mdl.Model, t: TestData, mass: np.ndarray, k: np.ndarray, c: np.
         return f, None, None
     if m.input.kind == "ground_acc":
         return -mass[:, None] * u[None, :], None, None
-    ug = hp(t.u)
     vg = hp(np.gradient(t.u) * t.fs_hz)
-    return k.sum(axis=1)[:, None] * ug + c.sum(axis=1)[:, None] * vg, ug, vg
+    return k.sum(axis=1)[:, None] * u + c.sum(axis=1)[:, None] * vg, u, vg
 
 
 def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
