@@ -11,6 +11,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from lanl4dof import KS, declared
 
 from dynval import model as mdl
 from dynval import synth as gen
@@ -19,16 +20,6 @@ from dynval.discover import fit as ft
 from dynval.discover import loop
 from dynval.discover import residual as rs
 from dynval.io.recording import Recording
-
-MASSES = (6.54, 6.66, 6.86, 6.80)
-KS = (10.0, 399790.0, 399790.0, 399790.0)
-ACC = {f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, 5)}
-
-
-def declared() -> mdl.Model:
-    return mdl.Model(masses_kg=MASSES, stiffness_n_per_m=KS,
-                     damping=mdl.Damping("modal", (0.01, 0.05, 0.01, 0.01)),
-                     input=mdl.Input("force", 1, "force_N"), outputs=dict(ACC), fs_hz=640.0)
 
 
 def best_linear(m: mdl.Model, recs: list[Recording]) -> mdl.Model:

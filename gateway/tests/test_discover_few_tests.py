@@ -6,21 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from lanl4dof import declared
 
 from dynval import model as mdl
 from dynval import synth as gen
 from dynval.discover import loop
 from dynval.discover import residual as rs
-
-MASSES = (6.54, 6.66, 6.86, 6.80)
-KS = (10.0, 399790.0, 399790.0, 399790.0)
-ACC = {f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, 5)}
-
-
-def declared() -> mdl.Model:
-    return mdl.Model(masses_kg=MASSES, stiffness_n_per_m=KS,
-                     damping=mdl.Damping("modal", (0.01, 0.05, 0.01, 0.01)),
-                     input=mdl.Input("force", 1, "force_N"), outputs=dict(ACC), fs_hz=640.0)
 
 
 def test_segment_split_views_cover_each_record_once() -> None:

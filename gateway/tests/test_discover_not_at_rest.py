@@ -8,21 +8,14 @@ import dataclasses
 
 import numpy as np
 import pytest
+from lanl4dof import declared
 
 from dynval import model as mdl
 from dynval import synth as gen
 from dynval.discover import loop
 from dynval.io.recording import Recording
 
-ACC = {f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, 5)}
 N = 8192
-
-
-def declared() -> mdl.Model:
-    return mdl.Model(masses_kg=(6.54, 6.66, 6.86, 6.80),
-                     stiffness_n_per_m=(10.0, 399790.0, 399790.0, 399790.0),
-                     damping=mdl.Damping("modal", (0.01, 0.05, 0.01, 0.01)),
-                     input=mdl.Input("force", 1, "force_N"), outputs=dict(ACC), fs_hz=640.0)
 
 
 def cut_from_a_run(truth: gen.Truth, seed: int) -> list[Recording]:

@@ -5,19 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from lanl4dof import ACC, declared
 
 from dynval import model as mdl
 from dynval import synth as gen
 from dynval.discover import loop
-
-ACC = {f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, 5)}
-
-
-def declared() -> mdl.Model:
-    return mdl.Model(masses_kg=(6.54, 6.66, 6.86, 6.80),
-                     stiffness_n_per_m=(10.0, 399790.0, 399790.0, 399790.0),
-                     damping=mdl.Damping("modal", (0.01, 0.05, 0.01, 0.01)),
-                     input=mdl.Input("force", 1, "force_N"), outputs=dict(ACC), fs_hz=640.0)
 
 
 @pytest.mark.parametrize("seed", [101, 102])
