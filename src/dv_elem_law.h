@@ -85,6 +85,8 @@ DV_ELEM_INLINE dv_real_t dv_priv_elem_g(const dv_elem_desc_t *c, dv_real_t x)
         const dv_real_t g = kb / delta * x;
         return g > kb ? kb : (g < -kb ? -kb : g);
     }
+    case DV_ELEM_CONSTANT:
+        return -kb;
     default:
         return dv_priv_gap_g((int)c->side, c->gap_m, delta, kb, x);
     }

@@ -23,11 +23,12 @@ def _with(t: el.ElementType, name: str, v: float) -> el.Element:
 @pytest.mark.parametrize("t", list(el.REGISTRY.values()), ids=list(el.REGISTRY))
 def test_registry_bounds_are_the_core_check(t: el.ElementType) -> None:
     for p in t.params:
-        below = math.nextafter(p.lower, -math.inf)
-        at = p.lower
-        above = math.nextafter(p.lower, math.inf)
-        for v, ok in ((below, False), (at, not p.strict), (above, True), (math.nan, False),
-                      (math.inf, False)):
+        if math.isinf(p.lower):  # any finite value (the constant force, of either sign)
+            cases = [(-1e300, True), (0.0, True), (1e300, True)]
+        else:
+            cases = [(math.nextafter(p.lower, -math.inf), False), (p.lower, not p.strict),
+                     (math.nextafter(p.lower, math.inf), True)]
+        for v, ok in (*cases, (math.nan, False), (math.inf, False), (-math.inf, False)):
             e = _with(t, p.name, v)
             assert p.admits(v) is ok, (p.name, v)
             assert el.core_accepts(e) is ok, (p.name, v)  # dv_elem_check agrees
@@ -37,7 +38,7 @@ def test_registry_bounds_are_the_core_check(t: el.ElementType) -> None:
 
 
 def test_registry_laws_and_arguments_are_the_core_s() -> None:
-    assert [el.REGISTRY[n].law_id for n in el.TYPES] == [0, 1, 2, 3, 4]
+    assert [el.REGISTRY[n].law_id for n in el.TYPES] == [0, 1, 2, 3, 4, 5]
     assert {n for n in el.TYPES if el.REGISTRY[n].on_velocity} == {"friction", "vv_damper"}
     assert el.spec("friction").param("v_eps_m_per_s").unit == "m/s"
     assert el.spec("cubic_spring").param("k3_n_per_m3").field == "kb_n_per_m"
@@ -82,6 +83,8 @@ def test_velocity_laws_and_cubic_are_their_closed_forms() -> None:
                                rtol=1e-14)
     np.testing.assert_allclose(el.force(mdl.CubicSpring(0, 1, 5e12), X), 5e12 * X ** 3,
                                rtol=1e-14)
+    # the constant force pushes DOF b by +F: its restoring force g is -F whatever X
+    np.testing.assert_array_equal(el.force(mdl.ConstantForce(0, 1, -4.5), X), 4.5)
 
 
 def test_stick_slip_is_the_elasto_plastic_loop() -> None:

@@ -22,6 +22,10 @@
  *   stiffness F / z in series with a slider at F = kb_n_per_m (N, >= 0), z = delta_m (m, > 0):
  *   g = clip(g_prev + (F / z) (X - X_prev), -F, F) from the previous evaluation's (X, g).
  *   Without history (dv_elem_force()) its virgin curve clip((F / z) X, -F, F).
+ * - DV_ELEM_CONSTANT, a constant force whatever the motion: g = -F, F = kb_n_per_m (N, any
+ *   sign), so it pushes DOF b by +F (towards +x) and DOF a by -F. Between the ground and DOF b:
+ *   a force offset at DOF b (a preload, a weight component on an incline, a force
+ *   transducer's bias at the input).
  *
  * gap_m and side matter only for the contact law (side must still be a valid value).
  * Adding a law: docs/adding-an-element-law.md.
@@ -45,11 +49,12 @@ typedef enum {
     DV_ELEM_FRICTION = 1, /**< regularised Coulomb friction on V */
     DV_ELEM_CUBIC = 2,    /**< cubic spring on X */
     DV_ELEM_VV = 3,       /**< velocity-squared damper on V */
-    DV_ELEM_STICKSLIP = 4 /**< elasto-plastic (Jenkins) friction on X, with history */
+    DV_ELEM_STICKSLIP = 4, /**< elasto-plastic (Jenkins) friction on X, with history */
+    DV_ELEM_CONSTANT = 5   /**< constant force (reads neither X nor V) */
 } dv_elem_law_t;
 
 /** Number of element laws (one past the last dv_elem_law_t value). */
-#define DV_ELEM_N_LAWS 5u
+#define DV_ELEM_N_LAWS 6u
 
 /** Which side(s) of a contact engage (bit 1: positive, bit 2: negative). */
 typedef enum {
@@ -67,7 +72,7 @@ typedef struct {
     dv_real_t delta_m;      /**< contact transition width m (>= 0); friction eps m/s, stick-slip
                                  slip displacement m (> 0) */
     dv_real_t kb_n_per_m;   /**< contact kB N/m; friction / stick-slip F N; cubic k3 N/m^3;
-                                 v|v| c2 N s^2/m^2 */
+                                 v|v| c2 N s^2/m^2; constant F N */
     dv_elem_law_t law;      /**< DV_ELEM_CONTACT (0) unless set */
 } dv_elem_desc_t;
 
@@ -83,7 +88,8 @@ bool dv_elem_on_velocity(dv_elem_law_t law);
  * @param[in] e  element
  * @retval DV_OK     valid
  * @retval DV_EINVAL NULL @p e, an unknown law or side, a non-finite parameter, gap_m,
- *                   delta_m or kb_n_per_m < 0, or delta_m <= 0 for friction and stick-slip
+ *                   delta_m < 0, kb_n_per_m < 0 (except for the constant force, of any
+ *                   sign), or delta_m <= 0 for friction and stick-slip
  */
 dv_status_t dv_elem_check(const dv_elem_desc_t *e);
 
@@ -106,7 +112,7 @@ dv_real_t dv_elem_damping_bound(const dv_elem_desc_t *e);
 /**
  * @brief The element's force law g (N) without history: g(X) for the contact, cubic and
  *        stick-slip (virgin curve) laws, g(V) for friction and the v|v| damper (@p x is then
- *        the relative velocity V, m/s).
+ *        the relative velocity V, m/s), -F for the constant force (x is not read).
  * @return g; 0 when @p e is NULL
  */
 dv_real_t dv_elem_force(const dv_elem_desc_t *e, dv_real_t x);

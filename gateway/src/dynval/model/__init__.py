@@ -8,6 +8,7 @@ from __future__ import annotations
 from dynval.model.elements import (
                                    REGISTRY,
                                    SIDES,
+                                   ConstantForce,
                                    Contact,
                                    CubicSpring,
                                    Element,
@@ -54,7 +55,8 @@ from dynval.model.validation import validate
 ELEMENT_TYPES = tuple(REGISTRY)
 
 __all__ = ["DAMPING_TYPES", "ELEMENT_TYPES", "FORMAT", "INPUT_KINDS", "INTERPOLATIONS",
-           "OUTPUT_KINDS", "REGISTRY", "SIDES", "ChannelResidual", "Contact", "CubicSpring",
+           "OUTPUT_KINDS", "REGISTRY", "SIDES", "ChannelResidual", "ConstantForce", "Contact",
+           "CubicSpring",
            "Damping", "Element", "Friction", "Input", "Linear", "Model", "Output",
            "ResidualResult", "StickSlip", "VVDamper", "_Core", "damping_matrix_explicit",
            "free_response", "from_dict", "input_channel", "interpolate_input", "linear", "load",

@@ -88,7 +88,20 @@ class StickSlip:
     type: str = "stick_slip"
 
 
-Element = Contact | Friction | CubicSpring | VVDamper | StickSlip
+@dataclass(frozen=True)
+class ConstantForce:
+    """A constant force whatever the motion (DV_ELEM_CONSTANT, g = -force_n): it pushes DOF b
+    by +force_n (towards +x) and DOF a by -force_n; from the ground (dof_a = 0): a force
+    offset at DOF b."""
+
+    dof_a: int
+    dof_b: int
+    force_n: float
+    name: str = ""
+    type: str = "constant_force"
+
+
+Element = Contact | Friction | CubicSpring | VVDamper | StickSlip | ConstantForce
 
 
 @dataclass(frozen=True)
@@ -151,6 +164,8 @@ REGISTRY: dict[str, ElementType] = {t.name: t for t in (
         Param("c2_n_s2_per_m2", "N s^2/m^2", "kb_n_per_m"),)),
     ElementType("stick_slip", StickSlip, "DV_ELEM_STICKSLIP", (
         Param("force_n", "N", "kb_n_per_m"), Param("slip_m", "m", "delta_m", strict=True))),
+    ElementType("constant_force", ConstantForce, "DV_ELEM_CONSTANT", (
+        Param("force_n", "N", "kb_n_per_m", lower=-np.inf),)),
 )}
 TYPES = tuple(REGISTRY)
 
