@@ -26,7 +26,7 @@ dv_status_t dv_model_desc_default(dv_model_desc_t *d)
 static bool desc_sizes_ok(const dv_model_desc_t *d)
 {
     return d != NULL && d->n_dof >= 1u && d->n_dof <= DV_MAX_DOF && d->n_out >= 1u &&
-           d->n_out <= DV_MAX_OUT && d->n_elem <= DV_MAX_ELEM &&
+           d->n_out <= DV_MAX_OUT && d->n_elem <= DV_MAX_ELEM && d->n_link <= DV_MAX_LINK &&
            (d->n_elem == 0u || (d->n_sub >= 1u && d->n_sub <= DV_MAX_SUB)) &&
            (d->input_hold == DV_HOLD_FOH || d->input_hold == DV_HOLD_CUBIC);
 }
@@ -142,6 +142,13 @@ dv_status_t dv_priv_model_validate(const dv_model_desc_t *d, dv_real_t dt_s)
         const dv_elem_desc_t *e = &d->elem[c];
         if ((e->dof_a >= n && e->dof_a != (uint16_t)DV_GROUND) || e->dof_b >= n ||
             e->dof_a == e->dof_b || dv_elem_check(e) != DV_OK) {
+            return DV_EINVAL;
+        }
+    }
+    for (size_t l = 0; l < d->n_link; l++) {
+        const dv_link_desc_t *k = &d->link[l];
+        if (k->dof_a >= n || k->dof_b >= n || k->dof_a == k->dof_b || !fin(k->k_n_per_m) ||
+            !fin(k->c_n_s_per_m) || k->k_n_per_m < DV_R(0.0) || k->c_n_s_per_m < DV_R(0.0)) {
             return DV_EINVAL;
         }
     }

@@ -117,7 +117,17 @@ static dv_real_t cx_dot(const dv_elem_desc_t *e, const dv_real_t *z, size_t n)
 
 /* ---- the linear model and its input holds ------------------------------------------------ */
 
-/* K of the chain (eq. 2): story spring i ties DOF i-1 (the ground for i = 0) to DOF i. */
+/* Adds a coupling v between DOFs a and b to the n x n matrix z (a spring or a dashpot). */
+static void add_coupling(dv_real_t *z, size_t n, size_t a, size_t b, dv_real_t v)
+{
+    z[a * n + a] += v;
+    z[b * n + b] += v;
+    z[a * n + b] -= v;
+    z[b * n + a] -= v;
+}
+
+/* K of the chain (eq. 2): story spring i ties DOF i-1 (the ground for i = 0) to DOF i; then
+ * the links' springs. */
 static void assemble_stiffness(const struct build *bd)
 {
     const size_t n = bd->n;
@@ -133,6 +143,10 @@ static void assemble_stiffness(const struct build *bd)
             k[i * n + (i - 1u)] -= ki;
             k[(i - 1u) * n + i] -= ki;
         }
+    }
+    for (size_t l = 0; l < bd->d->n_link; l++) {
+        const dv_link_desc_t *lk = &bd->d->link[l];
+        add_coupling(k, n, lk->dof_a, lk->dof_b, lk->k_n_per_m);
     }
 }
 
@@ -158,7 +172,8 @@ static dv_status_t solve_modes(struct build *bd)
     return DV_OK;
 }
 
-/* C as the description gives it (dv_model.h); the Rayleigh coefficients stay in the model. */
+/* C as the description gives it (dv_model.h), then the links' dashpots; the Rayleigh
+ * coefficients stay in the model. */
 static dv_status_t assemble_damping(const struct build *bd)
 {
     dv_model_t *m = bd->m;
@@ -198,6 +213,9 @@ static dv_status_t assemble_damping(const struct build *bd)
                 c[i * n + j] = DV_R(0.5) * (d->c_n_s_per_m[i * n + j] + d->c_n_s_per_m[j * n + i]);
             }
         }
+    }
+    for (size_t l = 0; l < d->n_link; l++) {
+        add_coupling(c, n, d->link[l].dof_a, d->link[l].dof_b, d->link[l].c_n_s_per_m);
     }
     return DV_OK;
 }

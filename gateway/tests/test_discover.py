@@ -12,7 +12,6 @@ channel's held-out RMSE halves and ends within 1.5 x its noise floor."""
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 from typing import Any
 
@@ -210,13 +209,11 @@ def test_library_is_documented() -> None:
 def test_cli_discover_shared_bumper(shared_data: Path, tmp_path: Path) -> None:
     folder = shared_data / "synthetic" / "lanl4dof-bumper"
     out_json, out_html, out_model = tmp_path / "d.json", tmp_path / "d.html", tmp_path / "m.json"
-    t0 = time.perf_counter()
+    # (its time is a benchmark's: bench/bench_discover.py)
     rc = cli.main(["-q", "discover", str(folder / "declared_model.json"), str(folder),
                    "--json", str(out_json), "--html", str(out_html), "--model-out",
                    str(out_model)])
-    elapsed = time.perf_counter() - t0
     assert rc == 0
-    assert elapsed < 60.0  # 10 tests x 8192 samples x 4 channels, report included
     doc = json.loads(out_json.read_text())
     assert doc["format"] == "dynval-discover/1"
     (e,) = doc["effects"]

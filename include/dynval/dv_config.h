@@ -40,6 +40,12 @@ DV_STATIC_ASSERT(DV_AR_MAX_ORDER >= 64u && DV_AR_MAX_ORDER <= 1024u, ar_max_orde
 #define DV_MAX_ELEM 4u
 #endif
 
+/* Linear links per model (dv_link_desc_t): springs and dashpots off the chain, e.g. an
+ * appendage's mount or a coupling of two DOFs that are not neighbours. */
+#ifndef DV_MAX_LINK
+#define DV_MAX_LINK 4u
+#endif
+
 /* Output channels per model: accelerations of every DOF plus velocities/forces of 8 more. */
 #ifndef DV_MAX_OUT
 #define DV_MAX_OUT 16u
@@ -53,6 +59,7 @@ DV_STATIC_ASSERT(DV_AR_MAX_ORDER >= 64u && DV_AR_MAX_ORDER <= 1024u, ar_max_orde
 
 DV_STATIC_ASSERT(DV_MAX_DOF >= 8u && DV_MAX_DOF <= 32u, max_dof_in_range);
 DV_STATIC_ASSERT(DV_MAX_ELEM >= 1u && DV_MAX_ELEM <= 16u, max_elem_in_range);
+DV_STATIC_ASSERT(DV_MAX_LINK >= 1u && DV_MAX_LINK <= 16u, max_link_in_range);
 DV_STATIC_ASSERT(DV_MAX_OUT >= 4u && DV_MAX_OUT <= 64u, max_out_in_range);
 DV_STATIC_ASSERT(DV_MAX_SUB >= 1u && DV_MAX_SUB <= 64u, max_sub_in_range);
 

@@ -7,6 +7,11 @@
  * - Chain: DOF i (0-based) has mass m_i > 0. Story spring k_0 ties DOF 0 to the ground
  *   (k_0 = 0 leaves the chain free, with a rigid-body mode), k_i (i >= 1) ties DOF i-1 to
  *   DOF i. K is the tridiagonal matrix of eq. 2.
+ * - Links (off the chain): a linear spring k and dashpot c between any two DOFs a != b (not
+ *   the ground), added to K and to C after the declared damping is formed (modal and Rayleigh
+ *   damping are built on the modes of K with the links): an appendage on its own DOF (its
+ *   story spring 0, a link to the DOF it hangs from), a coupling of DOFs that are not
+ *   neighbours. They act on relative motion, so every input kind sees them alike.
  * - Damping: DV_DAMP_MODAL: C = M Phi diag(2 zeta_k w_k) Phi^T M with mass-normalised modes
  *   (Phi^T M Phi = I), which is eq. 5 since Phi^-1 = Phi^T M; DV_DAMP_RAYLEIGH: C = a M + b K
  *   with a, b from two modal ratios (eq. 45-46: zeta_k = a / (2 w_k) + b w_k / 2);
@@ -120,6 +125,15 @@ typedef struct {
     uint16_t index;     /**< DOF, story or element index (0-based) */
 } dv_out_desc_t;
 
+/** @brief A linear spring and dashpot between two DOFs, off the chain (see the file comment):
+ *         force k (x_b - x_a) + c (v_b - v_a) on DOF a, its opposite on DOF b. */
+typedef struct {
+    uint16_t dof_a;        /**< first DOF (0-based), < n_dof (not the ground) */
+    uint16_t dof_b;        /**< second DOF (0-based), < n_dof, != dof_a */
+    dv_real_t k_n_per_m;   /**< stiffness, N/m, finite, >= 0 */
+    dv_real_t c_n_s_per_m; /**< viscous damping, N s/m, finite, >= 0 */
+} dv_link_desc_t;
+
 /** @brief Declarative model description (plain data; fill it, then dv_model_init()). */
 typedef struct {
     uint16_t n_dof;                          /**< 1..DV_MAX_DOF */
@@ -138,6 +152,8 @@ typedef struct {
     uint16_t n_out;                          /**< 1..DV_MAX_OUT */
     dv_out_desc_t out[DV_MAX_OUT];           /**< output channels, in order */
     dv_input_hold_t input_hold;              /**< DV_HOLD_FOH (default) or DV_HOLD_CUBIC */
+    uint16_t n_link;                         /**< 0..DV_MAX_LINK (0 by default) */
+    dv_link_desc_t link[DV_MAX_LINK];        /**< linear links off the chain */
 } dv_model_desc_t;
 
 /** State size (2 n: displacements then velocities). */

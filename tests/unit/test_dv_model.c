@@ -394,6 +394,60 @@ static void test_model_ground_disp_transmissibility(void **state)
     sdof_transmissibility(DV_INPUT_GROUND_DISP);
 }
 
+/* A link is a spring and dashpot off the chain: between neighbours it is the story spring
+ * (and a dashpot in C), so the chain with k_3 moved into a link simulates the same; a free
+ * pair of masses tied by a link alone has the closed-form frequency sqrt(k (1/m1 + 1/m2)). */
+static void test_model_links(void **state)
+{
+    (void)state;
+    dv_model_desc_t a, b;
+    dv_model_t m;
+    static dv_real_t ya[NS * 4];
+    load_force();
+    mt_lanl_desc(&a);
+    a.damp_kind = DV_DAMP_MATRIX;
+    a.c_n_s_per_m[0] = (dv_real_t)30.0;
+    a.c_n_s_per_m[2 * 4 + 2] = (dv_real_t)12.0;
+    b = a;
+    b.k_n_per_m[3] = 0;
+    b.n_link = 1;
+    b.link[0] = (dv_link_desc_t){2, 3, a.k_n_per_m[3], (dv_real_t)5.0};
+    a.c_n_s_per_m[2 * 4 + 2] += (dv_real_t)5.0; /* the link's dashpot, by hand */
+    a.c_n_s_per_m[3 * 4 + 3] += (dv_real_t)5.0;
+    a.c_n_s_per_m[2 * 4 + 3] -= (dv_real_t)5.0;
+    a.c_n_s_per_m[3 * 4 + 2] -= (dv_real_t)5.0;
+    dv_obs_t o;
+    build(&m, &a);
+    assert_int_equal(dv_obs_init(&o, &m, NULL, obuf, NMAX_BUF), DV_OK);
+    assert_int_equal(dv_obs_simulate(&o, force_r, NS, ya), DV_OK);
+    build(&m, &b);
+    assert_int_equal(dv_obs_init(&o, &m, NULL, obuf, NMAX_BUF), DV_OK);
+    assert_int_equal(dv_obs_simulate(&o, force_r, NS, yout), DV_OK);
+    double worst = 0, big = 0;
+    for (size_t i = 0; i < NS * 4; i++) {
+        worst = fmax(worst, fabs((double)ya[i] - (double)yout[i]));
+        big = fmax(big, fabs((double)ya[i]));
+    }
+    fprintf(stderr, "link = story spring + dashpot: max difference %.3g of %.3g\n", worst, big);
+    assert_true(worst <= (sizeof(dv_real_t) == 8 ? 1e-9 : 1e-3) * big);
+
+    dv_model_desc_t f;
+    dv_model_desc_default(&f);
+    f.n_dof = 2;
+    f.mass_kg[0] = (dv_real_t)2.0;
+    f.mass_kg[1] = (dv_real_t)0.5;
+    f.n_link = 1;
+    f.link[0] = (dv_link_desc_t){1, 0, (dv_real_t)8.0e3, (dv_real_t)0.0};
+    f.n_out = 1;
+    f.out[0].kind = DV_OUT_ACC;
+    build(&m, &f);
+    dv_real_t fr[2];
+    assert_int_equal(dv_model_get_modes(&m, fr, NULL, 0), DV_OK);
+    const double want = sqrt(8.0e3 * (1 / 2.0 + 1 / 0.5)) / (2 * M_PI);
+    assert_true(fabs((double)fr[0]) < 1e-3 * want);
+    assert_true(dv_test_close(fr[1], want, FREQ_RTOL, 0));
+}
+
 static void test_model_bad_input(void **state)
 {
     (void)state;
@@ -431,6 +485,19 @@ static void test_model_bad_input(void **state)
     assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_EINVAL);
     d.c_n_s_per_m[4] = 5; // symmetric but indefinite (zero diagonal)
     assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_EUNSTABLE);
+    d = g; d.n_link = DV_MAX_LINK + 1;
+    assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_EINVAL);
+    d = g; d.n_link = 1; // a link to itself, to the ground, with a negative or NaN coefficient
+    d.link[0] = (dv_link_desc_t){1, 1, 1, 0};
+    assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_EINVAL);
+    d.link[0] = (dv_link_desc_t){(uint16_t)DV_GROUND, 1, 1, 0};
+    assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_EINVAL);
+    d.link[0] = (dv_link_desc_t){0, 3, -1, 0};
+    assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_EINVAL);
+    d.link[0] = (dv_link_desc_t){0, 3, 1, (dv_real_t)NAN};
+    assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_EINVAL);
+    d.link[0] = (dv_link_desc_t){0, 3, 1, 1};
+    assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_OK);
     d = g; d.damp_kind = DV_DAMP_RAYLEIGH; // repeated mode
     d.rayleigh_mode[0] = d.rayleigh_mode[1] = 2;
     assert_int_equal(dv_model_init(&m, &d, dt, mbuf, NMAX_BUF), DV_EINVAL);
@@ -466,6 +533,7 @@ int main(void)
         cmocka_unit_test(test_model_ground_acc_transmissibility),
         cmocka_unit_test(test_model_ground_disp_transmissibility),
         cmocka_unit_test(test_model_bad_input),
+        cmocka_unit_test(test_model_links),
         cmocka_unit_test(test_model_cubic_hold_exact_for_cubic_polynomial),
         cmocka_unit_test(test_model_cubic_hold_matches_reference),
         cmocka_unit_test(test_model_cubic_hold_band_limited_force),

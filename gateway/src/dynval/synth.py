@@ -29,21 +29,35 @@ import numpy as np
 from dynval import model as mdl
 from dynval.errors import ConfigError
 from dynval.io.recording import Channel, Recording
+from dynval.model.structure import with_appendage
 
 signal: Any = importlib.import_module("scipy.signal")
+
+
+@dataclass(frozen=True)
+class Appendage:
+    """A secondary mass hanging from a DOF on a spring and a dashpot: its fixed-base
+    frequency and damping ratio (model.structure.with_appendage)."""
+
+    dof: int
+    mass_kg: float
+    f_hz: float
+    zeta: float = 0.02
 
 
 @dataclass(frozen=True)
 class Truth:
     """What the generator's structure has on top of the declared model: relative changes of
     story stiffness (k_scale) and mass (m_add_kg), modal damping ratios (zeta, None: the
-    model's damping), sensor gains per output channel, and elements (model.elements types)."""
+    model's damping), sensor gains per output channel, elements (model.elements types) and
+    appendages (unmodelled modes; no sensor on them)."""
 
     k_scale: dict[int, float] = field(default_factory=dict)
     m_add_kg: dict[int, float] = field(default_factory=dict)
     zeta: tuple[float, ...] | None = None
     gains: dict[str, float] = field(default_factory=dict)
     elements: tuple[mdl.Element, ...] = ()
+    appendages: tuple[Appendage, ...] = ()
     label: str = "clean"
 
 
@@ -83,6 +97,8 @@ def truth_model(m: mdl.Model, truth: Truth,
     tm = dataclasses.replace(tm, damping=damp, outputs=outs,
                              elements=(*m.elements, *truth.elements), interpolation="foh",
                              oversample=1)
+    for a in truth.appendages:
+        tm = with_appendage(tm, a.dof, a.mass_kg, a.f_hz, a.zeta)
     mdl.validate(tm)
     return tm
 

@@ -15,7 +15,8 @@ DOF 1); X = x_s - x_{s-1} is the story drift. Elements sit between any two DOFs 
 the ground), X = x_b - x_a: a sliding joint between DOF 1 and DOF 2 is as much a candidate as
 a bumper across a story.
 
-Effects that add an element (contact, friction, stick-slip, cubic spring, v|v| damper) are
+Effects that add an element (contact, friction, stick-slip, cubic spring, v|v| damper, a
+constant force offset) are
 built from the element registry (dynval.model.elements): their parameters carry the registry's
 names and units, and their evidence bases are the element's law evaluated by the core
 (dv_elem_force_block), never a copy of it. ``available = False`` (ranked on evidence, never
@@ -24,7 +25,9 @@ fitted) is left for effect types the model cannot represent.
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import logging
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,8 +36,10 @@ import numpy as np
 
 from dynval import model as mdl
 from dynval.model import elements as el
+from dynval.model.structure import with_appendage
 
 log = logging.getLogger(__name__)
+_signal: Any = importlib.import_module("scipy.signal")
 
 
 @dataclass(frozen=True)
@@ -79,6 +84,8 @@ class States:
     vg: np.ndarray | None = None
     predicted: dict[str, np.ndarray] = field(default_factory=dict)  # model outputs (fitting)
     reaction_only: bool = False  # the missing force is seen only through the reaction
+    fs_hz: float = 0.0  # sample rate of the states
+    band_hz: tuple[float, float] = (0.0, 0.0)  # the input's band
 
 
 def relative(st: States, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
@@ -230,6 +237,13 @@ class EffectType:
                         ) -> tuple[float, float] | None:
         """Evidence (share, amplitude) read from the output residuals themselves, for effects
         the restoring-force view cannot see; None: use the view."""
+        return None
+
+    def probe(self, m: mdl.Model, cand: Candidate, amount: float) -> mdl.Model | None:
+        """For an effect linear in one amount that the views cannot see (a constant force:
+        their high-pass takes it away): the model with the effect at a small ``amount``; its
+        evidence is then how much of the residual the change of the predictions explains.
+        None: the views judge it."""
         return None
 
 
@@ -612,7 +626,58 @@ class _OneCoefficient(_PairElement):
         return [({}, self._basis(st, cand, _unit_force(self.element, x, v)))]
 
 
-class Friction(_PairElement):
+def rigid_body_like(m: mdl.Model) -> bool:
+    """Whether the model has a mode far below the others (a carriage on a guide, a structure
+    on rails): there a constant force moves the whole body and shows only through how it
+    balances against friction."""
+    f = mdl.natural_frequencies(m)
+    return bool(f.size > 1 and f[0] < 1e-3 * f[-1])
+
+
+class _FrictionOffset(_PairElement):
+    """Friction laws with a variant that carries a constant force between the same DOFs
+    (``offset`` in the location): asymmetric friction, or friction balancing a force offset
+    (a drive's bias, a weight component), as a positioning stage has. On a rigid-body-like
+    model the offset is not seen on its own (the friction balances it, the residual keeps no
+    mean) and the friction alone fits badly: the two are fitted together."""
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        base = pairs(m.n_dof)
+        if not rigid_body_like(m):
+            return base
+        return [*base, *({**loc, "offset": True} for loc in base)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return super().label(loc) + (", with a force offset" if loc.get("offset") else "")
+
+    def law_params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        raise NotImplementedError
+
+    def law_starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        return [self.initial(m, cand, amp)]
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        ps = self.law_params(m, cand)
+        if not cand.location.get("offset"):
+            return ps
+        span = 2 * ps[0].upper  # the law's force bound
+        return [*ps, Param("offset_force_n", "N", -span, span)]
+
+    def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        extra = [0.0] if cand.location.get("offset") else []
+        return [[*s, *extra] for s in self.law_starts(m, cand, amp)]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        n = len(self.law_params(m, cand))
+        out = super().apply(m, cand, values[:n])
+        if not cand.location.get("offset"):
+            return out
+        a, b = cand.location["between"]
+        return _add_element(out, "constant_force", a, b, values[n:],
+                            f"discovered force offset {a}-{b}")
+
+
+class Friction(_FrictionOffset):
     tag = "friction"
     type = "friction"
     element = "friction"
@@ -620,7 +685,7 @@ class Friction(_PairElement):
     law = ("Coulomb friction between DOF a and DOF b (or the ground) on the relative velocity V: "
            "F V / sqrt(V^2 + eps^2) (a dv_model friction element, -> F sign(V))")
 
-    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+    def law_params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         f = self._scale(cand, 1.0)
         vr = float(cand.shape.get("v_rms", 1e-2))
         return [_param("friction", "force_n", 1e-3 * f, 20 * f, log=True),
@@ -630,7 +695,7 @@ class Friction(_PairElement):
         vr = float(cand.shape.get("v_rms", 1e-2))
         return [max(abs(amp), 1e-3 * self._scale(cand, 1.0) * 2), 0.03 * vr]
 
-    def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+    def law_starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
         # a sharp and a smooth regularisation: stick-slip data with a presliding range can
         # prefer the smooth one
         f0, e0 = self.initial(m, cand, amp)
@@ -648,7 +713,7 @@ class Friction(_PairElement):
                 for eps in (0.02, 0.1)]
 
 
-class StickSlipFriction(_PairElement):
+class StickSlipFriction(_FrictionOffset):
     tag = "stick-slip"
     type = "stick_slip"
     element = "stick_slip"
@@ -666,7 +731,7 @@ class StickSlipFriction(_PairElement):
                  self._basis(st, cand, _unit_force("stick_slip", x, slip_m=f * xs)))
                 for f in self._FR]
 
-    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+    def law_params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         f = self._scale(cand, 1.0)
         xs = float(cand.shape.get("x_rms", 1e-4))
         return [_param("stick_slip", "force_n", 1e-3 * f, 20 * f, log=True),
@@ -696,9 +761,108 @@ class VelocitySquaredDamping(_OneCoefficient):
     law = "quadratic damper between two DOFs: c2 V |V| (a dv_model vv_damper)"
 
 
+class ForceOffset(_ElementEffect):
+    type = "force_offset"
+    element = "constant_force"
+    location_kind = "dof"
+    law = ("a constant force F at DOF j whatever the motion: a preload, a weight component on "
+           "an incline, a force transducer's bias at the input DOF (a dv_model constant_force "
+           "element from the ground)")
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"dof": j, "between": [0, j]} for j in range(1, m.n_dof + 1)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"force offset, DOF {loc['dof']}"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        return []  # the views high-pass a constant away: judged by probe()
+
+    def probe(self, m: mdl.Model, cand: Candidate, amount: float) -> mdl.Model | None:
+        return self.apply(m, cand, [amount])
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        span = 10 * abs(float(cand.shape.get("amp", 0.0))) + float(cand.shape.get("probe", 1.0))
+        return [_param("constant_force", "force_n", -span, span)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        return [amp]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        j = cand.location["dof"]
+        return _add_element(m, "constant_force", 0, j, values, f"discovered force offset {j}")
+
+
+def appendage_motion(a: np.ndarray, fs_hz: float, f_hz: float, zeta: float) -> np.ndarray:
+    """The acceleration of an appendage (f_hz, zeta on a fixed base) hanging from a DOF whose
+    acceleration is ``a``: the base-excitation transmissibility
+    (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2), by the bilinear map warped to keep w."""
+    w = 2 * fs_hz * np.tan(np.pi * f_hz / fs_hz)
+    b, den = _signal.bilinear([2 * zeta * w, w * w], [1.0, 2 * zeta * w, w * w], fs_hz)
+    return np.asarray(_signal.lfilter(b, den, a))
+
+
+class Appendage(EffectType):
+    type = "appendage"
+    location_kind = "dof"
+    law = ("a secondary mass on a spring and a dashpot hanging from DOF j (a mode the model "
+           "lacks): fixed-base frequency f, damping ratio zeta, mass m_a; a new DOF joined by "
+           "a dv_model link")
+    _N_GRID = 28
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"dof": j} for j in range(1, m.n_dof + 1)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"appendage, DOF {loc['dof']}"
+
+    @staticmethod
+    def _grid(st: States) -> np.ndarray:
+        lo = max(st.band_hz[0], st.band_hz[1] / 50.0, 1e-3)
+        hi = min(1.2 * st.band_hz[1], 0.45 * st.fs_hz)
+        return np.geomspace(0.7 * lo, hi, Appendage._N_GRID)
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        if st.fs_hz <= 0 or st.band_hz[1] <= 0:
+            return []
+        j = cand.location["dof"] - 1
+        grid = self._grid(st)
+        out = []
+        for f in grid:
+            b = np.zeros_like(st.a)
+            b[j] = st.hp(appendage_motion(st.a[j], st.fs_hz, float(f), 0.03))
+            out.append(({"f_hz": float(f), "f_lo": float(grid[0]), "f_hi": float(grid[-1]),
+                         "m_ref": float(st.mass[j])}, b))
+        return out
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        mj = m.masses_kg[cand.location["dof"] - 1]
+        f_lo = float(cand.shape.get("f_lo", 1.0))
+        f_hi = float(cand.shape.get("f_hi", 1e3))
+        return [Param("f_hz", "Hz", 0.7 * f_lo, 1.3 * f_hi, log=True),
+                Param("mass_kg", "kg", 1e-4 * mj, 2.0 * mj, log=True),
+                Param("zeta", "1", 1e-3, 0.5, log=True)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        p = self.params(m, cand)
+        f = float(cand.shape.get("f_hz", math.sqrt(p[0].lower * p[0].upper)))
+        ma = float(np.clip(abs(amp), 2 * p[1].lower, 0.5 * p[1].upper))
+        return [float(np.clip(f, p[0].lower * 1.01, p[0].upper * 0.99)), ma, 0.03]
+
+    def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        f, ma, z = self.initial(m, cand, amp)
+        return [[f, ma, z], [f, ma, 0.1]]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        f, ma, z = (float(v) for v in values)
+        j = cand.location["dof"]
+        return with_appendage(m, j, ma, f, z, f"discovered appendage at DOF {j}")
+
+
 LIBRARY: tuple[EffectType, ...] = (
     Contact(), StiffnessChange(), MassChange(), DampingChange(), SensorGain(), SensorOffset(),
-    Friction(), StickSlipFriction(), CubicStiffness(), VelocitySquaredDamping())
+    Friction(), StickSlipFriction(), CubicStiffness(), VelocitySquaredDamping(), ForceOffset(),
+    Appendage())
 NONE = NoEffect()
 
 

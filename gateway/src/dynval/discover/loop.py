@@ -43,6 +43,7 @@ from dynval.io.recording import Recording
 from dynval.validate import mahalanobis as mh
 
 log = logging.getLogger(__name__)
+_threadpoolctl: Any = importlib.import_module("threadpoolctl")
 
 
 @dataclass
@@ -245,11 +246,11 @@ def _session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> _Session:
                     modes_hz, settle, [how])
 
 
-def _open_loop_or_observer(s: _Session, m: mdl.Model, before: rs.ErrorTable
-                           ) -> tuple[str, dict[str, float]]:
+def _open_loop_or_observer(s: _Session, m: mdl.Model, before: rs.ErrorTable,
+                           res: dict[str, dict[str, np.ndarray]]) -> tuple[str, dict[str, float]]:
     """Switch the tests to the observer's predictions when the model drifts (drift.py):
     ("observer", the open-loop held-out RMSE) or ("open loop", {})."""
-    worst = dr.drifts(m, before, s.fit_names + s.held_names, s.chans, s.scales, s.band)
+    worst = dr.drifts(m, before, res, s.chans, s.scales, s.band, s.tests[0].fs_hz)
     if worst is None:
         return "open loop", {}
     open_loop = before.pooled(s.held_names, s.chans)
@@ -259,11 +260,11 @@ def _open_loop_or_observer(s: _Session, m: mdl.Model, before: rs.ErrorTable
                        "open loop and may be dominated by the drift")
         return "open loop", {}
     s.notes.append(
-        f"the open-loop simulation drifts (a rigid-body mode; NRMSE up to {worst:.3g}, worse "
-        "than predicting zero): every error here is the one-step-ahead prediction error of "
-        "the core's observer with its steady-state Kalman gain, which holds the drift by the "
-        "measurements while the model's dynamics over a sample stay in the error; the "
-        "open-loop held-out RMSE is in open_loop_before")
+        f"the open-loop simulation drifts (a rigid-body mode; NRMSE up to {worst:.3g}, or "
+        "most of the residual below the input band): every error here is the one-step-ahead "
+        "prediction error of the core's observer with its steady-state Kalman gain, which "
+        "holds the drift by the measurements while the model's dynamics over a sample stay in "
+        "the error; the open-loop held-out RMSE is in open_loop_before")
     return "observer", open_loop
 
 
@@ -308,6 +309,13 @@ def _sensor_offsets(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
     _, res = rs.error_table(cur, s.fit_t, s.chans, s.scales)
     outs = dict(cur.outputs)
     params: dict[str, Any] = {}
+    means = {c: float(np.mean(np.concatenate([t.counted(res[t.name][c]) for t in s.fit_t
+                                              if t.name in res]))) for c in s.chans}
+    physical = _means_of_a_force(s, cur, means)
+    if physical is not None:
+        s.notes.append(f"the channels' mean residuals are those of {physical}: no sensor "
+                       "offsets are taken before the rounds (the effect competes in them)")
+        return cur, cur_table, None
     for c in s.chans:
         r = np.concatenate([t.counted(res[t.name][c]) for t in s.fit_t if t.name in res])
         mean, ms = float(np.mean(r)), float(np.mean(r * r))
@@ -333,6 +341,31 @@ def _sensor_offsets(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
     return m1, tab, entry
 
 
+def _means_of_a_force(s: _Session, cur: mdl.Model, means: dict[str, float]) -> str | None:
+    """The label of the probed effect (a constant force at a DOF) whose mean response on the
+    channels explains 90 % of the residual means (normalised; two channels or more), or
+    None. On a free body a force offset shifts every accelerometer's mean alike: offsets
+    taken per channel would hide one physical force."""
+    b = np.array([means[c] / s.scales[c] for c in s.chans])
+    if b @ b <= 0 or b.size < 2:
+        return None
+    amount = _probe_amount(cur, s)
+    base = {t.name: rs.predict(cur, t) for t in s.fit_t}
+    for cand in fx.catalogue(cur, quiet=True):
+        pm = fx.by_type(cand.type).probe(cur, cand, amount)
+        if pm is None:
+            continue
+        d = np.zeros(len(s.chans))
+        for t in s.fit_t:
+            p0, p1 = base[t.name], rs.predict(pm, t)
+            if p0 is None or p1 is None:
+                return None
+            d += [float(np.mean(t.counted(p1[c] - p0[c]))) / s.scales[c] for c in s.chans]
+        if d @ d > 0 and (d @ b) ** 2 / (d @ d) / (b @ b) >= 0.9:
+            return cand.label
+    return None
+
+
 def _trace(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
            noise: dict[str, float]) -> Round:
     """One round's residual traits and the evidence of every candidate."""
@@ -354,6 +387,7 @@ def _trace(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
                        "candidate is fitted instead")
         evidence = [tr.Evidence(c, 0.0, 0.0) for c in cands]
     evidence = _direct_evidence(evidence, list(res_cur.values()))
+    evidence = _probe_evidence(s, cur, evidence, res_cur)
     # "no effect": the share of the residual energy the noise floor explains
     noise_share = float(np.mean([min(1.0, 1.0 / max(r, 1e-12) ** 2) for r in ratio.values()]))
     evidence.append(tr.Evidence(fx.NONE.candidates(cur)[0], noise_share, 0.0))
@@ -400,20 +434,45 @@ def _best(s: _Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model,
                  "accept" if info["accepted"] else "reject")
         if info["accepted"] and (best is None or info["held_gain"] > best["held_gain"]):
             best = info
+    return _simplest_nested(best, rd.fits, s.o.min_gain)
+
+
+def _simplest_nested(best: dict[str, Any] | None, fits: Sequence[dict[str, Any]],
+                     min_gain: float) -> dict[str, Any] | None:
+    """The best fit, or an accepted simpler variant of it (the same effect at the same place
+    without its extra offset) unless the richer one lowers the held-out error by at least
+    half of min_gain: a spurious small offset must not ride along on a tie."""
+    if best is None:
+        return None
+    loc = {k: v for k, v in best["candidate"].location.items() if k != "offset"}
+    for info in fits:
+        c = info["candidate"]
+        if (info["accepted"] and c.type == best["candidate"].type and c.location == loc
+                and len(info["fit"].values) < len(best["fit"].values)
+                and best["nsse_held_after"] > (1 - 0.5 * min_gain) * info["nsse_held_after"]):
+            return info
     return best
 
 
 def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = None,
              on_progress: Callable[[str], None] | None = None) -> DiscoverResult:
     """Run the loop on a declared model and measured tests."""
-    o = opts or Options()
+    # one BLAS thread: the loop's products are tall and thin (samples x a few bases), where a
+    # threaded BLAS mostly waits on its own threads (measured: evidence scoring 1.2 s with one
+    # thread, 15 s with two on this 2-core host under load)
+    with _threadpoolctl.threadpool_limits(limits=1, user_api="blas"):
+        return _discover(m, recs, opts or Options(), on_progress)
+
+
+def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
+              on_progress: Callable[[str], None] | None) -> DiscoverResult:
     t_start = time.perf_counter()
     s = _session(m, recs, o)
     s.notes += initial.apply(m, s.evals, s.chans, s.scales, s.settle)
     before, res_before = s.table(m)
     if not res_before:
         raise ConfigError("the declared model cannot be simulated for these tests")
-    prediction, open_loop_before = _open_loop_or_observer(s, m, before)
+    prediction, open_loop_before = _open_loop_or_observer(s, m, before, res_before)
     if prediction == "observer":
         before, res_before = s.table(m)
     # the noise floor from each record once (a test's two views share one residual record)
@@ -578,6 +637,45 @@ def _direct_evidence(evidence: list[tr.Evidence], residuals: list[dict[str, np.n
     for e in evidence:
         d = fx.by_type(e.cand.type).direct_evidence(e.cand, residuals)
         out.append(e if d is None else tr.Evidence(e.cand, d[0], d[1]))
+    return out
+
+
+def _probe_amount(m: mdl.Model, s: _Session) -> float:
+    """A small force for probing (1 % of the input's force scale: the amount matters only
+    through the model's nonlinear elements)."""
+    u_rms = float(np.std(np.concatenate([t.u for t in s.fit_t]))) or 1.0
+    if m.input.kind == "force":
+        return 1e-2 * u_rms
+    acc = u_rms if m.input.kind == "ground_acc" else u_rms * (2 * math.pi * s.band[1]) ** 2
+    return 1e-2 * max(m.masses_kg) * acc
+
+
+def _probe_evidence(s: _Session, cur: mdl.Model, evidence: list[tr.Evidence],
+                    res: dict[str, dict[str, np.ndarray]]) -> list[tr.Evidence]:
+    """Evidence of the effects judged by probing (EffectType.probe): the share of the fitting
+    tests' normalised residual that the change of the predictions under a small amount of the
+    effect explains (first order, least squares), and the amount that explains it. The
+    predictions are the tests' own (the observer's in observer mode)."""
+    amount = _probe_amount(cur, s)
+    base = {t.name: rs.predict(cur, t) for t in s.fit_t}
+    out = []
+    for e in evidence:
+        pm = fx.by_type(e.cand.type).probe(cur, e.cand, amount)
+        if pm is None:
+            out.append(e)
+            continue
+        num = den = rr = 0.0
+        for t in s.fit_t:
+            p0, p1, r = base[t.name], rs.predict(pm, t), res.get(t.name)
+            if p0 is None or p1 is None or r is None:
+                continue
+            for c in s.chans:
+                d = t.counted(p1[c] - p0[c]) / s.scales[c]
+                rc = t.counted(r[c]) / s.scales[c]
+                num, den, rr = num + float(d @ rc), den + float(d @ d), rr + float(rc @ rc)
+        share = num * num / den / rr if den > 0 and rr > 0 else 0.0
+        k = num / den if den > 0 else 0.0
+        out.append(tr.Evidence(e.cand, share, k * amount, {"probe": amount}))
     return out
 
 

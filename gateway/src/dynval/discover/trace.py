@@ -142,6 +142,12 @@ def _hp(x: np.ndarray, fs: float, f_hp: float) -> np.ndarray:
     return np.asarray(np.fft.irfft(np.fft.rfft(x, nf, axis=-1) * h, nf, axis=-1)[..., :n])
 
 
+def _set_rates(st: fx.States, tests: Sequence[TestData]) -> None:
+    """The sample rate and input band the effects' bases need (filters over frequency)."""
+    st.fs_hz = tests[0].fs_hz
+    st.band_hz = input_band(tests)
+
+
 def matrices(m: mdl.Model) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Masses, K, C and the modes (rad/s, mass-normalised shapes), as the C core builds them
     (model.linear)."""
@@ -219,6 +225,7 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
     vgs = np.concatenate([g[1] for g in grounds]) if grounds else None
     st = fx.States(np.hstack(xs), np.hstack(vs), np.hstack(as_), mass, k, c, w, phi, hp,
                    chan_dof, xg, vgs)
+    _set_rates(st, tests)
     return ForceView(st, np.hstack(fs_list), slice(None))
 
 
@@ -262,6 +269,7 @@ def reaction_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
     st = fx.States(np.hstack(xs), np.hstack(vs), np.hstack(as_), mass, k, c, w, phi, ident,
                    {}, np.concatenate(xg), np.concatenate(vg),
                    {ch: np.concatenate(v) for ch, v in pred.items()}, True)
+    _set_rates(st, tests)
     return ForceView(st, np.hstack(fl), slice(None))
 
 
@@ -366,6 +374,7 @@ def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
 
     st = fx.States(np.hstack(xs), np.hstack(vs), np.hstack(as_), mass, k, c, w, phi, ident,
                    {})
+    _set_rates(st, tests)
     return ForceView(st, np.concatenate(target)[None, :], slice(None), propagate,
                      {ch: np.concatenate(v) for ch, v in pred.items()}, lens)
 

@@ -24,6 +24,7 @@ from dynval.model.schema import (
     OUTPUT_KINDS,
     Damping,
     Input,
+    Link,
     Model,
     Output,
 )
@@ -125,6 +126,17 @@ def _element(e: Any, ctx: Ctx, w: str) -> el.Element:
                    name=str(e.get("name", "")))
 
 
+def _link(e: Any, ctx: Ctx, w: str) -> Link:
+    """One entry of ``links``: ``between`` two DOFs, ``k_n_per_m``, ``c_n_s_per_m`` (0)."""
+    btw = ctx.get(e, "between", w)
+    if not isinstance(btw, (list, tuple)) or len(btw) != 2:
+        raise ctx.err(f"{w}.between", "expected two DOFs [a, b]")
+    return Link(ctx.int_(btw[0], f"{w}.between[0]"), ctx.int_(btw[1], f"{w}.between[1]"),
+                ctx.num(ctx.get(e, "k_n_per_m", w), f"{w}.k_n_per_m"),
+                ctx.num(e.get("c_n_s_per_m", 0.0), f"{w}.c_n_s_per_m"),
+                name=str(e.get("name", "")))
+
+
 def _from_dynval(d: Mapping[str, Any], ctx: Ctx) -> Model:
     masses = ctx.nums(ctx.get(d, "masses_kg", ""), "masses_kg")
     ks = ctx.nums(ctx.get(d, "stiffness_n_per_m", ""), "stiffness_n_per_m")
@@ -150,6 +162,10 @@ def _from_dynval(d: Mapping[str, Any], ctx: Ctx) -> Model:
     if not isinstance(er, (list, tuple)):
         raise ctx.err("elements", "expected a list of elements")
     elems = tuple(_element(e, ctx, f"elements[{i}]") for i, e in enumerate(er))
+    lr = d.get("links", [])
+    if not isinstance(lr, (list, tuple)):
+        raise ctx.err("links", "expected a list of links")
+    links = tuple(_link(e, ctx, f"links[{i}]") for i, e in enumerate(lr))
     sim = d.get("simulation", {})
     if not isinstance(sim, Mapping):
         raise ctx.err("simulation", "expected an object")
@@ -157,7 +173,7 @@ def _from_dynval(d: Mapping[str, Any], ctx: Ctx) -> Model:
     names = d.get("dofs", ())
     return Model(
         masses_kg=masses, stiffness_n_per_m=ks, damping=damp,
-        input=Input(kind, dof, ch), outputs=outs, elements=elems,
+        input=Input(kind, dof, ch), outputs=outs, elements=elems, links=links,
         substeps=ctx.int_(sim.get("substeps", 8), "simulation.substeps"),
         oversample=ctx.int_(sim.get("oversample", 4), "simulation.oversample"),
         interpolation=ctx.choice(sim.get("input_interpolation", "bandlimited"),
@@ -269,6 +285,8 @@ def to_dict(m: Model) -> dict[str, Any]:
             ed["side"] = el.side_of(e)
         ed.update(el.values(e))
         elems.append(ed)
+    links = [{**({"name": lk.name} if lk.name else {}), "between": [lk.dof_a, lk.dof_b],
+              "k_n_per_m": lk.k_n_per_m, "c_n_s_per_m": lk.c_n_s_per_m} for lk in m.links]
     out: dict[str, Any] = {"format": FORMAT}
     if m.name:
         out["name"] = m.name
@@ -280,6 +298,7 @@ def to_dict(m: Model) -> dict[str, Any]:
         out["dofs"] = list(m.dof_names)
     out.update(masses_kg=list(m.masses_kg), stiffness_n_per_m=list(m.stiffness_n_per_m),
                damping=damp, input=inp, outputs=outs, elements=elems,
+               **({"links": links} if links else {}),
                simulation={"substeps": m.substeps, "input_interpolation": m.interpolation,
                            "oversample": m.oversample})
     return out

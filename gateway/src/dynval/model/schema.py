@@ -1,5 +1,6 @@
-"""The model's data: a chain of lumped masses with story springs, damping, one input, named
-outputs and nonlinear elements (model/elements.py), and its scalar parameters by name.
+"""The model's data: a chain of lumped masses with story springs, linear links off the chain,
+damping, one input, named outputs and nonlinear elements (model/elements.py), and its scalar
+parameters by name.
 
 Numbering is 1-based like the report: DOF 1..n, story k1 ties DOF 1 to the ground, story ki
 ties DOF i-1 to DOF i, modes 1..n ascending, element i is the i-th entry of ``elements``; DOF
@@ -70,6 +71,21 @@ class Output:
 
 
 @dataclass(frozen=True)
+class Link:
+    """A linear spring and dashpot between two DOFs off the chain (1-based, neither the
+    ground): an appendage on its own DOF, a coupling of DOFs that are not neighbours."""
+
+    dof_a: int
+    dof_b: int
+    k_n_per_m: float
+    c_n_s_per_m: float = 0.0
+    name: str = ""
+
+
+LINK_PARAMS = {"k_n_per_m": "N/m", "c_n_s_per_m": "N s/m"}
+
+
+@dataclass(frozen=True)
 class Model:
     """A chain of lumped masses with story springs, damping, one input, named outputs and
     nonlinear elements. Build it from a file with load(), or directly."""
@@ -80,6 +96,7 @@ class Model:
     input: Input
     outputs: Mapping[str, Output]
     elements: tuple[Element, ...] = ()
+    links: tuple[Link, ...] = ()
     substeps: int = 8
     oversample: int = 4
     interpolation: str = "bandlimited"
@@ -114,17 +131,22 @@ class Model:
         for i, e in enumerate(self.elements, 1):
             for name, v in el.values(e).items():
                 p[f"e{i}.{name}"] = v
+        for i, lk in enumerate(self.links, 1):
+            for name in LINK_PARAMS:
+                p[f"l{i}.{name}"] = float(getattr(lk, name))
         return p
 
     def with_params(self, params: Mapping[str, float]) -> Model:
         """A copy with parameters replaced: m<i>, k<i>, zeta<i> (modal ratio of mode i, or the
         i-th of the two Rayleigh ratios), alpha, beta (Rayleigh a, b), e<i>.<parameter> of
-        element i (its registry parameters, model/elements.py). The copy is validated."""
+        element i (its registry parameters, model/elements.py), l<i>.k_n_per_m and
+        l<i>.c_n_s_per_m of link i. The copy is validated."""
         from dynval.model.validation import validate  # validation reads this schema
 
         lists: dict[str, list[Any]] = {"m": list(self.masses_kg),
                                        "k": list(self.stiffness_n_per_m),
-                                       "zeta": list(self.damping.zeta), "e": list(self.elements)}
+                                       "zeta": list(self.damping.zeta), "e": list(self.elements),
+                                       "l": list(self.links)}
         damp = self.damping
         for name, value in params.items():
             v = float(value)
@@ -135,6 +157,8 @@ class Model:
                 damp = dataclasses.replace(damp, alpha_per_s=v)
             elif attr == "beta":
                 damp = dataclasses.replace(damp, beta_s=v)
+            elif attr.startswith("link."):
+                lists["l"][idx] = dataclasses.replace(lists["l"][idx], **{attr[5:]: v})
             else:  # an element parameter (checked against its type by param_target)
                 upd: dict[str, Any] = {attr: v}
                 lists["e"][idx] = dataclasses.replace(lists["e"][idx], **upd)
@@ -142,17 +166,19 @@ class Model:
             damp = dataclasses.replace(damp, zeta=tuple(lists["zeta"]))
         m = dataclasses.replace(self, masses_kg=tuple(lists["m"]),
                                 stiffness_n_per_m=tuple(lists["k"]), damping=damp,
-                                elements=tuple(lists["e"]))
+                                elements=tuple(lists["e"]), links=tuple(lists["l"]))
         validate(m)
         return m
 
 
-_PARAM = re.compile(r"^(?:(m|k|zeta)(\d+)|(alpha|beta)|e(\d+)\.([a-z0-9_]+))$")
+_PARAM = re.compile(r"^(?:(m|k|zeta)(\d+)|(alpha|beta)|e(\d+)\.([a-z0-9_]+)|"
+                    r"l(\d+)\.(k_n_per_m|c_n_s_per_m))$")
 
 
 def param_target(name: str, m: Model) -> tuple[int, str]:
     """(0-based index, attribute) a parameter name addresses: ('m'|'k'|'zeta', i),
-    (0, 'alpha'|'beta') or (element index, its parameter name); ConfigError otherwise."""
+    (0, 'alpha'|'beta'), (element index, its parameter name) or (link index,
+    'link.<parameter>'); ConfigError otherwise."""
     g = _PARAM.match(name)
     if g is None:
         raise ConfigError(f"unknown model parameter '{name}' (known: "
@@ -168,6 +194,11 @@ def param_target(name: str, m: Model) -> tuple[int, str]:
         if not 0 <= i < n:
             raise ConfigError(f"parameter '{name}': index out of range 1..{n}")
         return i, g.group(1)
+    if g.group(6):
+        i = int(g.group(6)) - 1
+        if not 0 <= i < len(m.links):
+            raise ConfigError(f"parameter '{name}': the model has {len(m.links)} links")
+        return i, "link." + g.group(7)
     i = int(g.group(4)) - 1
     if not 0 <= i < len(m.elements):
         raise ConfigError(f"parameter '{name}': the model has {len(m.elements)} elements")
@@ -186,4 +217,6 @@ def param_unit(name: str, m: Model) -> str:
     i, attr = param_target(name, m)
     if attr in _UNITS:
         return _UNITS[attr]
+    if attr.startswith("link."):
+        return LINK_PARAMS[attr[5:]]
     return el.spec(m.elements[i]).param(attr).unit

@@ -87,6 +87,10 @@ def _fill_desc(desc: Any, m: Model) -> None:
         c.dof_a = lib.DV_GROUND if e.dof_a == 0 else e.dof_a - 1
         c.dof_b = e.dof_b - 1
         el.fill_desc(c, e)
+    desc.n_link = len(m.links)
+    for i, lk in enumerate(m.links):
+        desc.link[i].dof_a, desc.link[i].dof_b = lk.dof_a - 1, lk.dof_b - 1
+        desc.link[i].k_n_per_m, desc.link[i].c_n_s_per_m = lk.k_n_per_m, lk.c_n_s_per_m
     desc.n_sub = m.substeps if m.elements else 1
     desc.input_hold = _c("DV_HOLD_CUBIC" if m.interpolation == "cubic" else "DV_HOLD_FOH")
     desc.n_out = len(m.outputs)
@@ -432,12 +436,20 @@ def _desc_setters(m: Model) -> dict[str, Callable[[Any, float], None]]:
     elif m.damping.type == "rayleigh" and m.damping.modes:
         for i in range(2):
             s[f"zeta{i + 1}"] = arr("rayleigh_zeta", i)
+    def link(i: int, attr: str) -> Callable[[Any, float], None]:
+        def f(d: Any, v: float) -> None:
+            setattr(d.link[i], attr, v)
+        return f
+
     for i, e in enumerate(m.elements):
         for p in el.spec(e).params:
             s[f"e{i + 1}.{p.name}"] = con(i, p.field)
+    for i in range(len(m.links)):
+        for name in ("k_n_per_m", "c_n_s_per_m"):
+            s[f"l{i + 1}.{name}"] = link(i, name)
     if m.damping.explicit_rayleigh:
         # masses and stiffnesses also enter C = a M + b K: recompute C in Python for them
-        s = {k: v for k, v in s.items() if not re.match(r"^[mk]\d+$", k)}
+        s = {k: v for k, v in s.items() if not re.match(r"^(?:[mk]\d+|l\d+\.k_n_per_m)$", k)}
     return s
 
 

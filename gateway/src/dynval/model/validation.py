@@ -18,8 +18,10 @@ from dynval.model.schema import (
     DAMPING_TYPES,
     INPUT_KINDS,
     INTERPOLATIONS,
+    LINK_PARAMS,
     OUTPUT_KINDS,
     Damping,
+    Link,
     Model,
 )
 
@@ -78,7 +80,7 @@ def core_limits() -> dict[str, int]:
     sub-steps (the largest n_sub dv_model_buf_len accepts)."""
     d = _core.ffi.new("dv_model_desc_t *")
     _core.check(_core.lib.dv_model_desc_default(d), "dv_model_desc_default")
-    lim = {"dof": len(d.mass_kg), "out": len(d.out), "elem": len(d.elem)}
+    lim = {"dof": len(d.mass_kg), "out": len(d.out), "elem": len(d.elem), "link": len(d.link)}
     d.n_dof, d.n_out, d.n_elem = 1, 1, 1
     n_sub = 0
     for s in range(1, 257):
@@ -104,6 +106,10 @@ def validate(m: Model, ctx: Ctx | None = None) -> None:
         raise c.err("elements", f"{len(m.elements)} elements; this core supports {lim['elem']}")
     for i, e in enumerate(m.elements):
         _check_element(e, n, c, f"elements[{i}]")
+    if len(m.links) > lim["link"]:
+        raise c.err("links", f"{len(m.links)} links; this core supports {lim['link']}")
+    for i, lk in enumerate(m.links):
+        _check_link(lk, n, c, f"links[{i}]")
     if not 1 <= m.substeps <= lim["sub"]:
         raise c.err("simulation.substeps", f"must be 1..{lim['sub']}, got {m.substeps}")
     if not 1 <= m.oversample <= MAX_OVERSAMPLE:
@@ -143,8 +149,10 @@ def _check_structure(m: Model, c: Ctx) -> None:
     for i, v in enumerate(m.stiffness_n_per_m):
         if not (math.isfinite(v) and v >= 0):
             raise c.err(f"stiffness_n_per_m[{i}]", f"k{i + 1} must be >= 0 N/m, got {v!r}")
-    if any(k == 0 for k in m.stiffness_n_per_m[1:]):
-        log.warning("%s: a story stiffness k2..kn is 0: the chain falls apart", c.source)
+    linked = {d for lk in m.links for d in (lk.dof_a, lk.dof_b)}
+    if any(k == 0 and i + 2 not in linked for i, k in enumerate(m.stiffness_n_per_m[1:])):
+        log.warning("%s: a story stiffness k2..kn is 0 and no link holds its DOF: the chain "
+                    "falls apart", c.source)
 
 
 def _check_damping(d: Damping, n: int, c: Ctx) -> None:
@@ -196,6 +204,16 @@ def _check_io(m: Model, c: Ctx, max_out: int) -> None:
                         f"the sensor's sign convention is reversed), got {o.gain!r}")
         if not math.isfinite(o.offset):
             raise c.err(f"{w}.offset", f"sensor offset must be finite, got {o.offset!r}")
+
+
+def _check_link(lk: Link, n: int, c: Ctx, w: str) -> None:
+    if not 1 <= lk.dof_a <= n or not 1 <= lk.dof_b <= n or lk.dof_a == lk.dof_b:
+        raise c.err(f"{w}.between", f"[{lk.dof_a}, {lk.dof_b}]: two different DOFs in 1..{n} "
+                    "(a link to the ground is a story spring: k1, or an element)")
+    for name, unit in LINK_PARAMS.items():
+        v = float(getattr(lk, name))
+        if not (math.isfinite(v) and v >= 0):
+            raise c.err(f"{w}.{name}", f"must be >= 0 {unit}, got {v!r}")
 
 
 def _check_element(e: el.Element, n: int, c: Ctx, w: str) -> None:

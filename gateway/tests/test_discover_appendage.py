@@ -1,0 +1,73 @@
+"""An unmodelled linear appendage (issue 16, item 7): a secondary mass on a spring and a
+dashpot hanging from a DOF, a mode the declared model lacks. The core's model holds it as a new
+DOF joined by a link (dv_link_desc_t); discover names it with its DOF, fixed-base frequency,
+mass and damping ratio. Before, the C model was a chain only and such a case got two mass
+changes. Cases: the report's 4-DOF frame with an accelerometer on every DOF (the restoring-
+force view), and a 3-DOF structure with the force at DOF 2 and sensors on DOFs 1 and 3 only
+(the output view)."""
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+from lanl4dof import declared
+from scipy.linalg import eigh
+
+from dynval import model as mdl
+from dynval import synth as gen
+from dynval.discover import loop
+from dynval.discover import residual as rs
+from dynval.model.structure import with_appendage
+
+
+def _ideal(m: mdl.Model, truth: gen.Truth, r: loop.DiscoverResult) -> float:
+    tm = dataclasses.replace(gen.truth_model(m, truth), outputs=m.outputs,
+                             interpolation=m.interpolation, oversample=m.oversample)
+    ideal, _ = rs.error_table(tm, r.tests, r.chans, r.scales)
+    return ideal.total(r.held_names)
+
+
+def partial_sensors() -> mdl.Model:
+    return mdl.Model(masses_kg=(3.0, 2.0, 1.5), stiffness_n_per_m=(5e4, 4e4, 3e4),
+                     damping=mdl.Damping("modal", (0.02, 0.02, 0.02)),
+                     input=mdl.Input("force", 2, "force_N"),
+                     outputs={"acc1": mdl.Output("acc", 1), "acc3": mdl.Output("acc", 3)},
+                     fs_hz=512.0)
+
+
+@pytest.mark.parametrize(("model", "seed", "app"), [
+    (declared, 1, gen.Appendage(3, 0.4, 45.0, 0.02)),
+    (declared, 2, gen.Appendage(1, 0.6, 62.0, 0.03)),
+    (partial_sensors, 4, gen.Appendage(2, 0.3, 30.0, 0.02)),
+], ids=["lanl-dof3", "lanl-dof1", "partial-dof2"])
+def test_an_appendage_is_named_with_its_place_frequency_and_mass(
+        model: Callable[[], mdl.Model], seed: int, app: gen.Appendage) -> None:
+    m = model()
+    truth = gen.Truth(appendages=(app,))
+    r = loop.discover(m, gen.generate(m, truth, n_tests=6, seed=seed, fs_hz=m.fs_hz or 640.0))
+    assert [(e["type"], e["location"]["dof"]) for e in r.effects] == [("appendage", app.dof)]
+    p = r.effects[0]["parameters"]
+    assert p["f_hz"]["value"] == pytest.approx(app.f_hz, rel=0.02)
+    assert p["mass_kg"]["value"] == pytest.approx(app.mass_kg, rel=0.1)
+    assert p["zeta"]["value"] == pytest.approx(app.zeta, rel=0.3)
+    assert r.after.total(r.held_names) < 1.3 * _ideal(m, truth, r)
+
+
+def test_with_appendage_adds_the_mode_of_the_closed_form() -> None:
+    # 2 kg on 40 kN/m with 0.2 kg at 25 Hz hanging from it: the eigenproblem of the 2-DOF
+    # K = [[k + ka, -ka], [-ka, ka]], M = diag(2, 0.2), by scipy's generalised solver
+    m = mdl.Model(masses_kg=(2.0,), stiffness_n_per_m=(4e4,),
+                  damping=mdl.Damping("modal", (0.02,)), input=mdl.Input("force", 1),
+                  outputs={"a": mdl.Output("acc", 1)})
+    a = with_appendage(m, 1, 0.2, 25.0, 0.05)
+    ka = 0.2 * (2 * np.pi * 25.0) ** 2
+    want = np.sqrt(eigh(np.array([[4e4 + ka, -ka], [-ka, ka]]), np.diag([2.0, 0.2]),
+                        eigvals_only=True)) / (2 * np.pi)
+    np.testing.assert_allclose(mdl.natural_frequencies(a), want, rtol=1e-10)
+    # the declared (modal) damping stays the physical matrix it was; the link adds its dashpot
+    c0 = mdl.linear(m).c[0, 0]
+    ca = 2 * 0.05 * 0.2 * 2 * np.pi * 25.0
+    np.testing.assert_allclose(mdl.linear(a).c, [[c0 + ca, -ca], [-ca, ca]], rtol=1e-12)
+    assert mdl.from_dict(mdl.to_dict(a)).links == a.links  # the file keeps the link
