@@ -69,7 +69,23 @@ def cases() -> dict[str, Callable[[], tuple[mdl.Model, list[Recording]]]]:
                               n_tests=10, seed=4)
         return best_linear(m, recs), recs
 
+    def appendage4() -> tuple[mdl.Model, list[Recording]]:
+        m = chain(4)
+        app = synth.Appendage(3, 0.4, 45.0, 0.02)
+        return m, synth.generate(m, synth.Truth(appendages=(app,)), n_tests=10, seed=5)
+
+    def stage() -> tuple[mdl.Model, list[Recording]]:
+        m = mdl.Model(masses_kg=(5.0, 1.0), stiffness_n_per_m=(0.0, 2.0e4),
+                      damping=mdl.Damping("modal", (0.0, 0.02)),
+                      input=mdl.Input("force", 1, "force_N"),
+                      outputs={"x1_m": mdl.Output("disp", 1), "a1_mps2": mdl.Output("acc", 1),
+                               "a2_mps2": mdl.Output("acc", 2)}, fs_hz=640.0)
+        els = (mdl.Friction(0, 1, 1.3, 1e-3), mdl.ConstantForce(0, 1, -0.6))
+        return m, synth.generate(m, synth.Truth(elements=els), n_tests=10, seed=6)
+
     return {"4-DOF force, bumper story 4": bumper4,
+            "4-DOF force, appendage at DOF 3 (45 Hz)": appendage4,
+            "positioning stage, friction + force offset (observer)": stage,
             "6-DOF force, 6 channels, cubic spring 4-5": cubic6,
             "4-DOF shake table, friction joint 1-2": table_joint4,
             "4-DOF best-linear declared model, cubic spring 2-3": best_linear_cubic4}

@@ -56,7 +56,8 @@ def test_a_force_offset_on_a_free_carriage_is_one_force_not_sensor_offsets() -> 
                                                seed=2))
     assert [(e["type"], e["location"]["dof"]) for e in r.effects] == [("force_offset", 1)]
     assert r.effects[0]["parameters"]["force_n"]["value"] == pytest.approx(-0.6, rel=0.02)
-    assert any("mean residuals are those of force offset, DOF 1" in n for n in r.notes)
+    assert any("one force offset, DOF 1 explains the channels' mean residuals" in n
+               for n in r.notes)
     truth = dataclasses.replace(carriage(), elements=els)
     assert _ideal_ratio(r, truth) < 1.3
 

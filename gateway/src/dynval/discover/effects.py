@@ -192,6 +192,7 @@ class EffectType:
     law = ""
     available = True
     note = ""
+    simpler: tuple[str, ...] = ()  # effect types that are special cases of this one (same place)
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         raise NotImplementedError
@@ -808,6 +809,7 @@ class Appendage(EffectType):
     law = ("a secondary mass on a spring and a dashpot hanging from DOF j (a mode the model "
            "lacks): fixed-base frequency f, damping ratio zeta, mass m_a; a new DOF joined by "
            "a dv_model link")
+    simpler = ("mass_change",)  # an appendage far above the band moves with its DOF
     _N_GRID = 28
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:

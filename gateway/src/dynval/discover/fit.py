@@ -29,6 +29,7 @@ from dynval.errors import ConfigError
 
 log = logging.getLogger(__name__)
 least_squares: Any = importlib.import_module("scipy.optimize").least_squares
+_stats: Any = importlib.import_module("scipy.stats")
 
 _PENALTY = 1e3  # residual value for a parameter set the core refuses
 READJUSTED = " (declared, re-adjusted)"  # suffix of a re-adjusted declared parameter's name
@@ -205,9 +206,10 @@ def scatter(m: mdl.Model, res: FitResult, tests: Sequence[TestData], chans: Sequ
             ) -> list[float]:
     """Model-form uncertainty from the test-to-test scatter: the fit of ``res`` repeated on
     each test alone (from its joint optimum), and the standard error of their mean per
-    parameter, std / sqrt(k) (NaN with fewer than 2 tests). A model of the right form scatters
-    as its noise says; a wrong form scatters more, and its Gauss-Newton sigma alone (which
-    assumes the form right) would be far too small."""
+    parameter, std / sqrt(k), widened by t(0.975, k - 1) / z(0.975) so that +-2 of it is the
+    Student-t 95 % interval of a mean of k tests (x2.2 for 3 tests; NaN with fewer than 2).
+    A model of the right form scatters as its noise says; a wrong form scatters more, and its
+    Gauss-Newton sigma alone (which assumes the form right) would be far too small."""
     npar = len(res.values) - len(uncertain)
     per: list[list[float]] = []
     for t in tests:
@@ -220,4 +222,6 @@ def scatter(m: mdl.Model, res: FitResult, tests: Sequence[TestData], chans: Sequ
     if len(per) < 2:
         return [math.nan] * len(res.values)
     v = np.array(per)
-    return [float(x) for x in v.std(axis=0, ddof=1) / math.sqrt(v.shape[0])]
+    k = v.shape[0]
+    widen = float(_stats.t.ppf(0.975, k - 1) / _stats.norm.ppf(0.975))
+    return [float(x) for x in widen * v.std(axis=0, ddof=1) / math.sqrt(k)]

@@ -309,13 +309,6 @@ def _sensor_offsets(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
     _, res = rs.error_table(cur, s.fit_t, s.chans, s.scales)
     outs = dict(cur.outputs)
     params: dict[str, Any] = {}
-    means = {c: float(np.mean(np.concatenate([t.counted(res[t.name][c]) for t in s.fit_t
-                                              if t.name in res]))) for c in s.chans}
-    physical = _means_of_a_force(s, cur, means)
-    if physical is not None:
-        s.notes.append(f"the channels' mean residuals are those of {physical}: no sensor "
-                       "offsets are taken before the rounds (the effect competes in them)")
-        return cur, cur_table, None
     for c in s.chans:
         r = np.concatenate([t.counted(res[t.name][c]) for t in s.fit_t if t.name in res])
         mean, ms = float(np.mean(r)), float(np.mean(r * r))
@@ -331,6 +324,12 @@ def _sensor_offsets(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
     held0, held1 = cur_table.total(s.held_names), tab.total(s.held_names)
     if not held1 < held0:
         return cur, cur_table, None
+    physical = _a_force_instead(s, cur, res, held1)
+    if physical is not None:
+        s.notes.append(f"one {physical} explains the channels' mean residuals on the held-out "
+                       "tests as well as an offset per channel: no sensor offsets are taken "
+                       "before the rounds (the force competes in them)")
+        return cur, cur_table, None
     names = [k.split(" ", 1)[1] for k in params]
     log.info("sensor offsets on %s: held-out SSE %.3g -> %.3g", ", ".join(names), held0, held1)
     entry = {"type": "sensor_offset", "location": {"channels": names},
@@ -341,29 +340,68 @@ def _sensor_offsets(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
     return m1, tab, entry
 
 
-def _means_of_a_force(s: _Session, cur: mdl.Model, means: dict[str, float]) -> str | None:
-    """The label of the probed effect (a constant force at a DOF) whose mean response on the
-    channels explains 90 % of the residual means (normalised; two channels or more), or
-    None. On a free body a force offset shifts every accelerometer's mean alike: offsets
-    taken per channel would hide one physical force."""
-    b = np.array([means[c] / s.scales[c] for c in s.chans])
-    if b @ b <= 0 or b.size < 2:
-        return None
+def _a_force_instead(s: _Session, cur: mdl.Model, res: dict[str, dict[str, np.ndarray]],
+                     held_offsets: float) -> str | None:
+    """The label of a probed effect (a constant force at a DOF) that, fitted by least squares
+    on the fitting tests, leaves a held-out error no larger than the per-channel offsets do
+    (``held_offsets``), or None. On a free body a force offset shifts every accelerometer's
+    mean alike: an offset per channel would hide one physical force."""
     amount = _probe_amount(cur, s)
     base = {t.name: rs.predict(cur, t) for t in s.fit_t}
+    best: tuple[float, str] | None = None
     for cand in fx.catalogue(cur, quiet=True):
-        pm = fx.by_type(cand.type).probe(cur, cand, amount)
-        if pm is None:
+        reg = _probe_regression(s, cur, cand, amount, base, res)
+        if reg is None or reg[0] <= 0.0:
             continue
-        d = np.zeros(len(s.chans))
-        for t in s.fit_t:
-            p0, p1 = base[t.name], rs.predict(pm, t)
-            if p0 is None or p1 is None:
-                return None
-            d += [float(np.mean(t.counted(p1[c] - p0[c]))) / s.scales[c] for c in s.chans]
-        if d @ d > 0 and (d @ b) ** 2 / (d @ d) / (b @ b) >= 0.9:
-            return cand.label
-    return None
+        try:
+            m1 = fx.by_type(cand.type).apply(cur, cand, [reg[1] * amount])
+        except ConfigError:
+            continue
+        held = rs.error_table(m1, s.held_t, s.chans, s.scales)[0].total(s.held_names)
+        if held <= held_offsets and (best is None or held < best[0]):
+            best = (held, cand.label)
+    return None if best is None else best[1]
+
+
+def _probe_regression(s: _Session, cur: mdl.Model, cand: fx.Candidate, amount: float,
+                      base: dict[str, dict[str, np.ndarray] | None],
+                      res: dict[str, dict[str, np.ndarray]]) -> tuple[float, float] | None:
+    """For an effect judged by probing: (share of the fitting tests' normalised residual the
+    change of the predictions under ``amount`` of it explains, the least-squares multiple of
+    ``amount``); None for the effects the views judge."""
+    pm = fx.by_type(cand.type).probe(cur, cand, amount)
+    if pm is None:
+        return None
+    num = den = rr = 0.0
+    for t in s.fit_t:
+        p0, p1, r = base[t.name], rs.predict(pm, t), res.get(t.name)
+        if p0 is None or p1 is None or r is None:
+            continue
+        for c in s.chans:
+            d = t.counted(p1[c] - p0[c]) / s.scales[c]
+            rc = t.counted(r[c]) / s.scales[c]
+            num, den, rr = num + float(d @ rc), den + float(d @ d), rr + float(rc @ rc)
+    if den <= 0 or rr <= 0:
+        return 0.0, 0.0
+    return num * num / den / rr, num / den
+
+
+def _floors(s: _Session, res: dict[str, dict[str, np.ndarray]],
+            before: dict[str, nz.Floor]) -> dict[str, nz.Floor]:
+    """The noise floor of each channel from a model's residual records (each record once: a
+    test's two views share one), kept where it is lower than ``before``: an effect the model
+    lacks spreads energy outside the input band too (friction's stick-slip jumps), so the
+    declared model's residual overstates the floor and each accepted effect tightens it."""
+    once = {str(id(t.u)): res[t.name] for t in s.evals if t.name in res}
+    new = nz.estimate(s.tests, s.chans, once, s.band, _settle_s(s.modes_hz), s.o.noise)
+    out = dict(new)
+    for c, f in before.items():
+        if f.rms <= new[c].rms:
+            out[c] = f
+        else:
+            log.info("noise floor of %s re-estimated on the updated model: %.4g -> %.4g", c,
+                     f.rms, new[c].rms)
+    return out
 
 
 def _trace(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
@@ -420,7 +458,7 @@ def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
 
 def _best(s: _Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model,
           cur_table: rs.ErrorTable) -> dict[str, Any] | None:
-    """Fit and judge the pool; the accepted fit with the largest held-out gain."""
+    """Fit and judge the pool; the accepted fit with the lowest held-out error."""
     judge = _Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band)
     best: dict[str, Any] | None = None
     for e in pool:
@@ -432,26 +470,36 @@ def _best(s: _Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model,
                  rd.index, info["candidate"].label, info["held_gain"],
                  info["held_worst_test_change"], info["delta_bic"],
                  "accept" if info["accepted"] else "reject")
-        if info["accepted"] and (best is None or info["held_gain"] > best["held_gain"]):
+        # the lowest held-out error wins (the gains are against each candidate's own
+        # reference, which differs with what it re-adjusts)
+        if info["accepted"] and (best is None
+                                 or info["nsse_held_after"] < best["nsse_held_after"]):
             best = info
     return _simplest_nested(best, rd.fits, s.o.min_gain)
 
 
+def _nested_in(simple: fx.Candidate, rich: fx.Candidate) -> bool:
+    """Whether ``simple`` is a special case of ``rich`` at the same place: the same effect
+    without its extra offset, or a type ``rich`` declares it contains (EffectType.simpler:
+    a mass change is an appendage far above the band)."""
+    loc = {k: v for k, v in rich.location.items() if k != "offset"}
+    if simple.type == rich.type:
+        return simple.location == loc and loc != rich.location
+    return simple.type in fx.by_type(rich.type).simpler and simple.location == loc
+
+
 def _simplest_nested(best: dict[str, Any] | None, fits: Sequence[dict[str, Any]],
                      min_gain: float) -> dict[str, Any] | None:
-    """The best fit, or an accepted simpler variant of it (the same effect at the same place
-    without its extra offset) unless the richer one lowers the held-out error by at least
-    half of min_gain: a spurious small offset must not ride along on a tie."""
+    """The best fit, or an accepted special case of it with fewer parameters (_nested_in)
+    unless the richer one lowers the held-out error by at least half of min_gain more: a
+    spurious offset, or an appendage standing in for a mass, must not win on a tie."""
     if best is None:
         return None
-    loc = {k: v for k, v in best["candidate"].location.items() if k != "offset"}
-    for info in fits:
-        c = info["candidate"]
-        if (info["accepted"] and c.type == best["candidate"].type and c.location == loc
-                and len(info["fit"].values) < len(best["fit"].values)
-                and best["nsse_held_after"] > (1 - 0.5 * min_gain) * info["nsse_held_after"]):
-            return info
-    return best
+    simpler = [info for info in fits
+               if info["accepted"] and _nested_in(info["candidate"], best["candidate"])
+               and len(info["fit"].values) < len(best["fit"].values)
+               and best["nsse_held_after"] > (1 - 0.5 * min_gain) * info["nsse_held_after"]]
+    return min(simpler, key=lambda i: i["nsse_held_after"]) if simpler else best
 
 
 def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = None,
@@ -475,9 +523,7 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
     prediction, open_loop_before = _open_loop_or_observer(s, m, before, res_before)
     if prediction == "observer":
         before, res_before = s.table(m)
-    # the noise floor from each record once (a test's two views share one residual record)
-    once = {str(id(t.u)): res_before[t.name] for t in s.evals if t.name in res_before}
-    floors = nz.estimate(s.tests, s.chans, once, s.band, _settle_s(s.modes_hz), o.noise)
+    floors = _floors(s, res_before, {})
     noise = {c: f.rms for c, f in floors.items()}
     cur, cur_table, calibration = (_calibrate_uncertain(s, m, before) if o.uncertain
                                    else (m, before, {}))
@@ -515,7 +561,9 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
         cur = res_b.model
         if prediction == "open loop":  # the new model's initial states
             initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
-        cur_table, _ = s.table(cur)
+        cur_table, res_cur = s.table(cur)
+        floors = _floors(s, res_cur, floors)
+        noise = {c: f.rms for c, f in floors.items()}
         accepted.add(_key(res_b.cand))
         rd.decision = f"accepted {res_b.cand.label}"
     after, res_after = s.table(cur)
@@ -652,30 +700,17 @@ def _probe_amount(m: mdl.Model, s: _Session) -> float:
 
 def _probe_evidence(s: _Session, cur: mdl.Model, evidence: list[tr.Evidence],
                     res: dict[str, dict[str, np.ndarray]]) -> list[tr.Evidence]:
-    """Evidence of the effects judged by probing (EffectType.probe): the share of the fitting
-    tests' normalised residual that the change of the predictions under a small amount of the
-    effect explains (first order, least squares), and the amount that explains it. The
-    predictions are the tests' own (the observer's in observer mode)."""
+    """Evidence of the effects judged by probing (EffectType.probe, _probe_regression): the
+    share of the fitting residual the change of the predictions under a small amount of the
+    effect explains (first order), and the amount that explains it. The predictions are the
+    tests' own (the observer's in observer mode)."""
     amount = _probe_amount(cur, s)
     base = {t.name: rs.predict(cur, t) for t in s.fit_t}
     out = []
     for e in evidence:
-        pm = fx.by_type(e.cand.type).probe(cur, e.cand, amount)
-        if pm is None:
-            out.append(e)
-            continue
-        num = den = rr = 0.0
-        for t in s.fit_t:
-            p0, p1, r = base[t.name], rs.predict(pm, t), res.get(t.name)
-            if p0 is None or p1 is None or r is None:
-                continue
-            for c in s.chans:
-                d = t.counted(p1[c] - p0[c]) / s.scales[c]
-                rc = t.counted(r[c]) / s.scales[c]
-                num, den, rr = num + float(d @ rc), den + float(d @ d), rr + float(rc @ rc)
-        share = num * num / den / rr if den > 0 and rr > 0 else 0.0
-        k = num / den if den > 0 else 0.0
-        out.append(tr.Evidence(e.cand, share, k * amount, {"probe": amount}))
+        reg = _probe_regression(s, cur, e.cand, amount, base, res)
+        out.append(e if reg is None else
+                   tr.Evidence(e.cand, reg[0], reg[1] * amount, {"probe": amount}))
     return out
 
 
