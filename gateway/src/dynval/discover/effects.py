@@ -158,9 +158,14 @@ def readjust_local(m: mdl.Model, dofs: Sequence[int], band_hz: tuple[float, floa
     each, the DOFs' masses) and the damping: what a best-linear declared model adjusted to
     absorb the effect, re-adjusted with it (zeros and the ground stay fixed)."""
     p = m.parameters()
+    # inertia matters only when some mode reaches the input band (a quasi-static rig behind a
+    # rigid reaction mass cannot inform its mass)
+    low_edge = max(band_hz[0], band_hz[1] / 50.0)  # a band from DC: its lowest informative part
+    dynamic = bool(np.any(mdl.natural_frequencies(m) > 0.3 * low_edge))
     names: list[str] = []
     for j in sorted(set(d for d in dofs if d >= 1)):
-        names += [n for n in (f"k{j}", f"k{j + 1}", f"m{j}") if p.get(n, 0.0) > 0]
+        own = (f"k{j}", f"k{j + 1}", f"m{j}") if dynamic else (f"k{j}", f"k{j + 1}")
+        names += [n for n in own if p.get(n, 0.0) > 0]
     return tuple(dict.fromkeys([*names, *damping_params(m, band_hz)]))
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 import importlib
 import logging
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -100,7 +101,9 @@ def n_eff_factor(r: np.ndarray, maxlag: int = 64) -> float:
 
 def uncertain_params(m: mdl.Model, names: Sequence[str]) -> list[fx.Param]:
     """Declared parameters the user called uncertain (Model.with_params names), free within
-    1/3..3 x their declared value (log-scaled); zero-valued ones within 0..1."""
+    1/3..3 x their declared value (log-scaled); a story stiffness down to 1/100 of it (a
+    best-linear declared stiffness may be mostly the nonlinearity's: a friction damper's
+    stick phase); zero-valued ones within 0..1."""
     cur = m.parameters()
     out = []
     for n in names:
@@ -109,7 +112,8 @@ def uncertain_params(m: mdl.Model, names: Sequence[str]) -> list[fx.Param]:
                               f"(known: {', '.join(cur)})")
         v = float(cur[n])
         unit = mdl.param_unit(n, m)
-        out.append(fx.Param(n, unit, v / 3, 3 * v, log=True) if v > 0 else
+        low = v / 100 if re.fullmatch(r"k\d+", n) else v / 3
+        out.append(fx.Param(n, unit, low, 3 * v, log=True) if v > 0 else
                    fx.Param(n, unit, 0.0, 1.0))
     return out
 
