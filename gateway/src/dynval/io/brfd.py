@@ -13,7 +13,7 @@ import numpy as np
 
 from dynval.errors import InputFileError
 from dynval.io.jsonfile import read_json
-from dynval.io.recording import Channel, Recording, file_sha256
+from dynval.io.recording import MAX_RATE_HZ, Channel, Recording, file_sha256
 
 log = logging.getLogger(__name__)
 
@@ -27,7 +27,6 @@ COLUMNS_8 = (COLUMNS_6[:3] + (("actuator_pos1", "displacement units", "output"),
                               ("actuator_pos2", "displacement units", "output"))
              + COLUMNS_6[3:])
 _TIME_JITTER = 1e-3
-MAX_RATE_HZ = 1e9  # no DAQ samples faster; a larger rate is a damaged file
 
 
 def looks_like_brfd(path: Path) -> bool:
