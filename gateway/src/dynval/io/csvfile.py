@@ -10,7 +10,15 @@ import numpy as np
 
 from dynval.errors import InputFileError
 from dynval.io.jsonfile import decode_utf8
-from dynval.io.recording import MAX_RATE_HZ, Channel, Recording, default_role, file_sha256, parse_row, split_unit
+from dynval.io.recording import (
+    MAX_RATE_HZ,
+    Channel,
+    Recording,
+    default_role,
+    file_sha256,
+    parse_row,
+    split_unit,
+)
 
 log = logging.getLogger(__name__)
 

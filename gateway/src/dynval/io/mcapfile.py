@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import importlib
 import io
-import json
 import logging
 import struct
 from collections.abc import Iterator
@@ -193,9 +192,8 @@ def _int_field(p: Path, m: Message, key: str, lo: int, hi: int) -> int:
 
 def _values(p: Path, m: Message) -> list[float]:
     v = m.data.get("values")
-    ok = isinstance(v, list) and len(v) <= SAMPLES_PER_MESSAGE and all(
-        x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in v)
-    if not ok:
+    if not isinstance(v, list) or len(v) > SAMPLES_PER_MESSAGE or not all(
+            x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in v):
         raise InputFileError(p, f"{m.topic} message: 'values' must be a list of at most "
                              f"{SAMPLES_PER_MESSAGE} numbers or null", None,
                              f"sequence {m.sequence}")
