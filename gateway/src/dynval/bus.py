@@ -160,9 +160,10 @@ def dequantise(raw: np.ndarray, lsb: float) -> np.ndarray:
                        count=raw.size)
 
 
-# DV_CHCFG carries the lsb as an IEEE-754 binary32: a power of two between the smallest normal
-# and the largest finite binary32 (a larger one is sent as Inf, a smaller one loses bits)
-LSB_MIN, LSB_MAX = 2.0 ** -126, 2.0 ** 127
+# DV_CHCFG carries the lsb as an IEEE-754 binary32 and the firmware computes raw * lsb in it:
+# a power of two from the smallest normal binary32 (smaller ones lose bits) up to 2^112, so
+# that |raw| < 2^15 times it stays below 2^127, finite (beyond, the channel arrives as Inf)
+LSB_MIN, LSB_MAX = 2.0 ** -126, 2.0 ** 112
 
 
 def lsb_for(x: np.ndarray, headroom: float = 30000.0) -> float:
