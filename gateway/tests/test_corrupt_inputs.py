@@ -494,3 +494,39 @@ def test_broken_pipe_exits_quietly(monkeypatch: pytest.MonkeyPatch, seeds: dict[
     monkeypatch.setattr(cf, "compute", closed)
     out = run_cli(["features", str(seeds["csv"])], caplog, capsys)
     assert out.rc == cli.EXIT_PIPE and not out.errors
+
+
+# ---- I/O errors: one line, exit 2, no wait -------------------------------------------------------
+def test_run_with_a_full_disk_is_one_line(monkeypatch: pytest.MonkeyPatch,
+                                          seeds: dict[str, Path], tmp_path: Path,
+                                          caplog: pytest.LogCaptureFixture,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    import time
+
+    from dynval import mcap_log
+
+    def full(self: Any, *_: object) -> None:
+        raise mcap_log.LogError(f"{self.path}: cannot write the log: No space left on device")
+
+    monkeypatch.setattr(mcap_log.McapLog, "on_frame", full)
+    t0 = time.monotonic()
+    out = run_cli(["run", str(seeds["csv"]), "-o", str(tmp_path / "o"), "--bus", "virtual",
+                   "--asap", "--no-model"], caplog, capsys)
+    assert out.rc == 2 and time.monotonic() - t0 < 10  # not the 120 s status wait
+    msgs = [r.getMessage() for r in out.errors]
+    assert len(msgs) == 1 and "No space left on device" in msgs[0] and ".mcap" in msgs[0]
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_writing_to_a_full_device_is_one_line(seeds: dict[str, Path],
+                                              caplog: pytest.LogCaptureFixture,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    full = Path("/dev/full")
+    out = run_cli(["simulate", str(seeds["model"]), str(seeds["csv"]), "-o", str(full)],
+                  caplog, capsys)
+    assert_clean(out, full, must_fail=True)
+    assert "No space left on device" in out.errors[0].getMessage()
+    from dynval import mcap_log
+
+    with pytest.raises(mcap_log.LogError, match="/dev/full: cannot write the log"):
+        mcap_log.McapLog(full).close()

@@ -73,6 +73,11 @@ def _run_reporting(args: argparse.Namespace) -> int:
     except BrokenPipeError:
         _silence_stdout()
         return EXIT_PIPE
+    except OSError as exc:  # the machine, not the input: a full disk, a permission
+        if tracebacks:
+            log.exception("dynval failed")
+        log.error("%s: %s", exc.filename or "I/O error", exc.strerror or exc)
+        return EXIT_INPUT
     except Exception as exc:  # noqa: BLE001 - the one top-level handler of unexpected errors
         if tracebacks:
             log.exception("internal error")

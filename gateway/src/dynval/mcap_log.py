@@ -81,14 +81,19 @@ def compression() -> CompressionType:
 
 
 class _Flushing:
-    """A write stream that hands every write (a finished chunk, metadata) to the OS at once."""
+    """A write stream that hands every write (a finished chunk, metadata) to the OS at once;
+    a failed write (a full disk) is a LogError naming the file."""
 
-    def __init__(self, f: IO[bytes]) -> None:
+    def __init__(self, f: IO[bytes], path: Path) -> None:
         self.f = f
+        self.path = path
 
     def write(self, b: bytes) -> int:
-        n = self.f.write(b)
-        self.f.flush()
+        try:
+            n = self.f.write(b)
+            self.f.flush()
+        except OSError as exc:
+            raise LogError(f"{self.path}: cannot write the log: {exc.strerror or exc}") from exc
         return n
 
     def tell(self) -> int:
@@ -122,7 +127,7 @@ class McapLog:
             self._f = open(self.path, "wb")  # noqa: SIM115 - closed in close()
         except OSError as exc:
             raise LogError(f"{self.path}: cannot write: {exc.strerror or exc}") from exc
-        stream: Any = _Flushing(self._f)
+        stream: Any = _Flushing(self._f, self.path)
         self._w: Any = Writer(stream, chunk_size=chunk_size,
                          compression=compress if compress is not None else compression())
         self._w.start(profile=PROFILE, library=f"dynval {__version__}")

@@ -403,6 +403,8 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
             t.join(timeout=30)
             rx.shutdown()
             tx.shutdown()
+        if state.error is not None:
+            raise state.error
     finally:
         counters = fw.stop()
         summary = logger.close()
@@ -420,18 +422,26 @@ class _LoggerState:
         self.armed = False
         self.status = threading.Event()
         self.last_rx = time.monotonic()
+        self.error: Exception | None = None  # what stopped the logger thread (a full disk)
 
 
 def _logger_loop(rx: Any, logger: McapLog, stop: threading.Event, st: _LoggerState) -> None:
-    while not stop.is_set():
-        m = rx.recv(timeout=0.05)
-        if m is None:
-            continue
-        st.last_rx = time.monotonic()
-        t_ns = int(m.timestamp * 1e9) if m.timestamp else time.time_ns()
-        logger.on_frame(t_ns, m.arbitration_id, bytes(m.data), m.is_extended_id)
-        if st.armed and m.arbitration_id == bus.ID_STATUS and not m.is_extended_id:
-            st.status.set()
+    """Log frames until stop; an error (a write to a full disk) ends the loop and is handed to
+    run_test through st.error, which raises it in the main thread (no waiting for a status
+    that will not be logged, no traceback from a dying thread)."""
+    try:
+        while not stop.is_set():
+            m = rx.recv(timeout=0.05)
+            if m is None:
+                continue
+            st.last_rx = time.monotonic()
+            t_ns = int(m.timestamp * 1e9) if m.timestamp else time.time_ns()
+            logger.on_frame(t_ns, m.arbitration_id, bytes(m.data), m.is_extended_id)
+            if st.armed and m.arbitration_id == bus.ID_STATUS and not m.is_extended_id:
+                st.status.set()
+    except Exception as exc:  # noqa: BLE001 - re-raised in the main thread by run_test
+        st.error = exc
+        st.status.set()
 
 
 def recording_meta(rec: Recording, plan: bus.Plan | None = None) -> dict[str, Any]:
