@@ -201,7 +201,8 @@ COMMON: dict[str, Mutation] = {
 }
 # mutations that cannot leave a valid file behind (exit 2 required)
 MUST_FAIL = {"foreign_empty", "foreign_png", "foreign_zeros", "foreign_random", "foreign_nested",
-             "foreign_nested_obj", "latin1_bytes", "foreign_latin1", "truncate_1"}
+             "foreign_nested_obj", "foreign_bigint", "latin1_bytes", "foreign_latin1",
+             "truncate_1"}
 
 # reader -> (seed name, file suffix, argv builder(path, seeds, tmp))
 Argv = Callable[[Path, dict[str, Path], Path], list[str]]
@@ -354,6 +355,80 @@ def test_discover_guards(name: str, make: Callable[[Any], str], what: str,
     out = run_cli(["discover", str(DECLARED), str(p)], caplog, capsys)
     assert_clean(out, p, must_fail=True)
     assert what in out.errors[0].getMessage()
+
+
+def test_discover_huge_element_coefficient(seeds: dict[str, Path], tmp_path: Path,
+                                           caplog: pytest.LogCaptureFixture,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "m.json"
+    p.write_text(json.dumps(_model(elements=[{"type": "cubic_spring", "between": [3, 4],
+                                              "k3_n_per_m3": 1e200}])))
+    out = run_cli(["discover", str(p), str(seeds["csv"])], caplog, capsys)
+    assert_clean(out, p, must_fail=True)
+    assert "elements[0] (cubic_spring, k3_n_per_m3 = 1e+200)" in out.errors[0].getMessage()
+
+
+def test_run_refuses_a_mass_beyond_binary32(seeds: dict[str, Path], tmp_path: Path,
+                                            caplog: pytest.LogCaptureFixture,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "m.json"
+    p.write_text(json.dumps(_model(masses_kg=[1e39, 6.66, 6.86, 6.8], elements=[])))
+    out = run_cli(["run", str(seeds["csv"]), "-o", str(tmp_path / "o"), "--bus", "virtual",
+                   "--asap", "--model", str(p)], caplog, capsys)
+    assert_clean(out, p, must_fail=True)
+    assert "'masses_kg[0]': 1e+39 is beyond the firmware's binary32 range" in \
+        out.errors[0].getMessage()
+
+
+def test_residual_counts_the_samples_of_each_rmse(seeds: dict[str, Path], tmp_path: Path,
+                                                  caplog: pytest.LogCaptureFixture,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "nan.csv"
+    p.write_text(_csv_with("nan", row=20, col=3))  # acc2_mps2 of one row
+    out = run_cli(["residual", str(seeds["model"]), str(p), "--lenient", "--json"], caplog,
+                  capsys)
+    assert out.rc == 0
+    ch = json.loads(out.stdout)["tests"][0]["channels"]
+    assert ch["acc2_mps2"]["n_used"] == 199 and ch["acc1_mps2"]["n_used"] == 200
+
+
+def test_csv_memory_is_a_small_multiple_of_the_samples(tmp_path: Path) -> None:
+    import tracemalloc
+
+    from dynval.io import read_test
+
+    n = 100_000
+    p = tmp_path / "big.csv"
+    t = np.arange(n) / 640.0
+    np.savetxt(p, np.column_stack([t, np.sin(t)[:, None] * np.ones((1, 5))]), delimiter=",",
+               fmt="%.9g", header=",".join(COLUMNS), comments="")
+    kept = n * len(COLUMNS) * 8
+    tracemalloc.start()
+    rec = read_test(p)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert rec.n_samples == n
+    assert peak < 3 * kept, f"peak {peak / 1e6:.1f} MB for {kept / 1e6:.1f} MB of samples"
+
+
+def test_piped_into_head_exits_quietly(seeds: dict[str, Path]) -> None:
+    import os
+    import subprocess
+    import sys
+
+    import dynval
+
+    # 300 tables of residuals: over 64 KiB, more than a pipe holds, so the writer must block
+    argv = ["residual", str(seeds["model"]), *[str(seeds["csv"])] * 300]
+    env = {**os.environ, "PYTHONPATH": str(Path(dynval.__file__).parents[1])}
+    proc = subprocess.Popen([sys.executable, "-m", "dynval", *argv], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=env)
+    assert proc.stdout is not None and proc.stderr is not None
+    assert proc.stdout.readline().startswith(b"model ")
+    proc.stdout.close()  # what `head -1` does
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == cli.EXIT_PIPE, err
+    assert "Traceback" not in err and "Error" not in err, err
 
 
 class _Table:
