@@ -366,11 +366,13 @@ def wait_until(deadline_ns: int) -> None:
 
 def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
            on_progress: Callable[[int], None] | None = None,
-           send: Callable[[int, bytes], None] | None = None) -> ReplayResult:
+           send: Callable[[int, bytes], None] | None = None,
+           hold: Callable[[int], None] | None = None) -> ReplayResult:
     """Send a plan on a python-can bus. Paced: every batch is due at start + offset / speed
     (absolute deadlines: an early or late batch does not shift the later ones), and the
     send-time error (send return minus deadline) of every frame is recorded. asap: no pacing.
-    on_progress(n) is called with the number of sample frames sent since the last call."""
+    on_progress(n) is called with the number of sample frames sent since the last call;
+    hold(offset_ns), before each batch, may wait (a logger that must not fall behind)."""
     import can
 
     if not asap and not speed > 0:
@@ -386,6 +388,8 @@ def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
     t0 = time.perf_counter_ns() + (0 if asap else 2_000_000)  # 2 ms to settle
     last_prog = 0
     for off, frames in plan.batches():
+        if hold is not None:
+            hold(off)
         due = t0 + int(off / speed) if not asap else 0
         if not asap:
             wait_until(due)

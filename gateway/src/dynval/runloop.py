@@ -388,7 +388,8 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
                              name="dv-logger", daemon=True)
         t.start()
         try:
-            res = bus.replay(tx, plan, speed=speed, asap=asap, on_progress=on_progress)
+            res = bus.replay(tx, plan, speed=speed, asap=asap, on_progress=on_progress,
+                             hold=lambda off_ns: _hold(logger, state, off_ns))
             state.armed = True
             tx.send(can.Message(arbitration_id=bus.ID_CTRL,
                                 data=bus.encode_ctrl(bus.CTRL_STATUS, record_id)[1],
@@ -415,6 +416,23 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
 
 
 QUIET_S = 0.3  # no frame for this long after the status answer: the firmware is done
+MAX_BACKLOG_S = 0.5  # data on the bus not yet logged; with the chunk timer: <= 1 s lost on a kill
+STALL_S = 5.0  # a logger without progress for this long is not waited for (it reports why)
+
+
+def _hold(logger: McapLog, st: _LoggerState, off_ns: int) -> None:
+    """Keep the replay at most MAX_BACKLOG_S of data ahead of the logger (any --speed,
+    --asap): frames waiting in memory are lost on a kill. A logger that makes no progress
+    for STALL_S is not waited for again (no hang; the run reports what was logged)."""
+    last, t_last = logger.frames_logged, time.monotonic()
+    while not st.stalled and st.error is None and off_ns / 1e9 - logger.logged_s > MAX_BACKLOG_S:
+        if logger.frames_logged != last:
+            last, t_last = logger.frames_logged, time.monotonic()
+        elif time.monotonic() - t_last > STALL_S:
+            st.stalled = True
+            log.warning("the logger made no progress for %.0f s; replaying without waiting "
+                        "for it", STALL_S)
+        time.sleep(0.001)
 
 
 class _LoggerState:
@@ -423,6 +441,7 @@ class _LoggerState:
         self.status = threading.Event()
         self.last_rx = time.monotonic()
         self.error: Exception | None = None  # what stopped the logger thread (a full disk)
+        self.stalled = False  # the logger fell behind without progress (see _hold)
 
 
 def _logger_loop(rx: Any, logger: McapLog, stop: threading.Event, st: _LoggerState) -> None:
@@ -433,6 +452,7 @@ def _logger_loop(rx: Any, logger: McapLog, stop: threading.Event, st: _LoggerSta
         while not stop.is_set():
             m = rx.recv(timeout=0.05)
             if m is None:
+                logger.tick()
                 continue
             st.last_rx = time.monotonic()
             t_ns = int(m.timestamp * 1e9) if m.timestamp else time.time_ns()

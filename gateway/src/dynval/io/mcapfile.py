@@ -133,13 +133,11 @@ def _payload(p: Path, raw: bytes, topic: str, k: int) -> dict[str, Any]:
     return d
 
 
-def iter_messages(path: Path | str, *, topics: set[str] | None = None,
-                  prefix: str | None = None, scan_out: Scan | None = None) -> Iterator[Message]:
-    """Messages in file order (decoded JSON), metadata into scan_out.metadata. Recovers the
-    complete part of a file without footer; a damaged chunk (CRC, compression, record layout)
-    stops the read (scan_out.error); a payload that is not a JSON object is an InputFileError."""
+def iter_records(path: Path | str, *, scan_out: Scan | None = None) -> Iterator[Any]:
+    """The mcap records (Schema, Channel, Message, Metadata, ...) in file order, metadata also
+    into scan_out.metadata. Recovers the complete part of a file without footer; a damaged
+    chunk (CRC, compression, record layout) stops the read (scan_out.error)."""
     from mcap.exceptions import EndOfFile
-    from mcap.records import Channel as McapChannel
     from mcap.records import Message as McapMessage
     from mcap.records import Metadata
     from mcap.stream_reader import CRCValidationError, StreamReader
@@ -150,7 +148,6 @@ def iter_messages(path: Path | str, *, topics: set[str] | None = None,
         for k, v in vars(s).items():
             setattr(scan_out, k, v)
     s = scan_out if scan_out is not None else s
-    chans: dict[int, str] = {}
     errors = _decode_errors()
     n = 0
     with open(p, "rb") as f:
@@ -170,15 +167,33 @@ def iter_messages(path: Path | str, *, topics: set[str] | None = None,
                 s.error = f"damaged record after message {n}: {type(exc).__name__}: {exc}"
                 log.warning("%s: %s; read stops there", p, s.error)
                 break
-            if isinstance(r, McapChannel):
-                chans[r.id] = r.topic
-            elif isinstance(r, McapMessage):
+            if isinstance(r, McapMessage):
                 n += 1
-                t = chans.get(r.channel_id, "?")
-                if (topics is None or t in topics) and (prefix is None or t.startswith(prefix)):
-                    yield Message(t, r.log_time, _payload(p, r.data, t, n), r.sequence)
             elif isinstance(r, Metadata):
                 s.metadata[r.name] = dict(r.metadata)
+            yield r
+
+
+def iter_messages(path: Path | str, *, topics: set[str] | None = None,
+                  prefix: str | None = None, scan_out: Scan | None = None) -> Iterator[Message]:
+    """Messages in file order (decoded JSON) of iter_records; a payload that is not a JSON
+    object is an InputFileError naming the record."""
+    from mcap.records import Channel as McapChannel
+    from mcap.records import Message as McapMessage
+
+    p = Path(path)
+    chans: dict[int, str] = {}
+    n = 0
+    for r in iter_records(p, scan_out=scan_out):
+        if isinstance(r, McapChannel):
+            chans[r.id] = r.topic
+        elif isinstance(r, McapMessage):
+            n += 1
+            t = chans.get(r.channel_id, "?")
+            if (topics is None or t in topics) and (prefix is None or t.startswith(prefix)):
+                yield Message(t, r.log_time, _payload(p, r.data, t, n), r.sequence)
+
+
 MAX_CHANNELS = 256  # DV_CHCFG's channel field is a byte
 
 
@@ -278,6 +293,8 @@ def read_mcap(path: Path | str, *, lenient: bool = False) -> Recording:
         raise InputFileError(p, f"sample index {n - SAMPLES_PER_MESSAGE} is beyond the "
                              f"record ({'n_samples ' + str(n_rec) if n_rec is not None else ''}"
                              f"{'' if n_rec is not None else str(n_msgs) + ' sample messages'})")
+    if n_rec is not None and n < n_rec:  # the log ends early (a recovered, killed logger)
+        n = n_rec
     chans = []
     for ch in sorted(per):
         x = np.full(n, np.nan)
