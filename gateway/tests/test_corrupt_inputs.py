@@ -605,3 +605,19 @@ def test_writing_to_a_full_device_is_one_line(seeds: dict[str, Path],
 
     with pytest.raises(mcap_log.LogError, match="/dev/full: cannot write the log"):
         mcap_log.McapLog(full).close()
+
+
+def test_a_diverging_sweep_run_is_failed_not_a_prefix_rmse() -> None:
+    from dynval import model as mdl
+    from dynval.validate import doe, featvec
+
+    m = mdl.from_dict(_model(elements=[{"type": "vv_damper", "between": [3, 4],
+                                        "c2_n_s2_per_m2": 1.0}]), source="m.json")
+    u = np.random.default_rng(3).normal(size=1024) * 20
+    fset = featvec.parse("rms@acc4_mps2").resolve(list(m.outputs))
+    job = doe.make_job(m, [u], 640.0, fset, oversample=1,
+                       rmse_refs={"acc4_mps2": np.zeros(1024)})
+    feats, rmse, failed = doe._chunk_run(job, [{"e1.c2_n_s2_per_m2": 1.0},
+                                               {"e1.c2_n_s2_per_m2": 1e8}])
+    assert failed == [1] and np.isnan(rmse[1]).all() and np.isnan(feats[1]).all()
+    assert np.isfinite(rmse[0]).all() and rmse[0, 0] > 0
