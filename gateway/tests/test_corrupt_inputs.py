@@ -554,8 +554,10 @@ def test_internal_error_is_one_line_and_debug_shows_it(
     msg = out.errors[0].getMessage()
     assert "internal error: ZeroDivisionError: a planted bug" in msg and "--debug" in msg
     assert out.errors[0].exc_info is None
-    out = run_cli(["--debug", "features", str(seeds["csv"])], caplog, capsys)
-    assert out.rc == 3 and any(r.exc_info for r in out.errors)
+    for argv in (["--debug", "features", str(seeds["csv"])],
+                 ["features", str(seeds["csv"]), "--debug"]):
+        out = run_cli(argv, caplog, capsys)
+        assert out.rc == 3 and any(r.exc_info for r in out.errors)
 
 
 def test_broken_pipe_exits_quietly(monkeypatch: pytest.MonkeyPatch, seeds: dict[str, Path],

@@ -30,6 +30,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(f"dynval.cmd_{name}").add_parser(sub)
+    for sp in sub.choices.values():  # `dynval CMD ... --debug` as well as `dynval --debug CMD`
+        sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show the traceback of any error")
     return p
 
 
