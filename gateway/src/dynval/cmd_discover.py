@@ -58,7 +58,12 @@ def run(args: argparse.Namespace) -> int:
     unc = tuple(x.strip() for x in args.uncertain.split(",") if x.strip())
     opts = loop.Options(max_effects=args.max_effects, min_gain=args.min_gain, noise=noise,
                         uncertain=unc, readjust=not args.no_readjust)
-    res = loop.discover(m, recs, opts, on_progress=lambda s: log.debug("%s", s))
+    try:
+        res = loop.discover(m, recs, opts, on_progress=lambda s: log.debug("%s", s))
+    except Exception:
+        for rec in recs:  # a declared model that diverges on a test: the element and the file
+            mdl.simulate_recording(m, rec)
+        raise
     if args.model_out is not None:
         mdl.save(res.model, args.model_out)
     doc = report.to_json(res, str(args.model), str(args.model_out or ""))
@@ -96,8 +101,8 @@ MAX_ABS = 1e150  # squares and sums of squares of a test's samples stay finite (
 
 def _preflight(m: Any, rec: Recording) -> None:
     """What discover needs of a test, as one-line errors naming the file: enough samples, a
-    measured input that is not zero throughout, samples whose squares are finite, and a
-    declared model that simulates it (a diverging element is named)."""
+    measured input that is not zero throughout, samples whose squares are finite. (A declared
+    model that diverges is named by run() when the loop fails, not simulated twice here.)"""
     import numpy as np
 
     from dynval import model as mdl
@@ -116,7 +121,6 @@ def _preflight(m: Any, rec: Recording) -> None:
     if not np.any(np.nan_to_num(u) != 0):
         raise InputFileError(where, "the input channel is zero throughout (an ambient or "
                              "free-decay test): discover needs a measured input")
-    mdl.simulate_recording(m, rec)
 
 
 def _g(x: Any) -> str:
