@@ -160,13 +160,30 @@ def dequantise(raw: np.ndarray, lsb: float) -> np.ndarray:
                        count=raw.size)
 
 
+# DV_CHCFG carries the lsb as an IEEE-754 binary32 and the firmware computes raw * lsb in it:
+# a power of two from the smallest normal binary32 (smaller ones lose bits) up to 2^112, so
+# that |raw| < 2^15 times it stays below 2^127, finite (beyond, the channel arrives as Inf)
+LSB_MIN, LSB_MAX = 2.0 ** -126, 2.0 ** 112
+
+
 def lsb_for(x: np.ndarray, headroom: float = 30000.0) -> float:
-    """Power-of-two lsb (exact in binary32) putting the channel's peak near 30000 counts."""
+    """Power-of-two lsb (exact in binary32) putting the channel's peak near 30000 counts; may
+    lie outside [LSB_MIN, LSB_MAX] for a channel the bus cannot carry (make_plan says so)."""
     finite = x[np.isfinite(x)]
     peak = float(np.max(np.abs(finite))) if finite.size else 0.0
     if peak == 0.0:
         return DEFAULT_LSB
-    return float(2.0 ** math.ceil(math.log2(peak / headroom)))
+    return float(2.0 ** max(-1074, math.ceil(math.log2(peak) - math.log2(headroom))))
+
+
+def check_lsb(rec: Recording, channel: str, lsb: float) -> None:
+    """ConfigError unless lsb is one DV_CHCFG carries as it is (binary32, normal, finite)."""
+    if not LSB_MIN <= lsb <= LSB_MAX:
+        peak = float(np.nanmax(np.abs(rec.channel(channel).data), initial=0.0))
+        raise ConfigError(f"{rec.source or rec.name}: channel {channel} peaks at {peak:.3g}: "
+                          f"its lsb {lsb:.3g} is outside the binary32 range DV_CHCFG carries "
+                          f"({LSB_MIN:.3g} .. {LSB_MAX:.3g}); rescale it (channel map "
+                          "'scale')")
 
 
 class SeqTracker:
@@ -246,6 +263,8 @@ def make_plan(rec: Recording, record_id: int = 1, lsb: Sequence[float] | None = 
         raise ConfigError(f"{rec.name}: sample rate {rec.fs_hz:g} Hz is not an integer "
                           "1..65535 Hz (DV_CHCFG.fs_hz)")
     lsbs = list(lsb) if lsb is not None else [lsb_for(c.data) for c in rec.channels]
+    for c, step in zip(rec.channels, lsbs, strict=True):
+        check_lsb(rec, c.name, step)
     n = rec.n_samples
     pad = (-n) % SAMPLES_PER_FRAME
     raw = []
@@ -347,11 +366,13 @@ def wait_until(deadline_ns: int) -> None:
 
 def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
            on_progress: Callable[[int], None] | None = None,
-           send: Callable[[int, bytes], None] | None = None) -> ReplayResult:
+           send: Callable[[int, bytes], None] | None = None,
+           hold: Callable[[int], None] | None = None) -> ReplayResult:
     """Send a plan on a python-can bus. Paced: every batch is due at start + offset / speed
     (absolute deadlines: an early or late batch does not shift the later ones), and the
     send-time error (send return minus deadline) of every frame is recorded. asap: no pacing.
-    on_progress(n) is called with the number of sample frames sent since the last call."""
+    on_progress(n) is called with the number of sample frames sent since the last call;
+    hold(offset_ns), before each batch, may wait (a logger that must not fall behind)."""
     import can
 
     if not asap and not speed > 0:
@@ -367,6 +388,8 @@ def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
     t0 = time.perf_counter_ns() + (0 if asap else 2_000_000)  # 2 ms to settle
     last_prog = 0
     for off, frames in plan.batches():
+        if hold is not None:
+            hold(off)
         due = t0 + int(off / speed) if not asap else 0
         if not asap:
             wait_until(due)

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 from collections.abc import Sequence
 
@@ -14,7 +15,7 @@ log = logging.getLogger("dynval")
 
 # Each name maps to dynval.cmd_<name>, which defines add_parser(sub) and run(args) -> int.
 COMMANDS = ("features", "simulate", "residual", "replay", "log", "run", "inspect", "discover",
-            "validate", "calibrate")
+            "validate", "calibrate", "recover")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -23,10 +24,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"dynval {__version__}")
     p.add_argument("-v", "--verbose", action="count", default=0,
                    help="more log output (-vv: tracebacks)")
+    p.add_argument("--debug", action="store_true",
+                   help="show the traceback of any error (as -vv does)")
     p.add_argument("-q", "--quiet", action="store_true", help="warnings and errors only, no bars")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(f"dynval.cmd_{name}").add_parser(sub)
+    for sp in sub.choices.values():  # `dynval CMD ... --debug` as well as `dynval --debug CMD`
+        sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show the traceback of any error")
     return p
 
 
@@ -43,13 +49,57 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "run", None):
         parser.print_help(sys.stderr)
         return 2
+    return _run_reporting(args)
+
+
+# exit codes: 2 bad input (a DynvalError, one line naming the file), 3 an internal error (a bug
+# in dynval: one line, --debug shows the traceback), 130 interrupted, 141 stdout closed (the
+# shell's code for a SIGPIPE death, as when piped into `head`)
+EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_PIPE = 2, 3, 130, 141
+
+
+def _run_reporting(args: argparse.Namespace) -> int:
+    """Run the sub-command; every exception becomes one log line and an exit code."""
+    tracebacks = args.debug or args.verbose >= 2
     try:
-        return int(args.run(args))
+        rc = int(args.run(args))
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
+        return rc
     except DynvalError as exc:
-        if args.verbose >= 2:
+        if tracebacks:
             log.exception("dynval failed")
         log.error("%s", exc)
-        return 2
+        return EXIT_INPUT
     except KeyboardInterrupt:
         log.error("interrupted")
-        return 130
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        _silence_stdout()
+        return EXIT_PIPE
+    except OSError as exc:  # the machine, not the input: a full disk, a permission
+        if tracebacks:
+            log.exception("dynval failed")
+        log.error("%s: %s", exc.filename or "I/O error", exc.strerror or exc)
+        return EXIT_INPUT
+    except Exception as exc:  # noqa: BLE001 - the one top-level handler of unexpected errors
+        if tracebacks:
+            log.exception("internal error")
+        log.error("internal error: %s: %s (a bug in dynval; rerun with --debug for the "
+                  "traceback)", type(exc).__name__, _one_line(str(exc)))
+        return EXIT_INTERNAL
+
+
+def _one_line(text: str, limit: int = 200) -> str:
+    t = " ".join(text.split())
+    return t if len(t) <= limit else t[: limit - 3] + "..."
+
+
+def _silence_stdout() -> None:
+    """The reader of stdout went away (`dynval ... | head`): send what is still buffered to
+    /dev/null, so the interpreter's flush at exit neither fails nor prints a traceback."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # stdout without a descriptor (captured in a test)
+        pass

@@ -10,7 +10,8 @@ from pathlib import Path
 from typing import Any
 
 from dynval.cli_common import add_test_options, read_tests
-from dynval.errors import ConfigError
+from dynval.errors import ConfigError, InputFileError
+from dynval.io import Recording
 
 log = logging.getLogger(__name__)
 
@@ -51,11 +52,18 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     m = mdl.load(args.model)
     recs = read_tests(args.tests, args, besides=args.model)
+    for rec in recs:
+        _preflight(m, rec)
     noise = _stated_noise(args.noise, m, recs) if args.noise is not None else None
     unc = tuple(x.strip() for x in args.uncertain.split(",") if x.strip())
     opts = loop.Options(max_effects=args.max_effects, min_gain=args.min_gain, noise=noise,
                         uncertain=unc, readjust=not args.no_readjust)
-    res = loop.discover(m, recs, opts, on_progress=lambda s: log.debug("%s", s))
+    try:
+        res = loop.discover(m, recs, opts, on_progress=lambda s: log.debug("%s", s))
+    except Exception:
+        for rec in recs:  # a declared model that diverges on a test: the element and the file
+            mdl.simulate_recording(m, rec)
+        raise
     if args.model_out is not None:
         mdl.save(res.model, args.model_out)
     doc = report.to_json(res, str(args.model), str(args.model_out or ""))
@@ -85,6 +93,34 @@ def run(args: argparse.Namespace) -> int:
     log.info("discover: %d tests in %.1f s", len(recs), time.perf_counter() - t0)
     sys.stdout.flush()
     return 0
+
+
+MIN_SAMPLES = 64  # the input band and the noise floor need spectra of some length
+MAX_ABS = 1e150  # squares and sums of squares of a test's samples stay finite (double)
+
+
+def _preflight(m: Any, rec: Recording) -> None:
+    """What discover needs of a test, as one-line errors naming the file: enough samples, a
+    measured input that is not zero throughout, samples whose squares are finite. (A declared
+    model that diverges is named by run() when the loop fails, not simulated twice here.)"""
+    import numpy as np
+
+    from dynval import model as mdl
+
+    where = rec.source or rec.name
+    if rec.n_samples < MIN_SAMPLES:
+        raise InputFileError(where, f"discover needs at least {MIN_SAMPLES} samples, found "
+                             f"{rec.n_samples}")
+    for c in rec.channels:
+        big = np.flatnonzero(np.abs(c.data) > MAX_ABS)
+        if big.size:
+            raise InputFileError(where, f"channel {c.name}: sample {int(big[0])} is "
+                                 f"{c.data[big[0]]:.3g}, beyond what discover's least squares "
+                                 f"take (|x| <= {MAX_ABS:g}); rescale the channel")
+    u = rec.channel(mdl.input_channel(m, rec)).data
+    if not np.any(np.nan_to_num(u) != 0):
+        raise InputFileError(where, "the input channel is zero throughout (an ambient or "
+                             "free-decay test): discover needs a measured input")
 
 
 def _g(x: Any) -> str:

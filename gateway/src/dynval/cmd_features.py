@@ -3,11 +3,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from dynval.cli_common import add_test_options, read_with_options
+from dynval.errors import InputFileError
 from dynval.io import Recording
 
 COLUMNS = ("mean", "std", "rms", "skew", "kurt", "peak", "crest", "kfactor")
@@ -37,8 +41,20 @@ def compute(rec: Recording, seg_len: int = 64) -> dict[str, Any]:
                                **{k: getattr(tm, k) for k in TEMPORAL}}
         if seg is not None:
             row["segstd_min"], row["segstd_max"] = float(seg.min()), float(seg.max())
+        _check_finite(rec, ch.name, ch.data, row)
         out["channels"][ch.name] = row
     return out
+
+
+def _check_finite(rec: Recording, name: str, x: np.ndarray, row: dict[str, Any]) -> None:
+    """Finite samples give finite features, or an error naming the channel: never a NaN or
+    Inf printed with exit 0 (a sample near the real type's range overflows its square)."""
+    bad = [k for k, v in row.items() if isinstance(v, float) and not math.isfinite(v)]
+    if bad:
+        peak = float(np.nanmax(np.abs(x), initial=0.0))
+        raise InputFileError(rec.source or rec.name, f"channel {name}: {', '.join(bad)} not "
+                             f"finite: samples up to {peak:.3g} overflow the feature arithmetic; "
+                             "rescale the channel (channel map 'scale')")
 
 
 def run(args: argparse.Namespace) -> int:

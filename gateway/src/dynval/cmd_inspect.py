@@ -8,7 +8,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from dynval.io.mcapfile import Scan, iter_messages
+from dynval.errors import InputFileError
+from dynval.io.jsonfile import parse_json
+from dynval.io.mcapfile import Message, Scan, iter_messages
 from dynval.topics import T_EVENTS, T_STATUS
 
 GAP_FACTOR = 5.0  # an interval this many times the median interval is a gap
@@ -36,7 +38,8 @@ def inspect(path: Path) -> dict[str, Any]:
         t["count"] += 1
         t["last_ns"] = m.log_time
         if m.topic == T_EVENTS:
-            events[m.data["event"]] = events.get(m.data["event"], 0) + int(m.data["count"])
+            name, count = _event(path, m)
+            events[name] = events.get(name, 0) + count
         elif m.topic == T_STATUS:
             last_status = m.data
     out: dict[str, Any] = {"file": str(path), "complete": sc.complete, "bytes": sc.size,
@@ -54,8 +57,28 @@ def inspect(path: Path) -> dict[str, Any]:
     md = sc.metadata
     out["metadata"] = md.get("dynval", {})
     if "dynval.summary" in md:
-        out["summary"] = {k: json.loads(v) for k, v in md["dynval.summary"].items()}
+        out["summary"] = {k: parse_json(path, v) for k, v in md["dynval.summary"].items()}
+        _check_summary(path, out["summary"])
     return out
+
+
+def _event(path: Path, m: Message) -> tuple[str, int]:
+    name, count = m.data.get("event"), m.data.get("count")
+    if not isinstance(name, str) or isinstance(count, bool) or not isinstance(count, int):
+        raise InputFileError(path, f"{m.topic} message is not a dynval event (needs 'event' "
+                             "and an integer 'count')", None, f"sequence {m.sequence}")
+    return name, count
+
+
+def _check_summary(path: Path, summary: dict[str, Any]) -> None:
+    """The parts of the dynval.summary metadata the report reads have their types."""
+    seq = summary.get("sequence", {})
+    ok = isinstance(seq, dict) and all(
+        isinstance(v, dict) and all(isinstance(v.get(k, 0), int) for k in ("ok", "lost"))
+        for v in seq.values())
+    if not ok:
+        raise InputFileError(path, "the dynval.summary metadata's 'sequence' is not a table "
+                             "of counts per channel")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -86,6 +109,6 @@ def run(args: argparse.Namespace) -> int:
     if "summary" in r:
         seq = r["summary"].get("sequence", {})
         lost = {k: v["lost"] for k, v in seq.items() if v.get("lost")}
-        print(f"  sequence: {sum(v['ok'] for v in seq.values())} frames in order, lost "
+        print(f"  sequence: {sum(v.get('ok', 0) for v in seq.values())} frames in order, lost "
               f"{lost or 0}")
     return 0

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import time
 from pathlib import Path
 from typing import Any
 
-from dynval.cli_common import add_test_options, read_with_options
+from dynval.cli_common import add_test_options, read_with_options, sigterm_interrupts
 
 
 def add_parser(sub: Any) -> None:
@@ -47,19 +46,15 @@ def run(args: argparse.Namespace) -> int:
     b = bus.open_bus(args.bus, args.channel)
     out = McapLog(args.output, meta=meta, channel_names=names, chunk_size=args.chunk_kb * 1024)
 
-    def _term(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
-
-    old = signal.signal(signal.SIGTERM, _term)
     t_end = time.monotonic() + args.duration if args.duration else None
     n = 0
     try:
-        n = log_bus(b, out, stop=(lambda: time.monotonic() > t_end) if t_end else None,
-                    idle_timeout_s=args.idle_timeout)
+        with sigterm_interrupts():
+            n = log_bus(b, out, stop=(lambda: time.monotonic() > t_end) if t_end else None,
+                        idle_timeout_s=args.idle_timeout)
     except KeyboardInterrupt:
         pass
     finally:
-        signal.signal(signal.SIGTERM, old)
         s = out.close()
         b.shutdown()
     total = sum(s["messages"].values())

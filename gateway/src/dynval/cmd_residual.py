@@ -47,8 +47,9 @@ def run(args: argparse.Namespace) -> int:
     for t in res["tests"]:
         print(f"{t['file']}: {t['n_samples']} samples at {t['fs_hz']:g} Hz")
         width = max(12, *(len(c) for c in t["channels"]))
-        print(f"  {'channel':<{width}} {'rmse':>12} {'nrmse_%':>9} {'rms_meas':>12}")
+        print(f"  {'channel':<{width}} {'rmse':>12} {'nrmse_%':>9} {'rms_meas':>12} "
+              f"{'samples':>9}")
         for c, v in t["channels"].items():
             print(f"  {c:<{width}} {v['rmse']:>12.5g} {100 * v['nrmse']:>9.3f} "
-                  f"{v['rms_measured']:>12.5g}")
+                  f"{v['rms_measured']:>12.5g} {v['n_used']:>9}")
     return 0

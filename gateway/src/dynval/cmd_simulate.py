@@ -29,13 +29,16 @@ def add_parser(sub: Any) -> None:
 
 
 def time_column(path: Path) -> str:
-    """The name of the test's first (time) column."""
+    """The name of the test's time column: a CSV's first header cell, else time_s (the other
+    formats have no time column of their own: BRFD's is unnamed, MCAP and text have none)."""
+    if path.suffix.lower() != ".csv":
+        return "time_s"
     try:
-        with open(path, encoding="utf-8-sig") as f:
-            first = f.readline()
+        with open(path, "rb") as f:
+            first = f.readline(4096)
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from exc
-    return first.split(",")[0].strip() or "time_s"
+    return first.decode("utf-8-sig", "replace").split(",")[0].strip() or "time_s"
 
 
 def write_prediction(model_path: Path, rec: Recording, test: Path, out: Path,

@@ -81,14 +81,19 @@ def compression() -> CompressionType:
 
 
 class _Flushing:
-    """A write stream that hands every write (a finished chunk, metadata) to the OS at once."""
+    """A write stream that hands every write (a finished chunk, metadata) to the OS at once;
+    a failed write (a full disk) is a LogError naming the file."""
 
-    def __init__(self, f: IO[bytes]) -> None:
+    def __init__(self, f: IO[bytes], path: Path) -> None:
         self.f = f
+        self.path = path
 
     def write(self, b: bytes) -> int:
-        n = self.f.write(b)
-        self.f.flush()
+        try:
+            n = self.f.write(b)
+            self.f.flush()
+        except OSError as exc:
+            raise LogError(f"{self.path}: cannot write the log: {exc.strerror or exc}") from exc
         return n
 
     def tell(self) -> int:
@@ -114,7 +119,7 @@ class McapLog:
 
     def __init__(self, path: Path | str, *, meta: dict[str, Any] | None = None,
                  channel_names: list[str] | None = None, chunk_size: int = 512 * 1024,
-                 max_chunk_age_s: float = 1.0, compress: CompressionType | None = None,
+                 max_chunk_age_s: float = 0.5, compress: CompressionType | None = None,
                  log_raw: bool = True) -> None:
         self.path = Path(path)
         try:
@@ -122,7 +127,7 @@ class McapLog:
             self._f = open(self.path, "wb")  # noqa: SIM115 - closed in close()
         except OSError as exc:
             raise LogError(f"{self.path}: cannot write: {exc.strerror or exc}") from exc
-        stream: Any = _Flushing(self._f)
+        stream: Any = _Flushing(self._f, self.path)
         self._w: Any = Writer(stream, chunk_size=chunk_size,
                          compression=compress if compress is not None else compression())
         self._w.start(profile=PROFILE, library=f"dynval {__version__}")
@@ -138,6 +143,9 @@ class McapLog:
         self.log_raw = log_raw
         self.max_age_ns = int(max_chunk_age_s * 1e9)
         self._last_flush = time.monotonic_ns()
+        self.fs_hz = 0  # the rate of the DV_CHCFG frames (data time of the sample frames)
+        self.frames_logged = 0  # sample frames per channel since START (the highest + 1)
+        self._frames_flushed = 0  # frames_logged when the last chunk was finished
         self._closed = False
         self.t_first: int | None = None
         self.t_last = 0
@@ -214,14 +222,33 @@ class McapLog:
             f = d.fields
             if d.kind == "chcfg":
                 self.lsb[f["channel"]] = f["lsb"]
+                self.fs_hz = int(f["fs_hz"])
             elif f["cmd"] == bus.CTRL_START:
                 self.seq.clear()
+                self.frames_logged = self._frames_flushed = 0
                 self._frame_no.clear()
             self._put(T_CONTROL, t_ns, {"kind": d.kind, **f})
+        self.tick()
+
+    @property
+    def logged_s(self) -> float:
+        """Data time (s since START) of the sample frames logged so far."""
+        return self.frames_logged * bus.SAMPLES_PER_FRAME / self.fs_hz if self.fs_hz else 0.0
+
+    def tick(self) -> None:
+        """Finish the chunk in progress when it is older than max_chunk_age_s of wall time or
+        holds more than that of data time (a replay faster than real time): bounds what a
+        crash can lose at any speed. on_frame calls it; a receive loop calls it on every
+        timeout too, so a burst followed by silence reaches the disk as well."""
+        if self._closed:
+            return
         now = time.monotonic_ns()
-        if now - self._last_flush > self.max_age_ns:
-            self._w.flush()  # finish the chunk in progress: bounds what a crash can lose
+        new_frames = self.frames_logged - self._frames_flushed
+        data_ns = new_frames * bus.SAMPLES_PER_FRAME * 1e9 / self.fs_hz if self.fs_hz else 0
+        if now - self._last_flush > self.max_age_ns or data_ns > self.max_age_ns:
+            self._w.flush()
             self._last_flush = now
+            self._frames_flushed = self.frames_logged
 
     def _samples(self, t_ns: int, f: dict[str, Any]) -> None:
         ch = int(f["channel"])
@@ -246,6 +273,7 @@ class McapLog:
             k = prev - ((prev - f["seq"]) & 0xFF)
         if verdict in ("ok", "gap") or prev is None:
             self._frame_no[ch] = k
+            self.frames_logged = max(self.frames_logged, k + 1)
         lsb = self.lsb.get(ch, bus.DEFAULT_LSB)
         vals = [bus.sample_value(r, lsb) for r in f["raw"]]
         self._put(T_SAMPLES + self.channel_name(ch), t_ns,
@@ -288,6 +316,7 @@ def log_bus(bus_obj: Any, out: McapLog, *, stop: Any = None, idle_timeout_s: flo
     while stop is None or not stop():
         m = bus_obj.recv(timeout=0.05)
         if m is None:
+            out.tick()
             if idle_timeout_s is not None and time.monotonic() - idle_since > idle_timeout_s:
                 break
             continue

@@ -38,6 +38,7 @@ MAX_CHAN, N_MODEL = const("SIM_MAX_CHAN"), const("SIM_N_MODEL")
 N_INPUT, MAX_OUT = const("SIM_N_INPUT"), const("SIM_CORE_MAX_OUT")
 #: the observer's model parameters: SIM_MODEL_* offsets (n_dof, mass, k, zeta, q, r, ...)
 MODEL = named("SIM_MODEL_")
+F32_MAX = 3.4028234663852886e38  # the largest finite IEEE-754 binary32
 MAX_DOF = MODEL["k"] - MODEL["mass"]  # masses of DOF 1..n fill the slots before the k's
 
 
@@ -86,11 +87,7 @@ def model_params(model: Any, rec: Recording, q: float = 0.0, r: float = 0.0) -> 
                     model.source, len(model.elements))
     if model.input.kind != "force":
         raise ConfigError(f"{model.source}: the firmware observer takes a force input")
-    outs = [c for c in rec.channels if c.role == "output"]
-    want = [c.dof for c in outs]
-    if want != list(range(1, len(outs) + 1)):
-        log.warning("%s: outputs are DOF %s; the firmware reads channel order as DOF 1..%d",
-                    rec.name, want, len(outs))
+    _check_channels(model, rec)
     p = [0.0] * (MODEL["hold"] + 1)
     p[MODEL["n_dof"]] = float(n)
     for i in range(n):
@@ -100,7 +97,46 @@ def model_params(model: Any, rec: Recording, q: float = 0.0, r: float = 0.0) -> 
     p[MODEL["q"]], p[MODEL["r"]] = q, r
     p[MODEL["input_dof"]] = float(model.input.dof - 1)
     p[MODEL["hold"]] = 0.0 if model.interpolation == "foh" else 1.0
+    _check_binary32(model, p)
     return p
+
+
+def _check_channels(model: Any, rec: Recording) -> None:
+    """The model's declared input is the test's force channel, and every output channel the
+    firmware measures (in order, as the acceleration of DOF 1, 2, ...) is declared so by the
+    model: the checks simulate and residual make, for the firmware's reading of the test."""
+    from dynval.model.residual import input_channel
+
+    where = rec.source or rec.name
+    ins = [c.name for c in rec.channels if c.role == "input"]
+    inp = input_channel(model, rec)
+    if not ins or inp != ins[0]:
+        raise ConfigError(f"{where}: the model {model.source} drives DOF {model.input.dof} from "
+                          f"'{inp}', the firmware would take '{ins[0] if ins else '?'}' (the "
+                          "test's first input channel; use --channel-map)")
+    outs = [c.name for c in rec.channels if c.role == "output"]
+    for j, name in enumerate(outs, 1):
+        o = model.outputs.get(name)
+        if o is None or o.kind != "acc" or o.index != j:
+            have = "not an output" if o is None else f"{o.kind} of DOF {o.index}"
+            raise ConfigError(f"{where}: the firmware reads channel '{name}' as the acceleration "
+                              f"of DOF {j}; the model {model.source} declares it {have} (use "
+                              "--channel-map to choose and order the channels)")
+
+
+def _check_binary32(model: Any, p: list[float]) -> None:
+    """The firmware holds its parameters as binary32: each must be finite there."""
+    big = [i for i, v in enumerate(p) if not abs(v) <= F32_MAX]
+    if big:
+        names = {MODEL["mass"]: "masses_kg", MODEL["k"]: "stiffness_n_per_m",
+                 MODEL["zeta"]: "damping.zeta"}
+        i = big[0]
+        base = max((b for b in names if b <= i), default=None)
+        n = model.n_dof
+        field = (f"{names[base]}[{i - base}]" if base is not None and i - base < n
+                 else f"firmware parameter {i} (--obs-q/--obs-r?)")
+        raise ConfigError(f"{model.source}: field '{field}': {p[i]:.3g} is beyond the "
+                          f"firmware's binary32 range (|x| <= {F32_MAX:.4g})")
 
 
 def firmware_config(rec: Recording, model: Any = None, **kw: Any) -> FirmwareConfig:
@@ -352,7 +388,8 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
                              name="dv-logger", daemon=True)
         t.start()
         try:
-            res = bus.replay(tx, plan, speed=speed, asap=asap, on_progress=on_progress)
+            res = bus.replay(tx, plan, speed=speed, asap=asap, on_progress=on_progress,
+                             hold=lambda off_ns: _hold(logger, state, off_ns))
             state.armed = True
             tx.send(can.Message(arbitration_id=bus.ID_CTRL,
                                 data=bus.encode_ctrl(bus.CTRL_STATUS, record_id)[1],
@@ -367,6 +404,8 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
             t.join(timeout=30)
             rx.shutdown()
             tx.shutdown()
+        if state.error is not None:
+            raise state.error
     finally:
         counters = fw.stop()
         summary = logger.close()
@@ -377,6 +416,23 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
 
 
 QUIET_S = 0.3  # no frame for this long after the status answer: the firmware is done
+MAX_BACKLOG_S = 0.5  # data on the bus not yet logged; with the chunk timer: <= 1 s lost on a kill
+STALL_S = 5.0  # a logger without progress for this long is not waited for (it reports why)
+
+
+def _hold(logger: McapLog, st: _LoggerState, off_ns: int) -> None:
+    """Keep the replay at most MAX_BACKLOG_S of data ahead of the logger (any --speed,
+    --asap): frames waiting in memory are lost on a kill. A logger that makes no progress
+    for STALL_S is not waited for again (no hang; the run reports what was logged)."""
+    last, t_last = logger.frames_logged, time.monotonic()
+    while not st.stalled and st.error is None and off_ns / 1e9 - logger.logged_s > MAX_BACKLOG_S:
+        if logger.frames_logged != last:
+            last, t_last = logger.frames_logged, time.monotonic()
+        elif time.monotonic() - t_last > STALL_S:
+            st.stalled = True
+            log.warning("the logger made no progress for %.0f s; replaying without waiting "
+                        "for it", STALL_S)
+        time.sleep(0.001)
 
 
 class _LoggerState:
@@ -384,18 +440,28 @@ class _LoggerState:
         self.armed = False
         self.status = threading.Event()
         self.last_rx = time.monotonic()
+        self.error: Exception | None = None  # what stopped the logger thread (a full disk)
+        self.stalled = False  # the logger fell behind without progress (see _hold)
 
 
 def _logger_loop(rx: Any, logger: McapLog, stop: threading.Event, st: _LoggerState) -> None:
-    while not stop.is_set():
-        m = rx.recv(timeout=0.05)
-        if m is None:
-            continue
-        st.last_rx = time.monotonic()
-        t_ns = int(m.timestamp * 1e9) if m.timestamp else time.time_ns()
-        logger.on_frame(t_ns, m.arbitration_id, bytes(m.data), m.is_extended_id)
-        if st.armed and m.arbitration_id == bus.ID_STATUS and not m.is_extended_id:
-            st.status.set()
+    """Log frames until stop; an error (a write to a full disk) ends the loop and is handed to
+    run_test through st.error, which raises it in the main thread (no waiting for a status
+    that will not be logged, no traceback from a dying thread)."""
+    try:
+        while not stop.is_set():
+            m = rx.recv(timeout=0.05)
+            if m is None:
+                logger.tick()
+                continue
+            st.last_rx = time.monotonic()
+            t_ns = int(m.timestamp * 1e9) if m.timestamp else time.time_ns()
+            logger.on_frame(t_ns, m.arbitration_id, bytes(m.data), m.is_extended_id)
+            if st.armed and m.arbitration_id == bus.ID_STATUS and not m.is_extended_id:
+                st.status.set()
+    except Exception as exc:  # noqa: BLE001 - re-raised in the main thread by run_test
+        st.error = exc
+        st.status.set()
 
 
 def recording_meta(rec: Recording, plan: bus.Plan | None = None) -> dict[str, Any]:

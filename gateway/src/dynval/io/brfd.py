@@ -4,7 +4,6 @@ friction-damper-brfd, SOURCE.md): {"data": [[t, disp, force, vel, ...], ...], "d
 Input: the measured displacement; output: the friction force."""
 from __future__ import annotations
 
-import json
 import logging
 import math
 from pathlib import Path
@@ -13,7 +12,8 @@ from typing import Any
 import numpy as np
 
 from dynval.errors import InputFileError
-from dynval.io.recording import Channel, Recording, file_sha256
+from dynval.io.jsonfile import read_json
+from dynval.io.recording import MAX_RATE_HZ, Channel, Recording, file_sha256
 
 log = logging.getLogger(__name__)
 
@@ -38,6 +38,11 @@ def looks_like_brfd(path: Path) -> bool:
     return head.startswith(b"{") and b'"data"' in head
 
 
+def _short(v: Any) -> str:
+    r = repr(v)
+    return r if len(r) <= 40 else f"{r[:37]}..."
+
+
 def _unit(meta: dict[str, Any], key: str) -> str:
     if key.endswith("/s"):
         base = meta.get(key[:-2])
@@ -46,17 +51,27 @@ def _unit(meta: dict[str, Any], key: str) -> str:
     return v if isinstance(v, str) else ""
 
 
+def _rate(p: Path, meta: dict[str, Any]) -> float:
+    """The sampling rate: 'sampling freq', else 1 / 'dt'; within MAX_RATE_HZ."""
+    for key, invert in (("sampling freq", False), ("dt", True)):
+        v = meta.get(key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            continue
+        try:
+            fs = 1.0 / float(v) if invert else float(v)
+        except (OverflowError, ZeroDivisionError):
+            continue
+        if 0 < fs <= MAX_RATE_HZ:
+            return fs
+    raise InputFileError(p, "neither 'sampling freq' nor 'dt' gives a rate in "
+                         f"(0, {MAX_RATE_HZ:g}] Hz")
+
+
 def read_brfd(path: Path | str, *, lenient: bool = False) -> Recording:
     """Read a BRFD JSON test. Errors name the file, the data row (as 'line', 1-based) and the
     column: missing keys, ragged rows, non-numeric/NaN values, time not matching dt."""
     p = Path(path)
-    try:
-        meta = json.loads(p.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputFileError(p, f"cannot read: {exc.strerror or exc}") from exc
-    except json.JSONDecodeError as exc:
-        raise InputFileError(p, f"not valid JSON ({exc.msg}; truncated file?)", exc.lineno,
-                             f"char {exc.colno}") from exc
+    meta = read_json(p)
     if not isinstance(meta, dict) or not isinstance(meta.get("data"), list):
         raise InputFileError(p, "expected a JSON object with a 'data' list of rows")
     rows = meta["data"]
@@ -75,21 +90,20 @@ def read_brfd(path: Path | str, *, lenient: bool = False) -> Recording:
                                  f"values, expected {ncol}", i + 1)
         for j, v in enumerate(r):
             if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise InputFileError(p, f"not a number: {v!r}", i + 1, names[j])
+                raise InputFileError(p, f"not a number: {_short(v)}", i + 1, names[j])
+            try:
+                v = float(v)
+            except OverflowError:
+                raise InputFileError(p, f"number beyond the float range: {_short(v)}", i + 1,
+                                     names[j]) from None
             if not math.isfinite(v):
                 if not lenient or j == 0:
                     raise InputFileError(p, f"non-finite value {v!r}", i + 1, names[j])
                 warnings.append(f"{p}: data row {i + 1}: non-finite {names[j]} kept as NaN")
                 log.warning(warnings[-1])
             data[i, j] = v
-    fs = meta.get("sampling freq")
-    dt = meta.get("dt")
-    if not isinstance(fs, (int, float)) or not fs > 0:
-        if isinstance(dt, (int, float)) and dt > 0:
-            fs = 1.0 / dt
-        else:
-            raise InputFileError(p, "neither 'sampling freq' nor 'dt' is a positive number")
-    period = 1.0 / float(fs)
+    fs = _rate(p, meta)
+    period = 1.0 / fs
     t = data[:, 0]
     step = np.diff(t)
     bad = np.flatnonzero(np.abs(step - period) > _TIME_JITTER * period)

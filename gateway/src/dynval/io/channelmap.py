@@ -13,14 +13,14 @@ units and roles, and DOF i for the i-th output (the three-story layout)."""
 from __future__ import annotations
 
 import dataclasses
-import json
 import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dynval.errors import ConfigError
+from dynval.errors import ConfigError, InputFileError
+from dynval.io.jsonfile import read_mapping_file
 from dynval.io.recording import Channel, Recording
 
 log = logging.getLogger(__name__)
@@ -51,18 +51,9 @@ class ChannelMap:
 def load_channel_map(path: Path | str) -> ChannelMap:
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"{p}: cannot read channel map: {exc.strerror or exc}") from exc
-    try:
-        if p.suffix.lower() in (".yaml", ".yml"):
-            import importlib
-
-            d = importlib.import_module("yaml").safe_load(text)
-        else:
-            d = json.loads(text)
-    except Exception as exc:  # yaml and json raise their own classes
-        raise ConfigError(f"{p}: not a valid channel map file: {exc}") from exc
+        d = read_mapping_file(p)
+    except InputFileError as exc:  # a channel map is configuration: the same line, ConfigError
+        raise ConfigError(f"{exc} (channel map)") from None
     return channel_map_from_dict(d, str(p))
 
 

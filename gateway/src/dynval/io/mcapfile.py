@@ -7,8 +7,8 @@ a chunk whose CRC does not match ends the read. read_mcap() turns the /dv/sample
 topics back into a Recording (the values the firmware saw)."""
 from __future__ import annotations
 
+import importlib
 import io
-import json
 import logging
 import struct
 from collections.abc import Iterator
@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from dynval.errors import InputFileError
-from dynval.io.recording import Channel, Recording, file_sha256
+from dynval.io.jsonfile import parse_json
+from dynval.io.recording import MAX_RATE_HZ, Channel, Recording, file_sha256
 from dynval.topics import T_SAMPLES
 
 log = logging.getLogger(__name__)
@@ -27,6 +28,9 @@ log = logging.getLogger(__name__)
 MAGIC = b"\x89MCAP0\r\n"
 OP_FOOTER = 0x02
 OP_CHUNK = 0x06
+SAMPLES_PER_MESSAGE = 3  # a DV_SAMPLES frame carries 3 samples of one channel
+MAX_SAMPLES = 1 << 40  # beyond any test: a larger index or count is a damaged file
+GAP_LIMIT = 64  # without n_samples, indices may spread this many samples per message at most
 
 
 @dataclass
@@ -104,12 +108,36 @@ class Message:
     sequence: int = 0
 
 
-def iter_messages(path: Path | str, *, topics: set[str] | None = None,
-                  prefix: str | None = None, scan_out: Scan | None = None) -> Iterator[Message]:
-    """Messages in file order (decoded JSON), metadata into scan_out.metadata. Recovers the
-    complete part of a file without footer; a bad chunk CRC stops the read (scan_out.error)."""
-    from mcap.exceptions import EndOfFile, McapError
-    from mcap.records import Channel as McapChannel
+def _decode_errors() -> tuple[type[BaseException], ...]:
+    """What the mcap library and its decompressors raise on damaged bytes."""
+    from mcap.exceptions import McapError
+
+    errs: list[type[BaseException]] = [McapError, struct.error, ValueError, EOFError,
+                                       RuntimeError, KeyError, IndexError, OverflowError]
+    try:
+        errs.append(importlib.import_module("zstandard").ZstdError)
+    except ImportError:  # the package reads zstd chunks only when zstandard is there
+        pass
+    return tuple(errs)
+
+
+def _payload(p: Path, raw: bytes, topic: str, k: int) -> dict[str, Any]:
+    """A message's JSON payload: an object, else InputFileError naming the record."""
+    try:
+        d = parse_json(p, raw.decode("utf-8"))
+    except (UnicodeDecodeError, InputFileError):
+        d = None
+    if not isinstance(d, dict):
+        raise InputFileError(p, f"message {k} on {topic}: the payload is not a JSON object "
+                             "(not written by dynval)", None, f"record {k}")
+    return d
+
+
+def iter_records(path: Path | str, *, scan_out: Scan | None = None) -> Iterator[Any]:
+    """The mcap records (Schema, Channel, Message, Metadata, ...) in file order, metadata also
+    into scan_out.metadata. Recovers the complete part of a file without footer; a damaged
+    chunk (CRC, compression, record layout) stops the read (scan_out.error)."""
+    from mcap.exceptions import EndOfFile
     from mcap.records import Message as McapMessage
     from mcap.records import Metadata
     from mcap.stream_reader import CRCValidationError, StreamReader
@@ -120,76 +148,164 @@ def iter_messages(path: Path | str, *, topics: set[str] | None = None,
         for k, v in vars(s).items():
             setattr(scan_out, k, v)
     s = scan_out if scan_out is not None else s
-    chans: dict[int, str] = {}
+    errors = _decode_errors()
+    n = 0
     with open(p, "rb") as f:
         f.seek(8)
         body = io.BufferedReader(_Limited(f, s.good_bytes - 8))
-        reader = StreamReader(body, skip_magic=True, validate_crcs=True)
-        try:
-            for r in reader.records:
-                if isinstance(r, McapChannel):
-                    chans[r.id] = r.topic
-                elif isinstance(r, McapMessage):
-                    t = chans.get(r.channel_id, "?")
-                    if (topics is None or t in topics) and (prefix is None or
-                                                           t.startswith(prefix)):
-                        yield Message(t, r.log_time, json.loads(r.data), r.sequence)
-                elif isinstance(r, Metadata):
-                    s.metadata[r.name] = dict(r.metadata)
-        except EndOfFile:
-            pass  # the complete records are read; a footer-less file ends here
-        except CRCValidationError as exc:
-            s.error = f"chunk CRC mismatch: {exc}"
-            log.warning("%s: %s; read stops there", p, s.error)
-        except (McapError, struct.error, ValueError) as exc:
-            s.error = str(exc)
-            log.warning("%s: %s; read stops there", p, exc)
+        records = StreamReader(body, skip_magic=True, validate_crcs=True).records
+        while True:
+            try:
+                r = next(records)
+            except (StopIteration, EndOfFile):
+                break  # the complete records are read; a footer-less file ends here
+            except CRCValidationError as exc:
+                s.error = f"chunk CRC mismatch: {exc}"
+                log.warning("%s: %s; read stops there", p, s.error)
+                break
+            except errors as exc:
+                s.error = f"damaged record after message {n}: {type(exc).__name__}: {exc}"
+                log.warning("%s: %s; read stops there", p, s.error)
+                break
+            if isinstance(r, McapMessage):
+                n += 1
+            elif isinstance(r, Metadata):
+                s.metadata[r.name] = dict(r.metadata)
+            yield r
+
+
+def iter_messages(path: Path | str, *, topics: set[str] | None = None,
+                  prefix: str | None = None, scan_out: Scan | None = None) -> Iterator[Message]:
+    """Messages in file order (decoded JSON) of iter_records; a payload that is not a JSON
+    object is an InputFileError naming the record."""
+    from mcap.records import Channel as McapChannel
+    from mcap.records import Message as McapMessage
+
+    p = Path(path)
+    chans: dict[int, str] = {}
+    n = 0
+    for r in iter_records(p, scan_out=scan_out):
+        if isinstance(r, McapChannel):
+            chans[r.id] = r.topic
+        elif isinstance(r, McapMessage):
+            n += 1
+            t = chans.get(r.channel_id, "?")
+            if (topics is None or t in topics) and (prefix is None or t.startswith(prefix)):
+                yield Message(t, r.log_time, _payload(p, r.data, t, n), r.sequence)
+
+
+MAX_CHANNELS = 256  # DV_CHCFG's channel field is a byte
+
+
+def _int_field(p: Path, m: Message, key: str, lo: int, hi: int) -> int:
+    v = m.data.get(key)
+    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v < hi:
+        raise InputFileError(p, f"{m.topic} message: '{key}' must be an integer in "
+                             f"[{lo}, {hi}), got {str(v)[:40]}", None, f"sequence {m.sequence}")
+    return v
+
+
+def _values(p: Path, m: Message) -> list[float]:
+    v = m.data.get("values")
+    if not isinstance(v, list) or len(v) > SAMPLES_PER_MESSAGE or not all(
+            x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in v):
+        raise InputFileError(p, f"{m.topic} message: 'values' must be a list of at most "
+                             f"{SAMPLES_PER_MESSAGE} numbers or null", None,
+                             f"sequence {m.sequence}")
+    try:
+        return [np.nan if x is None else float(x) for x in v]
+    except OverflowError:
+        raise InputFileError(p, f"{m.topic} message: a value beyond the float range", None,
+                             f"sequence {m.sequence}") from None
+
+
+def _meta_json(p: Path, meta: dict[str, str], key: str) -> dict[str, str]:
+    text = meta.get(key)
+    if not text:
+        return {}
+    d = parse_json(p, text) if isinstance(text, str) else None
+    if not isinstance(d, dict) or not all(isinstance(v, str) for v in d.values()):
+        raise InputFileError(p, f"the 'dynval' metadata's '{key}' is not a JSON object of "
+                             "strings")
+    return d
+
+
+def _meta_rate(p: Path, meta: dict[str, str]) -> float:
+    try:
+        fs = float(meta.get("fs_hz", "nan"))
+    except (TypeError, ValueError):
+        fs = float("nan")
+    if not 0 < fs <= MAX_RATE_HZ:
+        raise InputFileError(p, "the 'dynval' metadata record has no usable fs_hz")
+    return fs
+
+
+def _meta_count(p: Path, meta: dict[str, str]) -> int | None:
+    """n_samples of the metadata (None when absent)."""
+    text = meta.get("n_samples")
+    if text is None:
+        return None
+    try:
+        n = int(text)
+    except (TypeError, ValueError):
+        n = -1
+    if not 0 <= n <= MAX_SAMPLES:
+        raise InputFileError(p, f"the 'dynval' metadata's n_samples is not a count: "
+                             f"{str(text)[:40]}")
+    return n
 
 
 def read_mcap(path: Path | str, *, lenient: bool = False) -> Recording:
     """The samples a dynval MCAP logged, as a Recording (channel order by channel number;
-    gaps and missing samples are NaN, each counted in warnings)."""
+    gaps and missing samples are NaN, each counted in warnings). A message that is not a
+    dynval sample message, or metadata that is not dynval's, is an InputFileError; so is a
+    damaged chunk or a missing footer unless lenient."""
     p = Path(path)
     sc = Scan()
-    per: dict[int, dict[int, list[float | None]]] = {}
+    per: dict[int, dict[int, list[float]]] = {}
     names: dict[int, str] = {}
     for m in iter_messages(p, prefix=T_SAMPLES, scan_out=sc):
         if m.data.get("verdict") not in ("ok", "gap"):
             continue
-        ch = int(m.data["channel"])
+        ch = _int_field(p, m, "channel", 0, MAX_CHANNELS)
         names[ch] = m.topic.rsplit("/", 1)[1]
-        per.setdefault(ch, {})[int(m.data["index"])] = m.data["values"]
+        idx = _int_field(p, m, "index", 0, MAX_SAMPLES)
+        per.setdefault(ch, {})[idx] = _values(p, m)
     warnings: list[str] = []
-    if not sc.complete:
-        msg = f"{p}: no footer (logger stopped abnormally); read up to byte {sc.good_bytes}"
-        if not lenient:
-            raise InputFileError(p, msg + " (use --lenient to read what remains)")
-        warnings.append(msg)
-        log.warning(msg)
+    for bad, what in ((not sc.complete, f"no footer (logger stopped abnormally); read up to "
+                       f"byte {sc.good_bytes}"), (bool(sc.error), sc.error)):
+        if bad:
+            if not lenient:
+                raise InputFileError(p, f"{what} (use --lenient to read what remains)")
+            warnings.append(f"{p}: {what}")
+            log.warning(warnings[-1])
     meta = sc.metadata.get("dynval", {})
     if not per:
         raise InputFileError(p, "no /dv/samples/* messages in this MCAP")
-    try:
-        fs = float(meta.get("fs_hz", "nan"))
-    except ValueError:
-        fs = float("nan")
-    if not fs > 0:
-        raise InputFileError(p, "the 'dynval' metadata record has no fs_hz")
-    units = json.loads(meta.get("units", "{}")) if meta.get("units") else {}
-    roles = json.loads(meta.get("roles", "{}")) if meta.get("roles") else {}
-    n = max(max(d) + 3 for d in per.values())
+    fs = _meta_rate(p, meta)
+    units = _meta_json(p, meta, "units")
+    roles = _meta_json(p, meta, "roles")
+    n_rec = _meta_count(p, meta)
+    n = max(max(d) + SAMPLES_PER_MESSAGE for d in per.values())
+    n_msgs = sum(len(d) for d in per.values())
+    limit = n_rec + SAMPLES_PER_MESSAGE if n_rec is not None else GAP_LIMIT * n_msgs
+    if n > limit:
+        raise InputFileError(p, f"sample index {n - SAMPLES_PER_MESSAGE} is beyond the "
+                             f"record ({'n_samples ' + str(n_rec) if n_rec is not None else ''}"
+                             f"{'' if n_rec is not None else str(n_msgs) + ' sample messages'})")
+    if n_rec is not None and n < n_rec:  # the log ends early (a recovered, killed logger)
+        n = n_rec
     chans = []
     for ch in sorted(per):
         x = np.full(n, np.nan)
         for i, vals in per[ch].items():
-            x[i:i + 3] = [np.nan if v is None else v for v in vals]
+            x[i:i + len(vals)] = vals
         miss = int(np.isnan(x).sum())
         if miss:
             warnings.append(f"{p}: channel {names[ch]}: {miss} missing samples (NaN)")
         chans.append(Channel(names[ch], x, units.get(names[ch], ""),
                              roles.get(names[ch], "output")))
-    n_rec = int(meta.get("n_samples", n))
     for c in chans:
-        c.data = c.data[:n_rec]
-    return Recording(name=meta.get("test", p.stem), fs_hz=fs, channels=chans, source=p,
+        c.data = c.data[:n if n_rec is None else n_rec]
+    return Recording(name=str(meta.get("test", p.stem)), fs_hz=fs, channels=chans, source=p,
                      sha256=file_sha256(p), warnings=warnings)

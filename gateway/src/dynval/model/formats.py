@@ -13,13 +13,15 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from dynval.errors import ConfigError
+from dynval.errors import ConfigError, InputFileError
+from dynval.io.jsonfile import read_mapping_file
 from dynval.model import elements as el
 from dynval.model.schema import (
     DAMPING_TYPES,
     FORMAT,
     INPUT_KINDS,
     INTERPOLATIONS,
+    MODEL_KEYS,
     OUTPUT_INDEX_KEY,
     OUTPUT_KINDS,
     Damping,
@@ -37,20 +39,9 @@ def _yaml() -> Any:
 
 def _read_mapping(path: Path) -> dict[str, Any]:
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read the model file: {exc.strerror or exc}") from exc
-    if path.suffix.lower() in (".yaml", ".yml"):
-        yaml = _yaml()
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"{path}: not valid YAML: {exc}") from exc
-    else:
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ConfigError(f"{path}:{exc.lineno}: not valid JSON: {exc.msg}") from exc
+        data = read_mapping_file(path)
+    except InputFileError as exc:  # a model is configuration: the same one line, ConfigError
+        raise ConfigError(f"{exc} (model file)") from None
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: a model file holds one object, found {type(data).__name__}")
     return data
@@ -82,6 +73,7 @@ def from_dict(d: Mapping[str, Any], source: str = "") -> Model:
 
 def _damping(d: Any, ctx: Ctx, where: str) -> Damping:
     t = ctx.choice(ctx.get(d, "type", where), f"{where}.type", DAMPING_TYPES)
+    ctx.known(d, where, MODEL_KEYS["damping"])
     if t == "modal":
         return Damping("modal", zeta=ctx.nums(ctx.get(d, "zeta", where), f"{where}.zeta"))
     if t == "matrix":
@@ -98,6 +90,8 @@ def _damping(d: Any, ctx: Ctx, where: str) -> Damping:
                        beta_s=ctx.num(ctx.get(d, "beta_s", where), f"{where}.beta_s"))
     src = d.get("fitted_to", d)
     w = f"{where}.fitted_to" if "fitted_to" in d else where
+    if "fitted_to" in d:
+        ctx.known(src, w, MODEL_KEYS["fitted_to"])
     modes = ctx.get(src, "modes", w) if "modes" in src else ctx.get(src, "mode", w)
     if not isinstance(modes, (list, tuple)):
         raise ctx.err(f"{w}.modes", "expected two mode numbers")
@@ -115,6 +109,7 @@ def _dof(v: Any, ctx: Ctx, where: str) -> int:
 def _element(e: Any, ctx: Ctx, w: str) -> el.Element:
     """One entry of ``elements``: its type's registry parameters, ``between``, ``side``."""
     t = el.spec(ctx.choice(ctx.get(e, "type", w), f"{w}.type", el.TYPES))
+    ctx.known(e, w, (*MODEL_KEYS["element"], *(p.name for p in t.params)))
     btw = ctx.get(e, "between", w)
     if not isinstance(btw, (list, tuple)) or len(btw) != 2:
         raise ctx.err(f"{w}.between", "expected two DOFs [a, b] (a may be \"ground\")")
@@ -138,11 +133,13 @@ def _link(e: Any, ctx: Ctx, w: str) -> Link:
 
 
 def _from_dynval(d: Mapping[str, Any], ctx: Ctx) -> Model:
+    ctx.known(d, "", MODEL_KEYS["model"])
     masses = ctx.nums(ctx.get(d, "masses_kg", ""), "masses_kg")
     ks = ctx.nums(ctx.get(d, "stiffness_n_per_m", ""), "stiffness_n_per_m")
     damp = _damping(ctx.get(d, "damping", ""), ctx, "damping")
     di = ctx.get(d, "input", "")
     kind = ctx.choice(ctx.get(di, "kind", "input"), "input.kind", INPUT_KINDS)
+    ctx.known(di, "input", MODEL_KEYS["input"])
     dof = ctx.int_(ctx.get(di, "dof", "input"), "input.dof") if kind == "force" else 0
     ch = di.get("channel")
     if ch is not None and not isinstance(ch, str):
@@ -154,6 +151,7 @@ def _from_dynval(d: Mapping[str, Any], ctx: Ctx) -> Model:
     for name, o in outs_raw.items():
         w = f"outputs.{name}"
         ok = ctx.choice(ctx.get(o, "kind", w), f"{w}.kind", OUTPUT_KINDS)
+        ctx.known(o, w, MODEL_KEYS["output"])
         key = OUTPUT_INDEX_KEY.get(ok)
         outs[str(name)] = Output(ok, ctx.int_(ctx.get(o, key, w), f"{w}.{key}") if key else 0,
                                  gain=ctx.num(o.get("gain", 1.0), f"{w}.gain"),
@@ -169,6 +167,7 @@ def _from_dynval(d: Mapping[str, Any], ctx: Ctx) -> Model:
     sim = d.get("simulation", {})
     if not isinstance(sim, Mapping):
         raise ctx.err("simulation", "expected an object")
+    ctx.known(sim, "simulation", MODEL_KEYS["simulation"])
     fs = d.get("fs_hz")
     names = d.get("dofs", ())
     return Model(
@@ -199,6 +198,7 @@ def _kind_from_channel(name: str) -> str | None:
 
 
 def _from_declared(d: Mapping[str, Any], ctx: Ctx) -> Model:
+    ctx.known(d, "", MODEL_KEYS["declared"])
     masses = ctx.nums(d["masses_kg"], "masses_kg")
     kd = d["story_stiffness_N_per_m"]
     if isinstance(kd, (list, tuple)):
@@ -220,6 +220,7 @@ def _from_declared(d: Mapping[str, Any], ctx: Ctx) -> Model:
     damp = _damping(ctx.get(d, "damping", ""), ctx, "damping")
     di = ctx.get(d, "input", "")
     ch = di.get("channel") if isinstance(di, Mapping) else None
+    ctx.known(di, "input", MODEL_KEYS["input"])
     inp = Input("force", ctx.int_(ctx.get(di, "dof", "input"), "input.dof"),
                 None if ch is None else str(ch))
     outs_raw = ctx.get(d, "outputs", "")
@@ -230,6 +231,7 @@ def _from_declared(d: Mapping[str, Any], ctx: Ctx) -> Model:
         w = f"outputs.{name}"
         if isinstance(desc, Mapping):  # dynval-style entry inside a declared file
             ok = ctx.choice(ctx.get(desc, "kind", w), f"{w}.kind", OUTPUT_KINDS)
+            ctx.known(desc, w, MODEL_KEYS["output"])
             outs[str(name)] = Output(ok, ctx.int_(desc.get("dof", desc.get("index", 0)), w))
             continue
         g = _DOF_RE.search(str(desc))

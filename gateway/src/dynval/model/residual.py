@@ -19,13 +19,15 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class ChannelResidual:
-    """measured - predicted of one channel; rmse over finite samples; nrmse = rmse / rms of
-    the measured channel (NaN when that is 0)."""
+    """measured - predicted of one channel; rmse over its n_used finite samples (a measured
+    NaN a lenient reader kept is left out, and counted); nrmse = rmse / rms of the measured
+    channel (NaN when that is 0)."""
 
     residual: np.ndarray
     rmse: float
     nrmse: float
     rms_measured: float
+    n_used: int = 0
 
 
 @dataclass(frozen=True)
@@ -38,8 +40,8 @@ class ResidualResult:
 
     def summary(self) -> dict[str, Any]:
         return {"test": self.test, "fs_hz": self.fs_hz, "n_samples": self.n_samples,
-                "channels": {k: {"rmse": c.rmse, "nrmse": c.nrmse, "rms_measured": c.rms_measured}
-                             for k, c in self.channels.items()}}
+                "channels": {k: {"rmse": c.rmse, "nrmse": c.nrmse, "rms_measured": c.rms_measured,
+                                 "n_used": c.n_used} for k, c in self.channels.items()}}
 
 
 def input_channel(m: Model, rec: Recording) -> str:
@@ -89,5 +91,6 @@ def residual(m: Model, rec: Recording, *, oversample: int | None = None) -> Resi
         ok = np.isfinite(e)
         rmse = float(np.sqrt(np.mean(e[ok] ** 2))) if ok.any() else math.nan
         rms = float(np.sqrt(np.mean(y[ok] ** 2))) if ok.any() else math.nan
-        chans[c] = ChannelResidual(e, rmse, rmse / rms if rms > 0 else math.nan, rms)
+        chans[c] = ChannelResidual(e, rmse, rmse / rms if rms > 0 else math.nan, rms,
+                                   int(ok.sum()))
     return ResidualResult(rec.name, rec.fs_hz, rec.n_samples, chans, pred)

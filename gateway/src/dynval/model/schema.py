@@ -23,6 +23,24 @@ DAMPING_TYPES = ("modal", "rayleigh", "matrix")
 INPUT_KINDS = ("force", "ground_acc", "ground_disp")
 OUTPUT_KINDS = ("acc", "vel", "disp", "story_force", "contact_force", "reaction")
 INTERPOLATIONS = ("bandlimited", "foh", "cubic")
+# Every key a model file may hold, per kind of object: the one place to add a key (a key not
+# listed here is an error with a "did you mean"). "declared" is the top level of the shared
+# data's declared_model.json layout, whose informational keys are read and ignored.
+MODEL_KEYS: dict[str, tuple[str, ...]] = {
+    "model": ("format", "name", "description", "fs_hz", "dofs", "masses_kg",
+              "stiffness_n_per_m", "damping", "input", "outputs", "elements", "simulation"),
+    "declared": ("name", "description", "units", "dofs", "masses_kg", "story_stiffness_N_per_m",
+                 "K_matrix_N_per_m", "M_matrix_kg", "damping", "damping_alternative_in_report",
+                 "natural_frequencies_Hz", "input", "outputs", "csv_columns", "fs_Hz", "fs_hz",
+                 "n_samples"),
+    "damping": ("type", "zeta", "modes", "mode", "alpha_per_s", "beta_s", "c_n_s_per_m",
+                "C_matrix_N_s_per_m", "fitted_to", "definition", "note"),
+    "fitted_to": ("modes", "mode", "zeta"),
+    "input": ("kind", "dof", "channel", "sensor"),
+    "output": ("kind", "dof", "story", "element", "index", "gain", "offset"),
+    "element": ("type", "name", "between", "side"),  # + the parameters of its type
+    "simulation": ("substeps", "oversample", "input_interpolation"),
+}
 # the file key that holds an output's index, per output kind (none for the reaction)
 OUTPUT_INDEX_KEY = {"acc": "dof", "vel": "dof", "disp": "dof", "story_force": "story",
                     "contact_force": "element"}

@@ -335,19 +335,60 @@ def simulate(m: Model, force_or_motion: Any, fs_hz: float, *,
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
     r = _resolve_oversample(m, oversample)
     u = _prepare_input(force_or_motion, r)
-    core = _Core(m, 1.0 / (fs_hz * r))
+    dt = 1.0 / (fs_hz * r)
+    y = _run(m, u, dt, warn=True)
+    _check_finite(m, u, y, dt)
+    y = y[::r]
+    return {name: _sensor(np.ascontiguousarray(y[:, j]), o)
+            for j, (name, o) in enumerate(m.outputs.items())}
+
+
+def _run(m: Model, u: np.ndarray, dt: float, *, warn: bool = False) -> np.ndarray:
+    """The core's outputs (samples x outputs) for the input u at step dt, from rest."""
+    core = _Core(m, dt)
     core.build(m, refill=False)
     y = np.empty((u.size, core.no))
     st = core.run(u, y)
     if st < 0:
         bad = int(core.obs.n_bad_input)
-        if st == _core.lib.DV_ENUMERIC:
-            log.warning("%d non-finite input samples: the core held the state there", bad)
-        else:
+        if st != _core.lib.DV_ENUMERIC:
             _core.check(st, "dv_obs_simulate")
-    y = y[::r]
-    return {name: _sensor(np.ascontiguousarray(y[:, j]), o)
-            for j, (name, o) in enumerate(m.outputs.items())}
+        elif warn:
+            log.warning("%d non-finite input samples: the core held the state there", bad)
+    return y
+
+
+def _check_finite(m: Model, u: np.ndarray, y: np.ndarray, dt: float) -> None:
+    """A prediction that is not finite where the input is (a diverged simulation) is a
+    ConfigError naming the element (or the linear part) that makes it diverge."""
+    bad = ~np.isfinite(y).all(axis=1) & np.isfinite(u)
+    if not bad.any():
+        return
+    k = int(np.argmax(bad))
+    cause = _divergence_cause(m, u[: k + 1], dt)
+    raise ConfigError(f"{m.source or '<model>'}: the simulation diverged at t = {k * dt:.6g} s "
+                      f"(step {k} of {u.size}): {cause}")
+
+
+def _divergence_cause(m: Model, u: np.ndarray, dt: float) -> str:
+    """Which part of m diverges on u: each element alone removed, then all of them."""
+    def finite_without(keep: Sequence[int]) -> bool:
+        elems = tuple(m.elements[i] for i in keep)
+        outs = {k: o for k, o in m.outputs.items() if o.kind != "contact_force"}
+        probe = dataclasses.replace(m, elements=elems, outputs=outs or {"x1": Output("disp", 1)})
+        return bool(np.isfinite(_run(probe, u, dt)).all())
+
+    idx = range(len(m.elements))
+    for i in idx:
+        if finite_without([j for j in idx if j != i]):
+            e = m.elements[i]
+            vals = ", ".join(f"{k} = {v:.4g}" for k, v in el.values(e).items())
+            return (f"elements[{i}] ({e.type}, {vals}) makes it unstable at this step; lower "
+                    "its coefficient, or raise simulation.substeps or oversample")
+    if m.elements and finite_without([]):
+        return "the elements together make it unstable; check their coefficients"
+    return ("the linear model is unstable at this step: check masses_kg, stiffness_n_per_m "
+            "and damping")
 
 
 def _sensor(q: np.ndarray, o: Output) -> np.ndarray:

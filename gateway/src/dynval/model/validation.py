@@ -3,6 +3,7 @@ limits: sizes from the compiled core's description struct and dv_model_buf_len, 
 and parameters by dv_elem_check (the registry's bounds only name the field it refused)."""
 from __future__ import annotations
 
+import difflib
 import functools
 import logging
 import math
@@ -48,17 +49,20 @@ class Ctx:
 
     def num(self, v: Any, where: str) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise self.err(where, f"expected a number, got {v!r}")
-        x = float(v)
+            raise self.err(where, f"expected a number, got {_short(v)}")
+        try:
+            x = float(v)
+        except OverflowError:
+            x = math.inf
         if not math.isfinite(x):
-            raise self.err(where, f"must be finite, got {v!r}")
+            raise self.err(where, f"must be finite, got {_short(v)}")
         return x
 
     def int_(self, v: Any, where: str) -> int:
         if isinstance(v, bool) or not isinstance(v, int):
             if isinstance(v, float) and v.is_integer():
                 return int(v)
-            raise self.err(where, f"expected an integer, got {v!r}")
+            raise self.err(where, f"expected an integer, got {_short(v)}")
         return int(v)
 
     def nums(self, v: Any, where: str) -> tuple[float, ...]:
@@ -67,9 +71,32 @@ class Ctx:
         return tuple(self.num(x, f"{where}[{i}]") for i, x in enumerate(v))
 
     def choice(self, v: Any, where: str, options: Sequence[str]) -> str:
-        if v not in options:
-            raise self.err(where, f"{v!r} is not one of {', '.join(options)}")
-        return str(v)
+        if not isinstance(v, str) or v not in options:
+            raise self.err(where, f"{_short(v)} is not one of {', '.join(options)}"
+                           f"{did_you_mean(v, options)}")
+        return v
+
+    def known(self, obj: Any, where: str, keys: Sequence[str]) -> None:
+        """Every key of obj (when it is an object) is one of keys; else the first unknown one
+        is an error with the closest known key."""
+        if not isinstance(obj, Mapping):
+            return
+        for k in obj:
+            if k not in keys:
+                field = f"{where}.{k}" if where else str(k)
+                raise self.err(field, f"unknown key{did_you_mean(k, keys)} (known here: "
+                               f"{', '.join(keys)})")
+
+
+def did_you_mean(word: Any, options: Sequence[str]) -> str:
+    """'; did you mean 'x'?' for the closest of options (difflib), or ''."""
+    close = difflib.get_close_matches(str(word), list(options), n=1, cutoff=0.6)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
+def _short(v: Any, limit: int = 40) -> str:
+    r = repr(v)
+    return r if len(r) <= limit else f"{r[:limit - 3]}..."
 
 
 
@@ -174,6 +201,10 @@ def _check_damping(d: Damping, n: int, c: Ctx) -> None:
         elif d.alpha_per_s is None or d.beta_s is None:
             raise c.err("damping", "rayleigh needs modes + zeta, or alpha_per_s + beta_s")
     elif d.type == "matrix":
+        for i, row in enumerate(d.c_n_s_per_m):
+            if len(row) != n:
+                raise c.err(f"damping.c_n_s_per_m[{i}]", f"row {i + 1} has {len(row)} values; "
+                            f"the matrix is {n} x {n}")
         cm = np.asarray(d.c_n_s_per_m, dtype=float) if d.c_n_s_per_m else np.zeros((0, 0))
         if cm.shape != (n, n):
             raise c.err("damping.c_n_s_per_m", f"expected {n} x {n}, got {cm.shape}")

@@ -191,6 +191,11 @@ def _chunk_run(job: SweepJob, sets: list[dict[str, float]]
                         failed.append(i)
                         log.warning("run %s refused by the core: %s", s, exc)
         for i in ok:
+            if (~np.isfinite(ys[i]).all(axis=1) & np.isfinite(u)).any():  # diverged: failed
+                if i not in failed:
+                    failed.append(i)
+                    log.warning("run %s diverged (a prediction that is not finite)", sets[i])
+                continue
             y = {c: ys[i, :, j] for j, c in enumerate(chans)}
             feats[i, fi] = job.features.extract(y, job.fs_hz)
             if fi == 0:
