@@ -123,6 +123,7 @@ def _element(e: Any, ctx: Ctx, w: str) -> el.Element:
 
 def _link(e: Any, ctx: Ctx, w: str) -> Link:
     """One entry of ``links``: ``between`` two DOFs, ``k_n_per_m``, ``c_n_s_per_m`` (0)."""
+    ctx.known(e, w, MODEL_KEYS["link"])
     btw = ctx.get(e, "between", w)
     if not isinstance(btw, (list, tuple)) or len(btw) != 2:
         raise ctx.err(f"{w}.between", "expected two DOFs [a, b]")

@@ -28,7 +28,8 @@ INTERPOLATIONS = ("bandlimited", "foh", "cubic")
 # data's declared_model.json layout, whose informational keys are read and ignored.
 MODEL_KEYS: dict[str, tuple[str, ...]] = {
     "model": ("format", "name", "description", "fs_hz", "dofs", "masses_kg",
-              "stiffness_n_per_m", "damping", "input", "outputs", "elements", "simulation"),
+              "stiffness_n_per_m", "damping", "input", "outputs", "elements", "links",
+              "simulation"),
     "declared": ("name", "description", "units", "dofs", "masses_kg", "story_stiffness_N_per_m",
                  "K_matrix_N_per_m", "M_matrix_kg", "damping", "damping_alternative_in_report",
                  "natural_frequencies_Hz", "input", "outputs", "csv_columns", "fs_Hz", "fs_hz",
@@ -39,6 +40,7 @@ MODEL_KEYS: dict[str, tuple[str, ...]] = {
     "input": ("kind", "dof", "channel", "sensor"),
     "output": ("kind", "dof", "story", "element", "index", "gain", "offset"),
     "element": ("type", "name", "between", "side"),  # + the parameters of its type
+    "link": ("name", "between", "k_n_per_m", "c_n_s_per_m"),
     "simulation": ("substeps", "oversample", "input_interpolation"),
 }
 # the file key that holds an output's index, per output kind (none for the reaction)
