@@ -101,7 +101,8 @@ void dv_chan_reset(dv_chan_t *s)
 
 static void close_record(dv_chan_t *s)
 {
-    (void)dv_moments_get(&s->rec, &s->last_stats); /* a record is never empty here */
+    /* never empty here; DV_ERANGE only for a record too long for the type */
+    s->last_st = dv_moments_get(&s->rec, &s->last_stats);
     s->last_tm_st = dv_temporal_get(&s->tm, &s->last_tm);
     dv_moments_reset(&s->rec);
     dv_temporal_reset(&s->tm);
@@ -177,14 +178,16 @@ static bool caller_block(dv_chan_t *s, uint32_t kern, blk_acc_t *acc, const dv_r
         const dv_real_t k = s->seg_pos == 0u ? x[0] : s->shift;
         dv_real_t w[5];
         dv_priv_feat_block(kern, x, k, acc->p, acc->mm, w);
-        if (!dv_priv_finite(w[0])) {
+        /* NaN/Inf make the energy sum non-finite; a sample beyond DV_FEAT_MAX shows in the
+         * block's extremes */
+        if (!dv_priv_finite(w[0]) || !(acc->mm[0] >= -DV_FEAT_MAX && acc->mm[1] <= DV_FEAT_MAX)) {
             return false;
         }
         s->shift = k;
         dv_priv_temporal_push_block(&s->tm, w);
         return true;
     }
-    if (!dv_priv_all_finite(x, m)) {
+    if (!dv_priv_all_in_range(x, m)) {
         return false;
     }
     add_span(s, kern, acc, x, m, s->seg_pos == 0u);
@@ -212,7 +215,7 @@ DV_COLD static dv_status_t close_ring_block(dv_chan_t *s)
 dv_status_t dv_chan_update(dv_chan_t *s, dv_real_t x)
 {
     DV_ASSERT(s != NULL);
-    if (!dv_priv_finite(x)) {
+    if (!dv_priv_in_range(x)) {
         s->n_nonfinite++;
         return DV_ENUMERIC;
     }
@@ -290,6 +293,9 @@ dv_status_t dv_chan_get_record(const dv_chan_t *s, dv_stats_t *st, dv_temporal_o
     }
     if (s->records == 0u) {
         return DV_ENOTREADY;
+    }
+    if (s->last_st != DV_OK) {
+        return s->last_st;
     }
     *st = s->last_stats;
     if (tm == NULL) {

@@ -19,24 +19,72 @@ void dv_temporal_reset(dv_temporal_t *s)
     DV_ASSERT(s != NULL);
     s->w = s->mean = s->m2 = s->m3 = s->m4 = DV_R(0.0);
     s->t0 = s->tau = DV_R(0.0);
+    s->wsc = DV_R(1.0);
     s->s0 = s->s1 = s->s2 = s->s3 = s->s4 = DV_R(0.0);
     s->blk = 0u;
     s->count = 0u;
     s->n_nonfinite = 0u;
 }
 
-static void open_block(const dv_temporal_t *s, dv_priv_cm_t *b)
+/* The weights (x^2) are kept scaled by *wsc, a power of two, so that the merged weight stays
+ * within [TM_W_LO, TM_W_HI]: then neither the merge's products of weights (na^2 m2 and the like)
+ * nor the central sums overflow or underflow, whatever the amplitude of x (up to DV_FEAT_MAX)
+ * and for records up to 2^28 samples (float) / 2^64 (double). Scaling by a power of two is
+ * exact and every term of the merge has the weight's dimension, so the result is the unscaled
+ * one bit for bit wherever that one stayed in range; only the energy carries the scale, and
+ * dv_temporal_get() takes it out. */
+#ifdef DV_REAL_DOUBLE
+#define TM_W_HI 3.402823669209385e38 /* 2^128 */
+#define TM_W_LO 2.938735877055719e-39 /* 2^-128 */
+#else
+#define TM_W_HI 65536.0f /* 2^16 */
+#define TM_W_LO 1.5258789e-05f /* 2^-16 */
+#endif
+#define TM_WSC_MAX (TM_W_HI * TM_W_HI * TM_W_HI) /* tiny weights: up to 2^48 / 2^384 */
+
+static void cm_scale(dv_priv_cm_t *a, dv_real_t f)
 {
-    dv_priv_cm_from_sums(b, s->t0, s->s0, s->s1, s->s2, s->s3, s->s4);
+    a->n *= f;
+    a->m2 *= f;
+    a->m3 *= f;
+    a->m4 *= f;
+}
+
+/* Rare: bring a (scaled by *wsc) and a block of weight bn (unscaled) into range, so that
+ * bn * *wsc <= TM_W_HI and TM_W_LO <= a->n <= TM_W_HI (as far as the block allows). */
+#if defined(__GNUC__) || defined(__clang__)
+__attribute__((noinline, cold))
+#endif
+static void rescale(dv_priv_cm_t *a, dv_real_t *wsc, dv_real_t bn)
+{
+    while (a->n > TM_W_HI || !(bn * *wsc <= TM_W_HI)) {
+        cm_scale(a, TM_W_LO);
+        *wsc *= TM_W_LO;
+    }
+    while (a->n < TM_W_LO && bn * *wsc < TM_W_LO && *wsc < TM_WSC_MAX) {
+        cm_scale(a, TM_W_HI);
+        *wsc *= TM_W_HI;
+    }
+}
+
+/* a (scaled by *wsc) <- a (+) the open block (unscaled sums). */
+static inline void merge_open_block(const dv_temporal_t *s, dv_priv_cm_t *a, dv_real_t *wsc)
+{
+    dv_priv_cm_t b;
+    dv_priv_cm_from_sums(&b, s->t0, s->s0, s->s1, s->s2, s->s3, s->s4);
+    const dv_real_t bn = b.n * *wsc;
+    if (!(bn <= TM_W_HI && a->n <= TM_W_HI && (a->n >= TM_W_LO || bn >= TM_W_LO))) {
+        rescale(a, wsc, b.n);
+    }
+    cm_scale(&b, *wsc);
+    dv_priv_cm_merge(a, &b);
 }
 
 void dv_priv_temporal_flush(dv_temporal_t *s)
 {
     if (s->s0 > DV_R(0.0)) {
         dv_priv_cm_t a = {s->w, s->mean, s->m2, s->m3, s->m4};
-        dv_priv_cm_t b;
-        open_block(s, &b);
-        dv_priv_cm_merge(&a, &b);
+        merge_open_block(s, &a, &s->wsc);
         s->w = a.n;
         s->mean = a.mean;
         s->m2 = a.m2;
@@ -65,7 +113,7 @@ void dv_priv_temporal_push_block(dv_temporal_t *s, const dv_real_t w[5])
 dv_status_t dv_temporal_update(dv_temporal_t *s, dv_real_t x)
 {
     DV_ASSERT(s != NULL);
-    if (dv_priv_finite(x)) {
+    if (dv_priv_in_range(x)) {
         dv_priv_temporal_push(s, x);
         return DV_OK;
     }
@@ -97,12 +145,14 @@ dv_status_t dv_temporal_update_block(dv_temporal_t *s, const dv_real_t *x, size_
         const dv_real_t *p = x + i;
         dv_real_t a0 = DV_R(0.0), a1 = DV_R(0.0), a2 = DV_R(0.0), a3 = DV_R(0.0), a4 = DV_R(0.0);
         dv_real_t b0 = DV_R(0.0), b1 = DV_R(0.0), b2 = DV_R(0.0), b3 = DV_R(0.0), b4 = DV_R(0.0);
-        dv_real_t t = DV_R(0.0);
+        dv_real_t t = DV_R(0.0), wmax = DV_R(0.0);
         for (size_t j = 0u; j < DV_BLOCK_LEN; j += 2u) {
             const dv_real_t u = t + DV_R(1.0);
             const dv_real_t w = p[j] * p[j], v = p[j + 1u] * p[j + 1u];
             const dv_real_t w1 = w * t, w2 = w1 * t;
             const dv_real_t v1 = v * u, v2 = v1 * u;
+            wmax = w > wmax ? w : wmax;
+            wmax = v > wmax ? v : wmax;
             a0 += w;
             b0 += v;
             a1 += w1;
@@ -116,7 +166,8 @@ dv_status_t dv_temporal_update_block(dv_temporal_t *s, const dv_real_t *x, size_
             b4 += v3 * u;
             t += DV_R(2.0);
         }
-        if (!dv_priv_finite(a4 + b4 + a0 + b0)) {
+        /* NaN/Inf poison the sums; x^2 > DV_FEAT_MAX^2 exactly when |x| > DV_FEAT_MAX */
+        if (!dv_priv_finite(a4 + b4 + a0 + b0) || !(wmax <= DV_FEAT_MAX * DV_FEAT_MAX)) {
             for (size_t j = 0u; j < DV_BLOCK_LEN; j++) {
                 if (dv_temporal_update(s, p[j]) != DV_OK) {
                     st = DV_ENUMERIC;
@@ -146,23 +197,33 @@ dv_status_t dv_temporal_get(const dv_temporal_t *s, dv_temporal_out_t *out)
         return DV_ENOTREADY;
     }
     dv_priv_cm_t a = {s->w, s->mean, s->m2, s->m3, s->m4};
+    dv_real_t wsc = s->wsc;
     if (s->s0 > DV_R(0.0)) {
-        dv_priv_cm_t b;
-        open_block(s, &b);
-        dv_priv_cm_merge(&a, &b);
+        merge_open_block(s, &a, &wsc);
     }
     if (!(a.n > DV_R(0.0))) {
         return DV_ENUMERIC;
     }
     const dv_real_t dt = s->dt_s;
     const dv_real_t m3 = a.m3 / a.n;
-    out->energy = a.n * dt;
-    out->central_time = a.mean * dt;
-    out->rms_duration = DV_SQRT(a.m2 / a.n) * dt;
-    out->central_skew = DV_CBRT(m3) * dt;
-    out->central_kurt = DV_SQRT(DV_SQRT(a.m4 / a.n)) * dt;
-    out->root_energy_amp =
-        out->rms_duration > DV_R(0.0) ? DV_SQRT(out->energy / out->rms_duration) : DV_R(0.0);
-    out->count = s->count;
+    const dv_real_t m4 = a.m4 > DV_R(0.0) ? a.m4 : DV_R(0.0); /* round-off on tiny weights */
+    dv_temporal_out_t o;
+    o.energy = a.n / wsc * dt;
+    o.central_time = a.mean * dt;
+    o.rms_duration = DV_SQRT(a.m2 / a.n) * dt;
+    o.central_skew = DV_CBRT(m3) * dt;
+    o.central_kurt = DV_SQRT(DV_SQRT(m4 / a.n)) * dt;
+    o.root_energy_amp =
+        o.rms_duration > DV_R(0.0) ? DV_SQRT(o.energy / o.rms_duration) : DV_R(0.0);
+    o.count = s->count;
+    /* x - x is 0 for a finite x: one test for all six (an extreme dt_s, a huge energy over a
+     * vanishing duration, a record too long for the type) */
+    if (!((o.energy - o.energy) + (o.central_time - o.central_time) +
+              (o.rms_duration - o.rms_duration) + (o.central_skew - o.central_skew) +
+              (o.central_kurt - o.central_kurt) + (o.root_energy_amp - o.root_energy_amp) ==
+          DV_R(0.0))) {
+        return DV_ERANGE;
+    }
+    *out = o;
     return DV_OK;
 }
