@@ -29,8 +29,9 @@ dv_status_t dv_chan_init(dv_chan_t *s, const dv_chan_config_t *cfg, dv_real_t *b
     if (s == NULL || cfg == NULL || buf == NULL) {
         return DV_EINVAL;
     }
+    /* dt_s is checked by dv_temporal_init() */
     if (cfg->win_len < 2u || cfg->win_len > DV_SLIDING_MAX_LEN || cfg->seg_len < 2u ||
-        cfg->n_seg == 0u || !dv_priv_finite(cfg->dt_s) || !(cfg->dt_s > DV_R(0.0))) {
+        cfg->n_seg == 0u) {
         return DV_EINVAL;
     }
     if (buf_len < dv_chan_buf_len(cfg)) {
@@ -147,7 +148,11 @@ static void add_span(dv_chan_t *s, uint32_t kern, blk_acc_t *acc, const dv_real_
         dv_priv_temporal_push_block(&s->tm, w);
         return;
     }
-    (void)dv_temporal_update_block(&s->tm, x, n);
+    /* what dv_temporal_update_block() does for a span that is not one whole temporal block,
+     * without linking its block path into a firmware that needs only this */
+    for (size_t i = 0u; i < n; i++) {
+        dv_priv_temporal_push(&s->tm, x[i]);
+    }
     dv_real_t p1 = DV_R(0.0), p2 = DV_R(0.0), p3 = DV_R(0.0), p4 = DV_R(0.0);
     dv_real_t mn = acc->mm[0], mx = acc->mm[1];
     for (size_t i = 0u; i < n; i++) {
@@ -178,9 +183,10 @@ static bool caller_block(dv_chan_t *s, uint32_t kern, blk_acc_t *acc, const dv_r
         const dv_real_t k = s->seg_pos == 0u ? x[0] : s->shift;
         dv_real_t w[5];
         dv_priv_feat_block(kern, x, k, acc->p, acc->mm, w);
-        /* NaN/Inf make the energy sum non-finite; a sample beyond DV_FEAT_MAX shows in the
-         * block's extremes */
-        if (!dv_priv_finite(w[0]) || !(acc->mm[0] >= -DV_FEAT_MAX && acc->mm[1] <= DV_FEAT_MAX)) {
+        /* NaN/Inf fail the test, and so does a sample beyond DV_FEAT_MAX (x^2 <= sum x^2); a
+         * block of in-range samples that fails it (rms > DV_FEAT_MAX / 8) takes the per-sample
+         * path, which ends in this same kernel: same result */
+        if (!(w[0] <= DV_FEAT_MAX * DV_FEAT_MAX)) {
             return false;
         }
         s->shift = k;

@@ -200,8 +200,8 @@ dv_status_t dv_moments_get(const dv_moments_t *s, dv_stats_t *out)
         open_block_moments(s, &b);
         dv_priv_cm_merge(&a, &b);
     }
-    if (!dv_priv_finite(a.m3) || !dv_priv_finite(a.m4)) {
-        return DV_ERANGE; /* the central sums of a very long record overflowed */
+    if (!(a.m4 <= DV_REAL_MAX)) {
+        return DV_ERANGE; /* the central sums of a very long record overflowed (Inf or NaN) */
     }
     dv_priv_stats_fill(out, &a, s->count, s->min, s->max);
     return DV_OK;

@@ -6,7 +6,7 @@
 
 dv_status_t dv_temporal_init(dv_temporal_t *s, dv_real_t dt_s)
 {
-    if (s == NULL || !dv_priv_finite(dt_s) || !(dt_s > DV_R(0.0))) {
+    if (s == NULL || !(dt_s > DV_R(0.0)) || !(dt_s <= DV_TEMPORAL_MAX_DT_S)) {
         return DV_EINVAL;
     }
     s->dt_s = dt_s;
@@ -50,31 +50,25 @@ static void cm_scale(dv_priv_cm_t *a, dv_real_t f)
     a->m4 *= f;
 }
 
-/* Rare: bring a (scaled by *wsc) and a block of weight bn (unscaled) into range, so that
- * bn * *wsc <= TM_W_HI and TM_W_LO <= a->n <= TM_W_HI (as far as the block allows). */
-#if defined(__GNUC__) || defined(__clang__)
-__attribute__((noinline, cold))
-#endif
-static void rescale(dv_priv_cm_t *a, dv_real_t *wsc, dv_real_t bn)
-{
-    while (a->n > TM_W_HI || !(bn * *wsc <= TM_W_HI)) {
-        cm_scale(a, TM_W_LO);
-        *wsc *= TM_W_LO;
-    }
-    while (a->n < TM_W_LO && bn * *wsc < TM_W_LO && *wsc < TM_WSC_MAX) {
-        cm_scale(a, TM_W_HI);
-        *wsc *= TM_W_HI;
-    }
-}
-
-/* a (scaled by *wsc) <- a (+) the open block (unscaled sums). */
-static inline void merge_open_block(const dv_temporal_t *s, dv_priv_cm_t *a, dv_real_t *wsc)
+/* a (scaled by *wsc) <- a (+) the open block (unscaled sums). First a and *wsc are rescaled (by
+ * TM_W_LO or TM_W_HI at a time, rarely) until the block's scaled weight is at most TM_W_HI and
+ * a's weight within [TM_W_LO, TM_W_HI] unless the block's is already above TM_W_LO. */
+static void merge_open_block(const dv_temporal_t *s, dv_priv_cm_t *a, dv_real_t *wsc)
 {
     dv_priv_cm_t b;
     dv_priv_cm_from_sums(&b, s->t0, s->s0, s->s1, s->s2, s->s3, s->s4);
-    const dv_real_t bn = b.n * *wsc;
-    if (!(bn <= TM_W_HI && a->n <= TM_W_HI && (a->n >= TM_W_LO || bn >= TM_W_LO))) {
-        rescale(a, wsc, b.n);
+    for (;;) {
+        const dv_real_t bn = b.n * *wsc;
+        dv_real_t f;
+        if (a->n > TM_W_HI || !(bn <= TM_W_HI)) {
+            f = TM_W_LO;
+        } else if (a->n < TM_W_LO && bn < TM_W_LO && *wsc < TM_WSC_MAX) {
+            f = TM_W_HI;
+        } else {
+            break;
+        }
+        cm_scale(a, f);
+        *wsc *= f;
     }
     cm_scale(&b, *wsc);
     dv_priv_cm_merge(a, &b);
@@ -145,14 +139,12 @@ dv_status_t dv_temporal_update_block(dv_temporal_t *s, const dv_real_t *x, size_
         const dv_real_t *p = x + i;
         dv_real_t a0 = DV_R(0.0), a1 = DV_R(0.0), a2 = DV_R(0.0), a3 = DV_R(0.0), a4 = DV_R(0.0);
         dv_real_t b0 = DV_R(0.0), b1 = DV_R(0.0), b2 = DV_R(0.0), b3 = DV_R(0.0), b4 = DV_R(0.0);
-        dv_real_t t = DV_R(0.0), wmax = DV_R(0.0);
+        dv_real_t t = DV_R(0.0);
         for (size_t j = 0u; j < DV_BLOCK_LEN; j += 2u) {
             const dv_real_t u = t + DV_R(1.0);
             const dv_real_t w = p[j] * p[j], v = p[j + 1u] * p[j + 1u];
             const dv_real_t w1 = w * t, w2 = w1 * t;
             const dv_real_t v1 = v * u, v2 = v1 * u;
-            wmax = w > wmax ? w : wmax;
-            wmax = v > wmax ? v : wmax;
             a0 += w;
             b0 += v;
             a1 += w1;
@@ -166,8 +158,10 @@ dv_status_t dv_temporal_update_block(dv_temporal_t *s, const dv_real_t *x, size_
             b4 += v3 * u;
             t += DV_R(2.0);
         }
-        /* NaN/Inf poison the sums; x^2 > DV_FEAT_MAX^2 exactly when |x| > DV_FEAT_MAX */
-        if (!dv_priv_finite(a4 + b4 + a0 + b0) || !(wmax <= DV_FEAT_MAX * DV_FEAT_MAX)) {
+        /* NaN/Inf fail the test, and so does a sample beyond DV_FEAT_MAX (x^2 <= sum x^2; with
+         * every x in range the other sums are finite); an in-range block that fails it (rms >
+         * DV_FEAT_MAX / 8) is merely taken sample by sample */
+        if (!(a0 + b0 <= DV_FEAT_MAX * DV_FEAT_MAX)) {
             for (size_t j = 0u; j < DV_BLOCK_LEN; j++) {
                 if (dv_temporal_update(s, p[j]) != DV_OK) {
                     st = DV_ENUMERIC;
@@ -207,23 +201,21 @@ dv_status_t dv_temporal_get(const dv_temporal_t *s, dv_temporal_out_t *out)
     const dv_real_t dt = s->dt_s;
     const dv_real_t m3 = a.m3 / a.n;
     const dv_real_t m4 = a.m4 > DV_R(0.0) ? a.m4 : DV_R(0.0); /* round-off on tiny weights */
-    dv_temporal_out_t o;
-    o.energy = a.n / wsc * dt;
-    o.central_time = a.mean * dt;
-    o.rms_duration = DV_SQRT(a.m2 / a.n) * dt;
-    o.central_skew = DV_CBRT(m3) * dt;
-    o.central_kurt = DV_SQRT(DV_SQRT(m4 / a.n)) * dt;
-    o.root_energy_amp =
-        o.rms_duration > DV_R(0.0) ? DV_SQRT(o.energy / o.rms_duration) : DV_R(0.0);
-    o.count = s->count;
-    /* x - x is 0 for a finite x: one test for all six (an extreme dt_s, a huge energy over a
-     * vanishing duration, a record too long for the type) */
-    if (!((o.energy - o.energy) + (o.central_time - o.central_time) +
-              (o.rms_duration - o.rms_duration) + (o.central_skew - o.central_skew) +
-              (o.central_kurt - o.central_kurt) + (o.root_energy_amp - o.root_energy_amp) ==
-          DV_R(0.0))) {
+    const dv_real_t e = a.n / wsc * dt;
+    const dv_real_t d = DV_SQRT(a.m2 / a.n) * dt;
+    const dv_real_t ae = d > DV_R(0.0) ? DV_SQRT(e / d) : DV_R(0.0);
+    /* With dt_s <= DV_TEMPORAL_MAX_DT_S and the weights in range, only a record too long for
+     * the type (its fourth central sum, the largest; NaN fails too) or a huge energy over a
+     * vanishing duration (ae) can overflow. */
+    if (!(a.m4 <= DV_REAL_MAX) || !(ae <= DV_REAL_MAX)) {
         return DV_ERANGE;
     }
-    *out = o;
+    out->energy = e;
+    out->central_time = a.mean * dt;
+    out->rms_duration = d;
+    out->central_skew = DV_CBRT(m3) * dt;
+    out->central_kurt = DV_SQRT(DV_SQRT(m4 / a.n)) * dt;
+    out->root_energy_amp = ae;
+    out->count = s->count;
     return DV_OK;
 }

@@ -30,7 +30,7 @@ typedef struct {
     uint32_t win_len; /**< sliding window, samples, 2..DV_SLIDING_MAX_LEN (e.g. 256) */
     uint32_t seg_len; /**< samples per STD segment, >= 2 (e.g. 64) */
     uint32_t n_seg;   /**< segments per record, >= 1 (e.g. 64: a 4096-sample record) */
-    dv_real_t dt_s;   /**< sample period, s, > 0 */
+    dv_real_t dt_s;   /**< sample period, s, 0 < dt_s <= DV_TEMPORAL_MAX_DT_S */
     bool no_seg_vectors; /**< true: keep no segmented-STD vector, each STD is read as its segment
                               completes (dv_segstd_last()); the buffer is DV_CHAN_BUF_LEN(win_len, 0) */
 } dv_chan_config_t;

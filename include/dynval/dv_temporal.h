@@ -19,6 +19,10 @@
 extern "C" {
 #endif
 
+/** Longest sample period dv_temporal_init() accepts, s (2^32 s, 136 years): with it every
+ *  time-scaled result of an in-range record stays finite. */
+#define DV_TEMPORAL_MAX_DT_S DV_R(4294967296.0)
+
 /** @brief Temporal moments of a record. */
 typedef struct {
     dv_real_t energy;   /**< E, units of x^2 s */
@@ -48,8 +52,8 @@ typedef struct {
 
 /**
  * @brief Clear state.
- * @param[in] dt_s sample period in seconds, finite and > 0
- * @retval DV_OK / DV_EINVAL (NULL @p s, bad @p dt_s)
+ * @param[in] dt_s sample period in seconds, 0 < dt_s <= DV_TEMPORAL_MAX_DT_S
+ * @retval DV_OK / DV_EINVAL (NULL @p s, @p dt_s NaN or out of range)
  */
 dv_status_t dv_temporal_init(dv_temporal_t *s, dv_real_t dt_s);
 
@@ -71,8 +75,9 @@ dv_status_t dv_temporal_update_block(dv_temporal_t *s, const dv_real_t *x, size_
  * @retval DV_OK        @p out filled, every field finite
  * @retval DV_ENOTREADY no sample yet; @p out untouched
  * @retval DV_ENUMERIC  zero energy (all samples 0): T, D undefined; @p out untouched
- * @retval DV_ERANGE    a result is beyond the real type (an extreme dt_s, a float record of
- *                      more than ~2^28 samples); @p out untouched
+ * @retval DV_ERANGE    a result is beyond the real type (a float record of more than ~2^28
+ *                      samples at full scale, a huge energy over a vanishing RMS duration);
+ *                      @p out untouched
  * @retval DV_EINVAL    NULL argument
  */
 dv_status_t dv_temporal_get(const dv_temporal_t *s, dv_temporal_out_t *out);
