@@ -163,9 +163,9 @@ static int run(struct sim_ctx *x)
         int slot[SIM_MB_MAX_CLIENTS];
         const int cli0 = n;
         for (int i = 0; i < SIM_MB_MAX_CLIENTS; i++) {
-            if (x->mb.clients[i] >= 0) {
+            if (x->mb.clients[i].fd >= 0) {
                 slot[n - cli0] = i;
-                pfd[n++] = (struct pollfd){.fd = x->mb.clients[i], .events = POLLIN};
+                pfd[n++] = (struct pollfd){.fd = x->mb.clients[i].fd, .events = POLLIN};
             }
         }
         const int rc = poll(pfd, (nfds_t)n, 50);
@@ -200,16 +200,19 @@ static int run(struct sim_ctx *x)
                 x->core.overflowed = 1;
             }
         }
-        if ((pfd[lis_i].revents & POLLIN) != 0) {
-            sim_modbus_accept(&x->mb);
-        }
+        const uint64_t now = now_ns();
+        /* clients first, then new ones (which may take the slot of the one idle longest) */
         for (int k = cli0; k < n; k++) {
-            if ((pfd[k].revents & (POLLIN | POLLHUP | POLLERR)) != 0 &&
-                x->mb.clients[slot[k - cli0]] >= 0) {
-                sim_modbus_serve(&x->mb, slot[k - cli0], &x->core);
+            if ((pfd[k].revents & (POLLIN | POLLHUP | POLLERR | POLLNVAL)) != 0 &&
+                x->mb.clients[slot[k - cli0]].fd == pfd[k].fd) {
+                sim_modbus_serve(&x->mb, slot[k - cli0], &x->core, now);
             }
         }
-        send_frames(x, sim_core_tick(&x->core, now_ns(), x->out));
+        if ((pfd[lis_i].revents & POLLIN) != 0) {
+            sim_modbus_accept(&x->mb, now);
+        }
+        sim_modbus_tick(&x->mb, now);
+        send_frames(x, sim_core_tick(&x->core, now, x->out));
         if (x->log != NULL) {
             fflush(x->log);
         }
