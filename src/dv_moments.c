@@ -171,10 +171,15 @@ void dv_priv_stats_fill(dv_stats_t *out, const dv_priv_cm_t *cm, uint64_t count,
      * and below DV_PRIV_VAR_MIN var * var and var * std would underflow (the fourth-power
      * sums already have): no shape either, rather than 0/0. */
     const dv_real_t scale2 = out->peak * out->peak;
-    if (var > DV_PRIV_VAR_MIN && var > scale2 * DV_REAL_EPS * DV_REAL_EPS) {
+    bool shape = var > DV_PRIV_VAR_MIN && var > scale2 * DV_REAL_EPS * DV_REAL_EPS;
+    if (shape) {
         out->skew = (cm->m3 / cm->n) / (var * out->std);
         out->kurt = (cm->m4 / cm->n) / (var * var);
-    } else {
+        /* n values have kurt < n and skew^2 < n: beyond (or NaN) the sums are round-off, e.g.
+         * a sliding window's shortly after a sample far larger than the window's */
+        shape = out->kurt <= cm->n && out->skew * out->skew <= cm->n;
+    }
+    if (!shape) {
         out->skew = DV_R(0.0);
         out->kurt = DV_R(0.0);
         out->flags |= DV_STATS_NO_SHAPE;

@@ -17,7 +17,8 @@ extern "C" {
 
 /** Flags in dv_stats_t.flags for results that are undefined for this data. */
 #define DV_STATS_NO_SHAPE 0x1u /**< variance is 0, at round-off level for the data's peak, or
-                                    below 2^-60 (float) / 2^-500 (double): skew and kurt set to 0 */
+                                    below 2^-60 (float) / 2^-500 (double), or skew^2 or kurt beyond
+                                    the count (round-off): skew and kurt set to 0 */
 #define DV_STATS_NO_CREST 0x2u /**< RMS is 0: crest is set to 0 */
 
 /** @brief Basic statistics of a set of samples (units of x unless stated). */
