@@ -40,7 +40,9 @@ void dv_temporal_reset(dv_temporal_t *s)
 #define TM_W_HI 65536.0f /* 2^16 */
 #define TM_W_LO 1.5258789e-05f /* 2^-16 */
 #endif
-#define TM_WSC_MAX (TM_W_HI * TM_W_HI * TM_W_HI) /* tiny weights: up to 2^48 / 2^384 */
+/* tiny weights: scaled up to 2^112 / 2^896, so that a record's weight of any normal size is
+ * brought to TM_W_LO and even a subnormal one keeps the merge's mean shift d / n finite */
+#define TM_WSC_MAX (TM_W_HI * TM_W_HI * TM_W_HI * TM_W_HI * TM_W_HI * TM_W_HI * TM_W_HI)
 
 static void cm_scale(dv_priv_cm_t *a, dv_real_t f)
 {
