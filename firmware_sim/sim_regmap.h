@@ -47,7 +47,7 @@
 #define SIM_IR_CFG_WRITES 40  /* configuration changes applied (Modbus or DV_CHCFG) */
 #define SIM_IR_OBS_STEPS 42   /* observer steps taken since the last START */
 #define SIM_IR_OBS_OVERRUN 44 /* observer input samples discarded (a channel stalled) */
-#define SIM_IR_NONFINITE 46   /* results not sent: non-finite, or beyond float32 (never on the bus) */
+#define SIM_IR_NONFINITE 46   /* results not sent: non-finite as float32 (never on the bus) */
 
 /* per-channel block: SIM_IR_CH(ch) + offset, ch < SIM_MAX_CHAN */
 #define SIM_IR_CH_BASE 100

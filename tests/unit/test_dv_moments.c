@@ -291,7 +291,9 @@ static void test_moments_scaled_shape_is_identical(void **state)
     // below that, and down to the variance's underflow, every result is finite (no shape when
     // the variance is below 2^-60 / 2^-500), never NaN.
     static dv_real_t x[3000], y[3000];
-    for (int i = 0; i < 3000; i++) x[i] = (dv_real_t)(sin(0.07 * i) + 0.5 * sin(0.31 * i) * sin(0.31 * i));
+    for (int i = 0; i < 3000; i++) {
+        x[i] = (dv_real_t)(sin(0.07 * i) + 0.5 * sin(0.31 * i) * sin(0.31 * i));
+    }
     dv_moments_t m;
     dv_stats_t ref, st;
     moments_of(x, 3000, 0, &ref, &m);
