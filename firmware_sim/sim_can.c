@@ -146,6 +146,14 @@ void sim_can_log(FILE *log, const char *ifname, const dv_can_frame_t *f)
     fputc('\n', log);
 }
 
+static int hexval(char c)
+{
+    return c >= '0' && c <= '9'   ? c - '0'
+           : c >= 'A' && c <= 'F' ? c - 'A' + 10
+           : c >= 'a' && c <= 'f' ? c - 'a' + 10
+                                  : -1;
+}
+
 int sim_can_parse_log_line(const char *line, dv_can_frame_t *f)
 {
     const char *p = strchr(line, ')');
@@ -153,6 +161,9 @@ int sim_can_parse_log_line(const char *line, dv_can_frame_t *f)
         return 0;
     }
     p++;
+    if (*p != ' ') {
+        return 0;
+    }
     while (*p == ' ') {
         p++;
     }
@@ -162,27 +173,40 @@ int sim_can_parse_log_line(const char *line, dv_can_frame_t *f)
     }
     p++;
     const char *hash = strchr(p, '#');
-    if (hash == NULL || hash == p || hash - p > 8) {
+    /* 3 hex digits: standard id, 8: extended; every character a hex digit */
+    if (hash == NULL || (hash - p != 3 && hash - p != 8)) {
         return 0;
     }
-    char idtxt[9] = {0};
-    memcpy(idtxt, p, (size_t)(hash - p));
     memset(f, 0, sizeof *f);
-    f->id = (uint32_t)strtoul(idtxt, NULL, 16);
+    for (const char *c = p; c < hash; c++) {
+        const int v = hexval(*c);
+        if (v < 0) {
+            return 0;
+        }
+        f->id = (f->id << 4) | (uint32_t)v;
+    }
+    if (hash - p == 3 ? f->id > DV_CAN_SFF_MASK : f->id > 0x1FFFFFFFu) {
+        return 0;
+    }
     if (hash - p == 8) {
         f->id |= DV_CAN_EFF_FLAG;
     }
     const char *d = hash + 1;
     if (*d == 'R') {
         f->id |= DV_CAN_RTR_FLAG;
-        return 1;
+        d++;
+    } else {
+        unsigned n = 0;
+        while (hexval(d[0]) >= 0) {
+            const int lo = hexval(d[1]);
+            if (n == 8u || lo < 0) {
+                return 0; /* more than 8 bytes, or an odd digit */
+            }
+            f->data[n++] = (uint8_t)((hexval(d[0]) << 4) | lo);
+            d += 2;
+        }
+        f->dlc = (uint8_t)n;
     }
-    unsigned n = 0;
-    while (n < 8u && d[0] != '\0' && d[1] != '\0' && d[0] != '\n' && d[0] != ' ') {
-        char b[3] = {d[0], d[1], '\0'};
-        f->data[n++] = (uint8_t)strtoul(b, NULL, 16);
-        d += 2;
-    }
-    f->dlc = (uint8_t)n;
-    return 1;
+    /* the end of the line, or candump's optional trailing flag field */
+    return *d == '\0' || *d == '\n' || *d == '\r' || *d == ' ';
 }

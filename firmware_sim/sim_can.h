@@ -29,7 +29,8 @@ void sim_can_close(struct sim_can *s);
 /* One line of `candump -L` format: "(sec.usec) IFNAME ID#DATA". */
 void sim_can_log(FILE *log, const char *ifname, const dv_can_frame_t *f);
 
-/* Parse one candump -L line into @p f: 1 on success, 0 if the line is not a frame. */
+/* Parse one candump -L line into @p f: 1 on success, 0 if the line is not a well-formed frame
+ * (3 or 8 hex digits of id, whole hex bytes, at most 8 of them, nothing else on the line). */
 int sim_can_parse_log_line(const char *line, dv_can_frame_t *f);
 
 #endif /* SIM_CAN_H */

@@ -51,7 +51,7 @@ int sim_config_check(const struct sim_config *cfg)
         return SIM_HR_RECORDING;
     }
     for (int i = 0; i < SIM_MAX_CHAN; i++) {
-        if (!(cfg->lsb[i] > 0.0f) || !isfinite(cfg->lsb[i])) {
+        if (!(cfg->lsb[i] > 0.0f) || !(cfg->lsb[i] <= SIM_LSB_MAX)) { /* NaN fails both */
             return SIM_HR_LSB + 2 * i;
         }
         if (cfg->fs_hz[i] == 0) {
@@ -200,6 +200,10 @@ static void put_feature(struct sim_core *c, dv_can_frame_t *out, size_t *n, uint
     m.u.feature.channel = (uint8_t)ch;
     m.u.feature.index = (uint16_t)(index & 0xFFFFu);
     m.u.feature.value = (float)value;
+    if (!isfinite(m.u.feature.value)) { /* a double beyond float32, or a library bug */
+        c->n.nonfinite++;
+        return;
+    }
     if (latest != NULL) {
         *latest = m.u.feature.value;
     }
@@ -474,6 +478,10 @@ static void stage_observer(struct sim_core *c, unsigned ch, dv_real_t x, dv_can_
         const int emit = c->cfg.resid_decim != 0 && step % c->cfg.resid_decim == 0;
         for (unsigned j = 0; j < o->n_out; j++) {
             const unsigned mc = o->meas_ch[j];
+            if (!isfinite((float)r[j])) { /* a diverging model: counted, never sent */
+                c->n.nonfinite++;
+                continue;
+            }
             c->ch[mc].last.obs_resid = (float)r[j];
             if (!emit) {
                 continue;
@@ -635,6 +643,7 @@ static dv_status_t stage_features(struct sim_core *c, unsigned ch, dv_real_t x,
     dv_temporal_out_t tm;
     const dv_status_t rs = dv_chan_get_record(&sc->feat, &r, &tm);
     if (rs != DV_OK && rs != DV_ENUMERIC) {
+        c->n.nonfinite++; /* DV_ERANGE: the record overflowed the real type, nothing sent */
         return st;
     }
     put_feature(c, out, np, DV_FEAT_REC_MEAN, ch, rec, r.mean, &l->rec_mean);
@@ -778,7 +787,8 @@ size_t sim_core_handle(struct sim_core *c, const dv_can_frame_t *in, dv_can_fram
         cfg.lsb[ch] = m.u.chcfg.lsb;
         cfg.fs_hz[ch] = m.u.chcfg.fs_hz;
         dv_real_t *buf;
-        if (chan_setup(c, &cfg, (int)ch, &buf) != 0) {
+        /* the same checks as a Modbus write (lsb range above all) */
+        if (sim_config_check(&cfg) >= 0 || chan_setup(c, &cfg, (int)ch, &buf) != 0) {
             c->n.bad_cfg++;
             return 0;
         }
@@ -925,6 +935,7 @@ void sim_core_input_regs(const struct sim_core *c, uint16_t *ir)
     ir_u32(ir, SIM_IR_CFG_WRITES, c->n.cfg_writes);
     ir_u32(ir, SIM_IR_OBS_STEPS, c->obs.steps);
     ir_u32(ir, SIM_IR_OBS_OVERRUN, c->obs.overrun);
+    ir_u32(ir, SIM_IR_NONFINITE, c->n.nonfinite);
     for (int i = 0; i < SIM_MAX_CHAN; i++) {
         const struct sim_chan *sc = &c->ch[i];
         const struct sim_latest *l = &sc->last;

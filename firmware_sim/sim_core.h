@@ -44,6 +44,7 @@ struct sim_config {
 struct sim_counters {
     uint32_t rx_frames, tx_frames, dropped, bad_dlc, unknown_id, bad_chan, ignored, bad_cfg;
     uint32_t samples, tx_errors, cfg_writes;
+    uint32_t nonfinite; /* results not sent because non-finite as float32 (SIM_IR_NONFINITE) */
 };
 
 #ifndef DV_CDEF /* the Python binding's cdef (CMakeLists.txt) sees struct sim_core opaque */

@@ -26,6 +26,7 @@ struct sim_ctx {
     const char *log_path;  /* candump -L log, NULL = none */
     const char *replay;    /* candump -L file fed in before the loop, NULL = none */
     int verbose;
+    unsigned long replay_bad; /* unparsable replay lines (reported on stderr) */
     FILE *log;
     struct sim_can can;
     int have_can;
@@ -64,7 +65,8 @@ static void usage(const char *argv0)
             "                       q, r, input_dof; missing values are 0\n"
             "  -v, --verbose        report startup and shutdown on stderr\n"
             "  -h, --help\n"
-            "exit status: 0 clean shutdown (SIGINT/SIGTERM), 1 runtime error, 2 usage,\n"
+            "exit status: 0 clean shutdown (SIGINT/SIGTERM), 1 runtime error (a log write failed,\n"
+            "             e.g. disk full; an unreadable replay file), 2 usage,\n"
             "             3 CAN interface unusable, 4 Modbus port unusable (e.g. busy)\n",
             argv0);
 }
@@ -139,12 +141,32 @@ static int replay_file(struct sim_ctx *x)
     }
     char line[256];
     dv_can_frame_t f;
+    unsigned long lineno = 0, bad = 0, first_bad = 0;
     while (fgets(line, sizeof line, in) != NULL) {
-        if (sim_can_parse_log_line(line, &f)) {
+        lineno++;
+        const size_t len = strlen(line);
+        int long_line = len == sizeof line - 1 && line[len - 1] != '\n';
+        if (sim_can_parse_log_line(line, &f) && !long_line) {
             handle_frame(x, &f);
+        } else if (line[strspn(line, " \t\r\n")] != '\0') { /* blank lines are no error */
+            bad++;
+            first_bad = first_bad != 0 ? first_bad : lineno;
+        }
+        while (long_line && fgets(line, sizeof line, in) != NULL) { /* skip the rest */
+            long_line = line[strlen(line) - 1] != '\n';
         }
     }
+    const int read_err = ferror(in);
     fclose(in);
+    if (read_err) {
+        fprintf(stderr, "firmware_sim: cannot read replay file %s\n", x->replay);
+        return -1;
+    }
+    if (bad != 0) { /* counted and reported; the good lines were fed in */
+        fprintf(stderr, "firmware_sim: replay file %s: %lu unparsable line(s) skipped, first "
+                        "at line %lu\n", x->replay, bad, first_bad);
+    }
+    x->replay_bad = bad;
     return 0;
 }
 
@@ -163,9 +185,9 @@ static int run(struct sim_ctx *x)
         int slot[SIM_MB_MAX_CLIENTS];
         const int cli0 = n;
         for (int i = 0; i < SIM_MB_MAX_CLIENTS; i++) {
-            if (x->mb.clients[i] >= 0) {
+            if (x->mb.clients[i].fd >= 0) {
                 slot[n - cli0] = i;
-                pfd[n++] = (struct pollfd){.fd = x->mb.clients[i], .events = POLLIN};
+                pfd[n++] = (struct pollfd){.fd = x->mb.clients[i].fd, .events = POLLIN};
             }
         }
         const int rc = poll(pfd, (nfds_t)n, 50);
@@ -200,18 +222,23 @@ static int run(struct sim_ctx *x)
                 x->core.overflowed = 1;
             }
         }
-        if ((pfd[lis_i].revents & POLLIN) != 0) {
-            sim_modbus_accept(&x->mb);
-        }
+        const uint64_t now = now_ns();
+        /* clients first, then new ones (which may take the slot of the one idle longest) */
         for (int k = cli0; k < n; k++) {
-            if ((pfd[k].revents & (POLLIN | POLLHUP | POLLERR)) != 0 &&
-                x->mb.clients[slot[k - cli0]] >= 0) {
-                sim_modbus_serve(&x->mb, slot[k - cli0], &x->core);
+            if ((pfd[k].revents & (POLLIN | POLLHUP | POLLERR | POLLNVAL)) != 0 &&
+                x->mb.clients[slot[k - cli0]].fd == pfd[k].fd) {
+                sim_modbus_serve(&x->mb, slot[k - cli0], &x->core, now);
             }
         }
-        send_frames(x, sim_core_tick(&x->core, now_ns(), x->out));
-        if (x->log != NULL) {
-            fflush(x->log);
+        if ((pfd[lis_i].revents & POLLIN) != 0) {
+            sim_modbus_accept(&x->mb, now);
+        }
+        sim_modbus_tick(&x->mb, now);
+        send_frames(x, sim_core_tick(&x->core, now, x->out));
+        if (x->log != NULL && (fflush(x->log) != 0 || ferror(x->log))) {
+            fprintf(stderr, "firmware_sim: cannot write log %s: %s\n", x->log_path,
+                    strerror(errno));
+            return 1; /* a log that silently stops is worse than no firmware_sim */
         }
     }
     return 0;
@@ -331,8 +358,11 @@ int main(int argc, char **argv)
         status = 1;
         goto out;
     }
-    if (x->log != NULL) {
-        fflush(x->log); /* the replayed part is complete in the log once "ready" is out */
+    if (x->log != NULL && (fflush(x->log) != 0 || ferror(x->log))) {
+        /* the replayed part is complete in the log once "ready" is out */
+        fprintf(stderr, "firmware_sim: cannot write log %s: %s\n", x->log_path, strerror(errno));
+        status = 1;
+        goto out;
     }
     if (x->verbose) {
         fprintf(stderr,
@@ -354,8 +384,9 @@ int main(int argc, char **argv)
                 (unsigned)x->core.n.rx_frames, (unsigned)x->core.n.tx_frames);
     }
 out:
-    if (x->log != NULL) {
-        fclose(x->log);
+    if (x->log != NULL && fclose(x->log) != 0 && status == 0) {
+        fprintf(stderr, "firmware_sim: cannot write log %s: %s\n", x->log_path, strerror(errno));
+        status = 1;
     }
     if (x->mb.ctx != NULL) {
         sim_modbus_close(&x->mb);

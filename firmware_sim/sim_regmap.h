@@ -6,10 +6,11 @@
  * 32-bit values take two registers, high word first (the common "big-endian word order");
  * floats are IEEE-754 binary32 in that layout. Counters are uint32 and wrap.
  * Input registers (function 0x04) are read-only results; holding registers (0x03, 0x06,
- * 0x10) are configuration; a write takes effect at once and re-initialises every channel's
- * features (sequence tracking and counters are kept). A write with a value out of range is
- * refused with exception 0x03 (illegal data value) and changes nothing. Coils and discrete
- * inputs do not exist (exception 0x02).
+ * 0x10, 0x16 mask write, 0x17) are configuration; a write takes effect at once and
+ * re-initialises every channel's features (sequence tracking and counters are kept). A write
+ * with a value out of range is refused with exception 0x03 (illegal data value), a write to a
+ * holding register that is not below (4, 11..39, 56..59, 68..99) with exception 0x02; either
+ * changes nothing. Coils and discrete inputs do not exist (exception 0x02).
  */
 #ifndef SIM_REGMAP_H
 #define SIM_REGMAP_H
@@ -46,6 +47,7 @@
 #define SIM_IR_CFG_WRITES 40  /* configuration changes applied (Modbus or DV_CHCFG) */
 #define SIM_IR_OBS_STEPS 42   /* observer steps taken since the last START */
 #define SIM_IR_OBS_OVERRUN 44 /* observer input samples discarded (a channel stalled) */
+#define SIM_IR_NONFINITE 46   /* results not sent: non-finite as float32 (never on the bus) */
 
 /* per-channel block: SIM_IR_CH(ch) + offset, ch < SIM_MAX_CHAN */
 #define SIM_IR_CH_BASE 100
@@ -96,10 +98,16 @@
 #define SIM_HR_FORCE_CHAN 8   /* input (force) channel of the observer, < n_chan (default 0) */
 #define SIM_HR_HEARTBEAT_MS 9 /* DV_STATUS period, ms, 0 = off (default 1000) */
 #define SIM_HR_RECORDING 10   /* 1 = accept samples, 0 = ignore them (default 1) */
-#define SIM_HR_LSB 40         /* f32 lsb of channel ch (units/count): SIM_HR_LSB + 2 ch, > 0 */
+#define SIM_HR_LSB 40         /* f32 lsb of channel ch (units/count): SIM_HR_LSB + 2 ch,
+                               * 0 < lsb <= SIM_LSB_MAX */
 #define SIM_HR_FS_CH 60       /* u16 sample rate of channel ch, Hz: SIM_HR_FS_CH + ch, 1..65535 */
 #define SIM_HR_MODEL 100      /* SIM_N_MODEL f32 model parameters: SIM_HR_MODEL + 2 i */
 #define SIM_N_HOLDING (SIM_HR_MODEL + 2 * SIM_N_MODEL)
+
+/* Largest lsb (units/count) a channel accepts (Modbus exception 3, DV_CHCFG counted in BAD_CFG):
+ * 2^24 / 32768, so that every count is a sample the features take (DV_FEAT_MAX of a float build,
+ * 2^24) and every feature of a record fits a float32 frame. */
+#define SIM_LSB_MAX 512.0f
 
 /* Model parameter i (f32 at SIM_HR_MODEL + 2 i): a lumped-mass chain, modal damping, force
  * input, the measured (non-force) channels in order = accelerations of DOF 0, 1, ...

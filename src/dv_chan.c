@@ -29,8 +29,9 @@ dv_status_t dv_chan_init(dv_chan_t *s, const dv_chan_config_t *cfg, dv_real_t *b
     if (s == NULL || cfg == NULL || buf == NULL) {
         return DV_EINVAL;
     }
+    /* dt_s is checked by dv_temporal_init() */
     if (cfg->win_len < 2u || cfg->win_len > DV_SLIDING_MAX_LEN || cfg->seg_len < 2u ||
-        cfg->n_seg == 0u || !dv_priv_finite(cfg->dt_s) || !(cfg->dt_s > DV_R(0.0))) {
+        cfg->n_seg == 0u) {
         return DV_EINVAL;
     }
     if (buf_len < dv_chan_buf_len(cfg)) {
@@ -101,7 +102,8 @@ void dv_chan_reset(dv_chan_t *s)
 
 static void close_record(dv_chan_t *s)
 {
-    (void)dv_moments_get(&s->rec, &s->last_stats); /* a record is never empty here */
+    /* never empty here; DV_ERANGE only for a record too long for the type */
+    s->last_st = dv_moments_get(&s->rec, &s->last_stats);
     s->last_tm_st = dv_temporal_get(&s->tm, &s->last_tm);
     dv_moments_reset(&s->rec);
     dv_temporal_reset(&s->tm);
@@ -146,7 +148,11 @@ static void add_span(dv_chan_t *s, uint32_t kern, blk_acc_t *acc, const dv_real_
         dv_priv_temporal_push_block(&s->tm, w);
         return;
     }
-    (void)dv_temporal_update_block(&s->tm, x, n);
+    /* what dv_temporal_update_block() does for a span that is not one whole temporal block,
+     * without linking its block path into a firmware that needs only this */
+    for (size_t i = 0u; i < n; i++) {
+        dv_priv_temporal_push(&s->tm, x[i]);
+    }
     dv_real_t p1 = DV_R(0.0), p2 = DV_R(0.0), p3 = DV_R(0.0), p4 = DV_R(0.0);
     dv_real_t mn = acc->mm[0], mx = acc->mm[1];
     for (size_t i = 0u; i < n; i++) {
@@ -177,14 +183,17 @@ static bool caller_block(dv_chan_t *s, uint32_t kern, blk_acc_t *acc, const dv_r
         const dv_real_t k = s->seg_pos == 0u ? x[0] : s->shift;
         dv_real_t w[5];
         dv_priv_feat_block(kern, x, k, acc->p, acc->mm, w);
-        if (!dv_priv_finite(w[0])) {
+        /* NaN/Inf fail the test, and so does a sample beyond DV_FEAT_MAX (x^2 <= sum x^2); a
+         * block of in-range samples that fails it (rms > DV_FEAT_MAX / 8) takes the per-sample
+         * path, which ends in this same kernel: same result */
+        if (!(w[0] <= DV_FEAT_MAX * DV_FEAT_MAX)) {
             return false;
         }
         s->shift = k;
         dv_priv_temporal_push_block(&s->tm, w);
         return true;
     }
-    if (!dv_priv_all_finite(x, m)) {
+    if (!dv_priv_all_in_range(x, m)) {
         return false;
     }
     add_span(s, kern, acc, x, m, s->seg_pos == 0u);
@@ -212,7 +221,7 @@ DV_COLD static dv_status_t close_ring_block(dv_chan_t *s)
 dv_status_t dv_chan_update(dv_chan_t *s, dv_real_t x)
 {
     DV_ASSERT(s != NULL);
-    if (!dv_priv_finite(x)) {
+    if (!dv_priv_in_range(x)) {
         s->n_nonfinite++;
         return DV_ENUMERIC;
     }
@@ -290,6 +299,9 @@ dv_status_t dv_chan_get_record(const dv_chan_t *s, dv_stats_t *st, dv_temporal_o
     }
     if (s->records == 0u) {
         return DV_ENOTREADY;
+    }
+    if (s->last_st != DV_OK) {
+        return s->last_st;
     }
     *st = s->last_stats;
     if (tm == NULL) {

@@ -22,7 +22,7 @@ void dv_corr_reset(dv_corr_t *s)
 dv_status_t dv_corr_update(dv_corr_t *s, dv_real_t x, dv_real_t y)
 {
     DV_ASSERT(s != NULL);
-    if (!dv_priv_finite(x) || !dv_priv_finite(y)) {
+    if (!dv_priv_in_range(x) || !dv_priv_in_range(y)) {
         s->n_nonfinite++;
         return DV_ENUMERIC;
     }

@@ -66,7 +66,7 @@ static void flush_block(dv_moments_t *s)
 dv_status_t dv_moments_update(dv_moments_t *s, dv_real_t x)
 {
     DV_ASSERT(s != NULL);
-    if (!dv_priv_finite(x)) {
+    if (!dv_priv_in_range(x)) {
         s->n_nonfinite++;
         return DV_ENUMERIC;
     }
@@ -128,8 +128,10 @@ dv_status_t dv_moments_update_block(dv_moments_t *s, const dv_real_t *x, size_t 
             mn = p[j + 1u] < mn ? p[j + 1u] : mn;
             mx = p[j + 1u] > mx ? p[j + 1u] : mx;
         }
-        /* A NaN/Inf anywhere poisons the fourth-power sum: then redo this block per sample. */
-        finite = dv_priv_finite(a4 + b4) && dv_priv_finite(a1 + b1);
+        /* A NaN/Inf anywhere poisons the fourth-power sum, a sample beyond DV_FEAT_MAX shows in
+         * the extremes (the running ones are in range): then redo this block per sample. */
+        finite = dv_priv_finite(a4 + b4) && dv_priv_finite(a1 + b1) && mn >= -DV_FEAT_MAX &&
+                 mx <= DV_FEAT_MAX;
         if (!finite) {
             for (size_t j = 0u; j < DV_BLOCK_LEN; j++) {
                 if (dv_moments_update(s, p[j]) != DV_OK) {
@@ -165,12 +167,19 @@ void dv_priv_stats_fill(dv_stats_t *out, const dv_priv_cm_t *cm, uint64_t count,
     out->max = max;
     out->peak = DV_FABS(min) > DV_FABS(max) ? DV_FABS(min) : DV_FABS(max);
     out->flags = 0u;
-    /* Relative to the scale of the data, a variance at round-off level is a constant signal. */
+    /* Relative to the scale of the data, a variance at round-off level is a constant signal;
+     * and below DV_PRIV_VAR_MIN var * var and var * std would underflow (the fourth-power
+     * sums already have): no shape either, rather than 0/0. */
     const dv_real_t scale2 = out->peak * out->peak;
-    if (var > DV_R(0.0) && var > scale2 * DV_REAL_EPS * DV_REAL_EPS) {
+    bool shape = var > DV_PRIV_VAR_MIN && var > scale2 * DV_REAL_EPS * DV_REAL_EPS;
+    if (shape) {
         out->skew = (cm->m3 / cm->n) / (var * out->std);
         out->kurt = (cm->m4 / cm->n) / (var * var);
-    } else {
+        /* n values have kurt < n and skew^2 < n: beyond (or NaN) the sums are round-off, e.g.
+         * a sliding window's shortly after a sample far larger than the window's */
+        shape = out->kurt <= cm->n && out->skew * out->skew <= cm->n;
+    }
+    if (!shape) {
         out->skew = DV_R(0.0);
         out->kurt = DV_R(0.0);
         out->flags |= DV_STATS_NO_SHAPE;
@@ -195,6 +204,9 @@ dv_status_t dv_moments_get(const dv_moments_t *s, dv_stats_t *out)
         dv_priv_cm_t b;
         open_block_moments(s, &b);
         dv_priv_cm_merge(&a, &b);
+    }
+    if (!(a.m4 <= DV_REAL_MAX)) {
+        return DV_ERANGE; /* the central sums of a very long record overflowed (Inf or NaN) */
     }
     dv_priv_stats_fill(out, &a, s->count, s->min, s->max);
     return DV_OK;

@@ -5,6 +5,7 @@
 #include <math.h>
 
 #include "dynval/dv_types.h"
+#include "dynval/dv_config.h"
 #include "dynval/dv_moments.h"
 
 #ifdef DV_REAL_DOUBLE
@@ -53,6 +54,30 @@ static inline bool dv_priv_all_finite(const dv_real_t *x, size_t n)
         a += x[i] - x[i];
     }
     return a + b == DV_R(0.0);
+}
+
+/* A sample the waveform features accept: finite and |x| <= DV_FEAT_MAX (one compare: NaN fails
+ * it too). Beyond DV_FEAT_MAX a fourth-power sum could overflow. */
+static inline bool dv_priv_in_range(dv_real_t x)
+{
+    return DV_FABS(x) <= DV_FEAT_MAX;
+}
+
+/* Smallest variance with a defined shape: var * var and var * std stay normal numbers. */
+#ifdef DV_REAL_DOUBLE
+#define DV_PRIV_VAR_MIN 3.054936363499605e-151 /* 2^-500 */
+#else
+#define DV_PRIV_VAR_MIN 8.6736174e-19f /* 2^-60 */
+#endif
+
+/* dv_priv_in_range() of every x[0..n), branch-free (vectorises). */
+static inline bool dv_priv_all_in_range(const dv_real_t *x, size_t n)
+{
+    unsigned bad = 0u;
+    for (size_t i = 0u; i < n; i++) {
+        bad |= (unsigned)!(DV_FABS(x[i]) <= DV_FEAT_MAX);
+    }
+    return bad == 0u;
 }
 
 /* Central moments of a (weighted) set: weight n (count or sum of weights), mean,

@@ -32,7 +32,7 @@ void dv_segstd_reset(dv_segstd_t *s)
 dv_status_t dv_segstd_update(dv_segstd_t *s, dv_real_t x)
 {
     DV_ASSERT(s != NULL);
-    if (!dv_priv_finite(x)) {
+    if (!dv_priv_in_range(x)) {
         s->n_nonfinite++;
         return DV_ENUMERIC;
     }

@@ -80,7 +80,7 @@ void dv_priv_sliding_turn_over(dv_sliding_t *s, const dv_real_t *src)
 dv_status_t dv_sliding_update(dv_sliding_t *s, dv_real_t x)
 {
     DV_ASSERT(s != NULL);
-    if (!dv_priv_finite(x)) {
+    if (!dv_priv_in_range(x)) {
         s->n_nonfinite++;
         return DV_ENUMERIC;
     }
@@ -94,7 +94,7 @@ dv_status_t dv_sliding_update_block(dv_sliding_t *s, const dv_real_t *x, size_t 
     if (x == NULL) {
         return n == 0u ? DV_OK : DV_EINVAL;
     }
-    if (dv_priv_all_finite(x, n)) {
+    if (dv_priv_all_in_range(x, n)) {
         dv_priv_sliding_push_finite(s, x, n);
         return DV_OK;
     }

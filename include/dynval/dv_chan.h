@@ -5,8 +5,9 @@
  *
  * A record is n_seg * seg_len accepted samples. When a record completes, its statistics and
  * temporal moments are kept for dv_chan_get_record() and the record accumulators restart.
- * The sliding window runs continuously across records. NaN/Inf samples are dropped and
- * counted (they do not enter any feature).
+ * The sliding window runs continuously across records. NaN/Inf samples and samples with
+ * |x| > DV_FEAT_MAX (dv_config.h) are dropped and counted (they do not enter any feature), so
+ * every result is finite: a result that would not be is reported as an error, never as DV_OK.
  */
 #ifndef DV_CHAN_H
 #define DV_CHAN_H
@@ -29,7 +30,7 @@ typedef struct {
     uint32_t win_len; /**< sliding window, samples, 2..DV_SLIDING_MAX_LEN (e.g. 256) */
     uint32_t seg_len; /**< samples per STD segment, >= 2 (e.g. 64) */
     uint32_t n_seg;   /**< segments per record, >= 1 (e.g. 64: a 4096-sample record) */
-    dv_real_t dt_s;   /**< sample period, s, > 0 */
+    dv_real_t dt_s;   /**< sample period, s, 0 < dt_s <= DV_TEMPORAL_MAX_DT_S */
     bool no_seg_vectors; /**< true: keep no segmented-STD vector, each STD is read as its segment
                               completes (dv_segstd_last()); the buffer is DV_CHAN_BUF_LEN(win_len, 0) */
 } dv_chan_config_t;
@@ -43,6 +44,7 @@ typedef struct {
     dv_temporal_t tm;       /**< temporal moments of the open record */
     dv_stats_t last_stats;  /**< statistics of the last complete record */
     dv_temporal_out_t last_tm; /**< temporal moments of the last complete record */
+    dv_status_t last_st;    /**< status of last_stats (DV_ERANGE: the record overflowed) */
     dv_status_t last_tm_st; /**< status of last_tm (DV_ENUMERIC for an all-zero record) */
     dv_real_t shift;        /**< first sample of the open segment */
     dv_real_t seg1, seg2;   /**< sums of (x - shift), (x - shift)^2 of earlier blocks of the segment */
@@ -50,7 +52,7 @@ typedef struct {
     uint32_t blk_max;       /**< block length: min(DV_BLOCK_LEN, win_len), so a block is in the ring */
     uint32_t seg_pos;       /**< samples of the open segment in closed blocks */
     uint32_t records;       /**< complete records */
-    uint64_t n_nonfinite;   /**< NaN/Inf samples dropped */
+    uint64_t n_nonfinite;   /**< samples dropped: NaN/Inf or |x| > DV_FEAT_MAX */
 } dv_chan_t;
 
 /** @brief Storage dv_chan_init() needs for @p cfg, in elements (DV_CHAN_BUF_LEN(), n_seg 0 with
@@ -74,7 +76,7 @@ void dv_chan_reset(dv_chan_t *s);
  * @retval DV_OK       added
  * @retval DV_DONE     added; it completed a segment (dv_segstd_last(&s->seg, ...))
  * @retval DV_RECORD   added; it completed a record (dv_chan_get_record())
- * @retval DV_ENUMERIC NaN/Inf: dropped and counted, no feature changed
+ * @retval DV_ENUMERIC NaN/Inf or |x| > DV_FEAT_MAX: dropped and counted, no feature changed
  */
 dv_status_t dv_chan_update(dv_chan_t *s, dv_real_t x);
 
@@ -82,7 +84,8 @@ dv_status_t dv_chan_update(dv_chan_t *s, dv_real_t x);
  * @brief Add up to @p n samples, stopping right after a sample that completes a record.
  * @param[out] n_used samples consumed (<= n); call again with the rest
  * @retval DV_RECORD a record completed at x[*n_used - 1]
- * @retval DV_OK     all @p n consumed, no record completed (NaN/Inf dropped and counted)
+ * @retval DV_OK     all @p n consumed, no record completed (NaN/Inf and samples beyond
+ *                   DV_FEAT_MAX dropped and counted)
  * @retval DV_EINVAL NULL argument with n > 0
  */
 dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, size_t *n_used);
@@ -91,7 +94,13 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
  * @brief Statistics and temporal moments of the last complete record.
  * @param[out] tm may be NULL; otherwise filled, or left untouched when the record's energy
  *                was zero (then DV_ENUMERIC is returned after @p st is filled)
- * @retval DV_OK / DV_ENOTREADY (no complete record; outputs untouched) / DV_ENUMERIC / DV_EINVAL
+ * @retval DV_OK        both filled, every value finite
+ * @retval DV_ENOTREADY no complete record; outputs untouched
+ * @retval DV_ERANGE    the record statistics overflowed (a float record of more than ~2^28
+ *                      samples near DV_FEAT_MAX; see dv_moments_get()): outputs untouched; or
+ *                      the temporal moments did (see dv_temporal_get()): @p st filled
+ * @retval DV_ENUMERIC  zero energy: @p st filled, @p tm untouched
+ * @retval DV_EINVAL    NULL @p s or @p st
  */
 dv_status_t dv_chan_get_record(const dv_chan_t *s, dv_stats_t *st, dv_temporal_out_t *tm);
 

@@ -14,6 +14,22 @@
 #define DV_BLOCK_LEN 64u
 #endif
 
+/* Largest |x| the waveform features (moments, sliding window, segmented STD, temporal moments,
+ * the channel bundle, correlation) accept; a larger sample is dropped and counted like NaN/Inf
+ * (DV_ENUMERIC). Bound: the fourth power of a deviation (at most 2 DV_FEAT_MAX) summed over the
+ * longest sliding window (2^24 samples) must stay finite, and so must a record's fourth central
+ * sum for any count a record reaches in practice (float: 2^28 full-scale samples; beyond that
+ * dv_moments_get() returns DV_ERANGE, never a NaN). Float: 2^24 = 16777216, every count of a
+ * 24-bit ADC. Double: 2^200 (1.6e60): 2^64 samples at full scale stay finite. Powers of two, so
+ * that x <= DV_FEAT_MAX is exact. */
+#ifndef DV_FEAT_MAX
+#ifdef DV_REAL_DOUBLE
+#define DV_FEAT_MAX 1.6069380442589903e60 /* 2^200 */
+#else
+#define DV_FEAT_MAX 16777216.0f /* 2^24 */
+#endif
+#endif
+
 /* Longest sliding window: ring and deque indices are 32-bit. */
 #ifndef DV_SLIDING_MAX_LEN
 #define DV_SLIDING_MAX_LEN 16777216u

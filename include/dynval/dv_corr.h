@@ -19,7 +19,7 @@ typedef struct {
     dv_real_t mx, my;     /**< running means */
     dv_real_t cxx, cyy, cxy; /**< running central co-moments */
     uint64_t count;       /**< accepted sample pairs */
-    uint64_t n_nonfinite; /**< pairs dropped because x or y was NaN/Inf */
+    uint64_t n_nonfinite; /**< pairs dropped: x or y NaN/Inf or beyond DV_FEAT_MAX */
 } dv_corr_t;
 
 /** @brief Clear state. @retval DV_OK / DV_EINVAL (NULL). */
@@ -30,7 +30,8 @@ void dv_corr_reset(dv_corr_t *s);
 
 /**
  * @brief Add one pair of simultaneous samples.
- * @retval DV_OK / DV_ENUMERIC (x or y NaN/Inf: the pair is dropped and counted)
+ * @retval DV_OK / DV_ENUMERIC (x or y NaN/Inf or |v| > DV_FEAT_MAX: the pair is dropped and
+ *         counted)
  */
 dv_status_t dv_corr_update(dv_corr_t *s, dv_real_t x, dv_real_t y);
 

@@ -16,7 +16,9 @@ extern "C" {
 #endif
 
 /** Flags in dv_stats_t.flags for results that are undefined for this data. */
-#define DV_STATS_NO_SHAPE 0x1u /**< variance is 0: skew and kurt are set to 0 */
+#define DV_STATS_NO_SHAPE 0x1u /**< variance is 0, at round-off level for the data's peak, or
+                                    below 2^-60 (float) / 2^-500 (double), or skew^2 or kurt beyond
+                                    the count (round-off): skew and kurt set to 0 */
 #define DV_STATS_NO_CREST 0x2u /**< RMS is 0: crest is set to 0 */
 
 /** @brief Basic statistics of a set of samples (units of x unless stated). */
@@ -46,7 +48,7 @@ typedef struct {
     dv_real_t min, max; /**< extremes so far */
     uint32_t blk;       /**< samples in the open block, < DV_BLOCK_LEN */
     uint64_t count;     /**< accepted samples */
-    uint64_t n_nonfinite; /**< NaN/Inf samples dropped */
+    uint64_t n_nonfinite; /**< samples dropped: NaN/Inf or |x| > DV_FEAT_MAX */
 } dv_moments_t;
 
 /**
@@ -61,29 +63,34 @@ void dv_moments_reset(dv_moments_t *s);
 
 /**
  * @brief Add one sample.
+ * @param[in] x sample, |x| <= DV_FEAT_MAX (dv_config.h: 2^24 float, 2^200 double), units of x
  * @retval DV_OK       added
- * @retval DV_ENUMERIC @p x is NaN/Inf: dropped, counted in n_nonfinite, state unchanged
+ * @retval DV_ENUMERIC @p x is NaN/Inf or |x| > DV_FEAT_MAX: dropped, counted in n_nonfinite,
+ *                     state unchanged
  */
 dv_status_t dv_moments_update(dv_moments_t *s, dv_real_t x);
 
 /**
  * @brief Add @p n samples; same result as n updates up to round-off (partial sums merged exactly).
- * NaN/Inf samples are dropped and counted.
+ * NaN/Inf samples and samples beyond DV_FEAT_MAX are dropped and counted.
  * @retval DV_OK       all added
- * @retval DV_ENUMERIC at least one sample was NaN/Inf (the others were added)
+ * @retval DV_ENUMERIC at least one sample was dropped (the others were added)
  * @retval DV_EINVAL   @p x is NULL with @p n > 0
  */
 dv_status_t dv_moments_update_block(dv_moments_t *s, const dv_real_t *x, size_t n);
 
 /**
  * @brief Statistics of all samples so far (the state is not changed).
- * @retval DV_OK        @p out filled; check out->flags for undefined shape/crest
+ * @retval DV_OK        @p out filled, every field finite; check out->flags for undefined
+ *                      shape/crest
  * @retval DV_ENOTREADY no sample yet; @p out untouched
+ * @retval DV_ERANGE    the fourth central sum overflowed the real type (float: possible after
+ *                      ~2^28 samples near DV_FEAT_MAX); @p out untouched, start a new record
  * @retval DV_EINVAL    NULL argument
  */
 dv_status_t dv_moments_get(const dv_moments_t *s, dv_stats_t *out);
 
-/** @brief NaN/Inf samples dropped since init. */
+/** @brief Samples dropped since init (NaN/Inf or beyond DV_FEAT_MAX); 0 for NULL. */
 uint64_t dv_moments_nonfinite(const dv_moments_t *s);
 
 /**

@@ -31,7 +31,7 @@ typedef struct {
     dv_real_t shift;      /**< first sample of the open segment */
     dv_real_t s1, s2;     /**< shifted sums of the open segment */
     dv_real_t last;       /**< STD of the last completed segment */
-    uint64_t n_nonfinite; /**< NaN/Inf samples dropped */
+    uint64_t n_nonfinite; /**< samples dropped: NaN/Inf or |x| > DV_FEAT_MAX */
 } dv_segstd_t;
 
 /**
@@ -54,7 +54,8 @@ void dv_segstd_reset(dv_segstd_t *s);
  * @retval DV_OK       added
  * @retval DV_DONE     added, and it completed a segment (dv_segstd_last() has its STD)
  * @retval DV_RECORD   added, and it completed the last segment of a record
- * @retval DV_ENUMERIC NaN/Inf: dropped, counted, state unchanged
+ * @retval DV_ENUMERIC NaN/Inf or |x| > DV_FEAT_MAX: dropped, counted, state unchanged (so every
+ *                     STD is finite)
  */
 dv_status_t dv_segstd_update(dv_segstd_t *s, dv_real_t x);
 

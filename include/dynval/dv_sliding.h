@@ -41,7 +41,7 @@ typedef struct {
     dv_real_t premin;     /**< min of ring[0..head-1] in the current turn */
     dv_real_t shift;      /**< shift of the power sums */
     dv_real_t s[4];       /**< window sums of d, d^2, d^3, d^4, d = x - shift */
-    uint64_t n_nonfinite; /**< NaN/Inf samples dropped */
+    uint64_t n_nonfinite; /**< samples dropped: NaN/Inf or |x| > DV_FEAT_MAX */
 } dv_sliding_t;
 
 /** @brief DV_SLIDING_BUF_LEN(len) at run time (bindings); 0 for @p len out of 2..DV_SLIDING_MAX_LEN. */
@@ -65,19 +65,20 @@ void dv_sliding_reset(dv_sliding_t *s);
 /**
  * @brief Push one sample (the oldest leaves once the window is full).
  * @retval DV_OK       added
- * @retval DV_ENUMERIC @p x is NaN/Inf: dropped, counted, state unchanged
+ * @retval DV_ENUMERIC @p x is NaN/Inf or |x| > DV_FEAT_MAX: dropped, counted, state unchanged
  */
 dv_status_t dv_sliding_update(dv_sliding_t *s, dv_real_t x);
 
 /**
  * @brief Push @p n samples; identical to n calls of dv_sliding_update().
- * @retval DV_OK / DV_ENUMERIC (some samples dropped and counted) / DV_EINVAL (NULL @p x, n > 0)
+ * @retval DV_OK / DV_ENUMERIC (some samples NaN/Inf or beyond DV_FEAT_MAX: dropped and
+ *         counted) / DV_EINVAL (NULL @p x, n > 0)
  */
 dv_status_t dv_sliding_update_block(dv_sliding_t *s, const dv_real_t *x, size_t n);
 
 /**
  * @brief Statistics of the current window; count is the window length.
- * @retval DV_OK        @p out filled (check out->flags)
+ * @retval DV_OK        @p out filled, every field finite (check out->flags)
  * @retval DV_ENOTREADY fewer than @c len samples so far; @p out untouched
  * @retval DV_EINVAL    NULL argument
  */

@@ -19,6 +19,10 @@
 extern "C" {
 #endif
 
+/** Longest sample period dv_temporal_init() accepts, s (2^32 s, 136 years): with it every
+ *  time-scaled result of an in-range record stays finite. */
+#define DV_TEMPORAL_MAX_DT_S DV_R(4294967296.0)
+
 /** @brief Temporal moments of a record. */
 typedef struct {
     dv_real_t energy;   /**< E, units of x^2 s */
@@ -33,21 +37,23 @@ typedef struct {
 /** @brief Temporal-moment accumulator. Fields are private. */
 typedef struct {
     dv_real_t dt_s;       /**< sample period, s */
-    dv_real_t w;          /**< merged weight (sum x^2) */
+    dv_real_t w;          /**< merged weight (sum x^2) times wsc */
     dv_real_t mean;       /**< merged centroid, samples from record start */
-    dv_real_t m2, m3, m4; /**< merged weighted central sums, samples^k */
+    dv_real_t m2, m3, m4; /**< merged weighted central sums, samples^k, times wsc */
+    dv_real_t wsc;        /**< scale of the merged weights, a power of two (1 unless large or
+                               small weights needed it) */
     dv_real_t t0;         /**< start of the open block, samples */
     dv_real_t tau;        /**< local time of the next sample in the open block */
     dv_real_t s0, s1, s2, s3, s4; /**< sums of w tau^k in the open block */
     uint32_t blk;         /**< samples in the open block */
     uint64_t count;       /**< accepted samples */
-    uint64_t n_nonfinite; /**< NaN/Inf samples dropped */
+    uint64_t n_nonfinite; /**< samples dropped: NaN/Inf or |x| > DV_FEAT_MAX */
 } dv_temporal_t;
 
 /**
  * @brief Clear state.
- * @param[in] dt_s sample period in seconds, finite and > 0
- * @retval DV_OK / DV_EINVAL (NULL @p s, bad @p dt_s)
+ * @param[in] dt_s sample period in seconds, 0 < dt_s <= DV_TEMPORAL_MAX_DT_S
+ * @retval DV_OK / DV_EINVAL (NULL @p s, @p dt_s NaN or out of range)
  */
 dv_status_t dv_temporal_init(dv_temporal_t *s, dv_real_t dt_s);
 
@@ -56,8 +62,8 @@ void dv_temporal_reset(dv_temporal_t *s);
 
 /**
  * @brief Add the next sample of the record.
- * @retval DV_OK / DV_ENUMERIC (NaN/Inf: dropped and counted; its time slot still advances,
- *         since the sample clock did)
+ * @retval DV_OK / DV_ENUMERIC (NaN/Inf or |x| > DV_FEAT_MAX: dropped and counted; its time slot
+ *         still advances, since the sample clock did)
  */
 dv_status_t dv_temporal_update(dv_temporal_t *s, dv_real_t x);
 
@@ -66,9 +72,12 @@ dv_status_t dv_temporal_update_block(dv_temporal_t *s, const dv_real_t *x, size_
 
 /**
  * @brief Temporal moments of the record so far (state unchanged).
- * @retval DV_OK        @p out filled
+ * @retval DV_OK        @p out filled, every field finite
  * @retval DV_ENOTREADY no sample yet; @p out untouched
  * @retval DV_ENUMERIC  zero energy (all samples 0): T, D undefined; @p out untouched
+ * @retval DV_ERANGE    a result is beyond the real type (a float record of more than ~2^28
+ *                      samples at full scale, a huge energy over a vanishing RMS duration);
+ *                      @p out untouched
  * @retval DV_EINVAL    NULL argument
  */
 dv_status_t dv_temporal_get(const dv_temporal_t *s, dv_temporal_out_t *out);

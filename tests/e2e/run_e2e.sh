@@ -2,7 +2,8 @@
 # End-to-end tests of firmware_sim on a real vcan bus, one command:
 #   tests/e2e/run_e2e.sh
 # 1. builds firmware_sim + the offline reference into build/e2e (DV_E2E_BUILD),
-# 2. runs the host Modbus tests (tests/py/test_sim_modbus.py, no CAN needed),
+# 2. runs the host tests that need no CAN (tests/py/test_sim_modbus.py, hostile Modbus
+#    clients test_sim_modbus_hostile.py, finite results and I/O errors test_sim_finite.py),
 # 3. runs tests/e2e/test_e2e_vcan.py on vcan0: directly when this kernel has vcan
 #    (`ip link add dev vcan0 type vcan` works), else inside a QEMU VM built from
 #    ../shared/vcan (DV_VCAN_DIR), kernel + initramfs cached in DV_VCAN_VM (default
@@ -27,7 +28,8 @@ cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DDV_BUILD_SIM=ON -DDV_B
 cmake --build "$BUILD" -j2 --target dv_sim dv_sim_offline dv_simcore >/dev/null
 
 echo "== host: Modbus tests (no CAN)"
-DV_E2E_BUILD="$BUILD" $PYTEST "$ROOT/tests/py/test_sim_modbus.py"
+DV_E2E_BUILD="$BUILD" $PYTEST "$ROOT/tests/py/test_sim_modbus.py" \
+    "$ROOT/tests/py/test_sim_modbus_hostile.py" "$ROOT/tests/py/test_sim_finite.py"
 
 if [ "$(id -u)" = 0 ] && { [ -e /sys/class/net/vcan0 ] || ip link add dev vcan0 type vcan 2>/dev/null; }; then
     echo "== vcan0 on this kernel"

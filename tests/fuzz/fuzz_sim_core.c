@@ -2,7 +2,10 @@
  * sequence must be handled without a crash, out-of-bounds access or undefined behaviour, with
  * every stage on (features on short records, AR order 2, the LANL 4-DOF observer) and the
  * counters consistent. Input: 13-byte records {id u32 LE, dlc u8, data[8]}, ids biased towards
- * the dynval set. Built and run by tests/fuzz/run_fuzz.sh. */
+ * the dynval set. The finiteness oracle: every feature and residual value sent is finite
+ * (a DV_CHCFG may set any lsb, the samples are any counts). Built and run by
+ * tests/fuzz/run_fuzz.sh. */
+#include <math.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -67,6 +70,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *in, size_t n)
         for (size_t i = 0; i < k; i++) {
             dv_msg_t m;
             CHECK(dv_codec_decode(&g_out[i], &m) == DV_OK); /* we only send valid frames */
+            CHECK(m.kind != DV_MSG_FEATURE || isfinite(m.u.feature.value));
+            CHECK(m.kind != DV_MSG_RESID || isfinite(m.u.resid.value));
         }
     }
     uint16_t ir[SIM_N_INPUT];

@@ -1,6 +1,7 @@
 #!/bin/sh
 # Build the fuzz targets with clang (libFuzzer + ASan + UBSan) and run them for a bounded time:
-# the CAN decoder + sequence tracker (float and double builds) and firmware_sim's core loop.
+# the CAN decoder + sequence tracker (float and double builds), the waveform features with the
+# finiteness oracle (float and double) and firmware_sim's core loop (frames sent are finite).
 # usage: tests/fuzz/run_fuzz.sh [SECONDS=30] [OUTDIR=build/fuzz]
 # Exit status: 0 when the time ran out without a crash; libFuzzer's status otherwise.
 set -eu
@@ -14,6 +15,9 @@ for real in float double; do
     "$CC" -std=c99 -g -O1 $def -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
         -I"$ROOT/include" "$ROOT/tests/fuzz/fuzz_codec.c" "$ROOT/src/dv_codec.c" \
         "$ROOT/src/dv_common.c" -lm -o "$OUT/fuzz_codec_$real"
+    "$CC" -std=c99 -g -O1 $def -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
+        -I"$ROOT/include" "$ROOT/tests/fuzz/fuzz_features.c" "$ROOT"/src/*.c -lm \
+        -o "$OUT/fuzz_features_$real"
 done
 "$CC" -std=c99 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
     -I"$ROOT/include" -I"$ROOT/firmware_sim" "$ROOT/tests/fuzz/fuzz_sim_core.c" \
@@ -30,11 +34,13 @@ for idsel, d in [(0, b"\x01"*8), (1, b"\x01\x00\x01\x02\x03\x04\x00\x00"),
     recs += struct.pack("<IB", idsel, 8) + d
 open(sys.argv[1], "wb").write(recs)
 PY
-third=$(( (SECS + 2) / 3 ))
+mkdir -p "$OUT/corpus_feat_float" "$OUT/corpus_feat_double"
+third=$(( (SECS + 4) / 5 ))
 rc=0
-for t in codec_float codec_double sim_core; do
+for t in codec_float codec_double features_float features_double sim_core; do
     r=0
     corpus="$OUT/corpus"; [ "$t" = sim_core ] && corpus="$OUT/corpus_sim"
+    case $t in features_*) corpus="$OUT/corpus_feat_${t#features_}" ;; esac
     [ "$t" = sim_core ] && cp "$OUT/corpus/seed" "$corpus/" 2>/dev/null
     "$OUT/fuzz_$t" -max_total_time="$third" -max_len=1300 -print_final_stats=1 \
         -artifact_prefix="$OUT/" "$corpus" >"$OUT/fuzz_$t.log" 2>&1 || r=$?

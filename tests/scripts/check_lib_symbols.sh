@@ -4,6 +4,8 @@
 set -euo pipefail
 lib=$1
 nm=${2:-nm}
+# a missing archive must fail: nm's error would otherwise read as "no forbidden symbols"
+[ -f "$lib" ] || { echo "FAIL: $lib: no such archive"; exit 1; }
 forbidden='^(malloc|calloc|realloc|free|printf|fprintf|sprintf|snprintf|puts|putchar|fopen|fwrite|fputs|abort|exit|_exit|__assert_fail|__assert_func|errno|__errno_location|__errno)$'
 bad_undef=$("$nm" -u "$lib" | awk 'NF>=2{print $NF}' | grep -E "$forbidden" || true)
 bad_data=$("$nm" "$lib" | awk '$2 ~ /^[DdBbCcGgSs]$/ {print $3}' || true)

@@ -225,6 +225,68 @@ static void test_chan_bad_config(void **state)
     assert_int_equal(dv_chan_update_block(&c, NULL, 3, &used), DV_EINVAL);
 }
 
+// ---- finite in, finite out -------------------------------------------------------------------
+
+#include "dynval/dv_config.h"
+
+static int chan_stats_finite(const dv_stats_t *s)
+{
+    return isfinite(s->mean) && isfinite(s->std) && isfinite(s->rms) && isfinite(s->skew) &&
+           isfinite(s->kurt) && isfinite(s->peak) && isfinite(s->crest) && isfinite(s->kfactor);
+}
+
+static void test_chan_full_scale_and_beyond_range(void **state)
+{
+    (void)state;
+    // full-scale noise with +-DV_FEAT_MAX spikes, and samples beyond the range (1e10 float /
+    // 1e80 double made NaN kurtosis and Inf RMS before) that both APIs drop and count alike
+    enum { W = 64, S = 64, NS = 8, N = 3 * S * NS + 100 };
+    static dv_real_t x[N], bufa[DV_CHAN_BUF_LEN(W, NS)], bufb[DV_CHAN_BUF_LEN(W, NS)];
+    uint64_t seed = 3;
+    size_t bad = 0;
+    for (int i = 0; i < N; i++) {
+        seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+        x[i] = (dv_real_t)(((double)(seed >> 11) / 9007199254740992.0 - 0.5) * (double)DV_FEAT_MAX);
+        if (i % 37 == 0) x[i] = (i & 1) ? DV_FEAT_MAX : -DV_FEAT_MAX;
+        if (i % 101 == 50) {
+            x[i] = (i & 2) ? (dv_real_t)1e10 * DV_FEAT_MAX : -DV_REAL_MAX;
+            bad++;
+        }
+    }
+    const dv_chan_config_t cfg = {W, S, NS, DV_R(1.0) / DV_R(640.0), false};
+    dv_chan_t a, b;
+    assert_int_equal(dv_chan_init(&a, &cfg, bufa, DV_CHAN_BUF_LEN(W, NS)), DV_OK);
+    assert_int_equal(dv_chan_init(&b, &cfg, bufb, DV_CHAN_BUF_LEN(W, NS)), DV_OK);
+    int records = 0;
+    for (int i = 0; i < N; i++) {
+        const dv_status_t st = dv_chan_update(&a, x[i]);
+        assert_int_equal(st == DV_ENUMERIC, i % 101 == 50);
+        if (st == DV_RECORD) {
+            dv_stats_t r, w;
+            dv_temporal_out_t t;
+            assert_int_equal(dv_chan_get_record(&a, &r, &t), DV_OK);
+            assert_int_equal(dv_chan_get_window(&a, &w), DV_OK);
+            assert_true(chan_stats_finite(&r) && chan_stats_finite(&w));
+            assert_true(isfinite(t.energy) && isfinite(t.central_kurt) &&
+                        isfinite(t.root_energy_amp));
+            assert_true(r.peak == DV_FEAT_MAX && (r.flags & DV_STATS_NO_SHAPE) == 0u);
+            records++;
+        }
+    }
+    assert_int_equal(records, 3);
+    assert_int_equal(a.n_nonfinite, bad);
+    size_t off = 0, used;
+    while (off < N) {
+        assert_true(dv_chan_update_block(&b, x + off, N - off, &used) >= DV_OK);
+        off += used;
+    }
+    assert_int_equal(b.n_nonfinite, bad);
+    dv_stats_t ra, rb;
+    assert_int_equal(dv_chan_get_record(&a, &ra, NULL), DV_OK);
+    assert_int_equal(dv_chan_get_record(&b, &rb, NULL), DV_OK);
+    assert_true(dv_test_close(ra.kurt, rb.kurt, DV_TEST_RTOL, 0) && ra.peak == rb.peak);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -234,6 +296,7 @@ int main(void)
         cmocka_unit_test(test_chan_block_nan_in_whole_blocks),
         cmocka_unit_test(test_chan_without_segment_vectors),
         cmocka_unit_test(test_chan_bad_config),
+        cmocka_unit_test(test_chan_full_scale_and_beyond_range),
     };
     return cmocka_run_group_tests_name("dv_chan", tests, NULL, NULL);
 }

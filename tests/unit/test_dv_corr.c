@@ -71,12 +71,33 @@ static void test_corr_bad_input(void **state)
     assert_int_equal(dv_corr_get(&c, NULL), DV_EINVAL);
 }
 
+// ---- finite in, finite out -------------------------------------------------------------------
+
+#include "dynval/dv_config.h"
+
+static void test_corr_full_scale_is_finite(void **state)
+{
+    (void)state;
+    dv_corr_t c;
+    dv_corr_init(&c);
+    for (int i = 0; i < 1000; i++) {
+        const dv_real_t x = (i & 1) ? DV_FEAT_MAX : -DV_FEAT_MAX;
+        assert_int_equal(dv_corr_update(&c, x, -x), DV_OK);
+    }
+    assert_int_equal(dv_corr_update(&c, DV_REAL_MAX, DV_R(1.0)), DV_ENUMERIC);
+    dv_real_t r;
+    assert_int_equal(dv_corr_get(&c, &r), DV_OK);
+    assert_true(r == DV_R(-1.0));
+    assert_int_equal(c.n_nonfinite, 1);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_corr_golden),
         cmocka_unit_test(test_corr_linear_relations_are_plus_minus_one),
         cmocka_unit_test(test_corr_bad_input),
+        cmocka_unit_test(test_corr_full_scale_is_finite),
     };
     return cmocka_run_group_tests_name("dv_corr", tests, NULL, NULL);
 }

@@ -130,6 +130,31 @@ static void test_segstd_streaming_equals_buffered(void **state)
     assert_int_equal(b.records, a.records);
 }
 
+// ---- finite in, finite out -------------------------------------------------------------------
+
+#include "dynval/dv_config.h"
+
+static void test_segstd_full_scale_closed_form(void **state)
+{
+    (void)state;
+    // segments of +-DV_FEAT_MAX: STD exactly DV_FEAT_MAX; beyond the range: dropped, counted
+    dv_segstd_t s;
+    dv_real_t buf[DV_SEGSTD_BUF_LEN(3)];
+    assert_int_equal(dv_segstd_init(&s, 64, 3, buf, DV_SEGSTD_BUF_LEN(3)), DV_OK);
+    int dropped = 0;
+    for (int i = 0; i < 3 * 64; i++) {
+        if (i % 50 == 7) {
+            assert_int_equal(dv_segstd_update(&s, -DV_REAL_MAX), DV_ENUMERIC);
+            dropped++;
+        }
+        (void)dv_segstd_update(&s, (i & 1) ? DV_FEAT_MAX : -DV_FEAT_MAX);
+    }
+    dv_real_t out[3];
+    assert_int_equal(dv_segstd_get(&s, out, 3), DV_OK);
+    for (int k = 0; k < 3; k++) assert_true(out[k] == DV_FEAT_MAX);
+    assert_int_equal(s.n_nonfinite, dropped);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -137,6 +162,7 @@ int main(void)
         cmocka_unit_test(test_segstd_vector_survives_next_record),
         cmocka_unit_test(test_segstd_bad_input),
         cmocka_unit_test(test_segstd_streaming_equals_buffered),
+        cmocka_unit_test(test_segstd_full_scale_closed_form),
     };
     return cmocka_run_group_tests_name("dv_segstd", tests, NULL, NULL);
 }
