@@ -29,30 +29,28 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Exit code: 0 PASS, 1 FAIL, 3 INCONCLUSIVE (verdict.EXIT); 2 an error."""
     from dynval.validate import study
+    from dynval.validate import verdict as vd
 
     m, recs, ranges = study_inputs(args)
     with runner_for(args) as rn, Progress(args) as bars:
         res, art = study.validate(m, recs, args.features, ranges, runs=args.runs,
                                   design=args.doe, ref_test=args.ref_test,
                                   rmse_channels=args.rmse_channel, seed=args.seed,
-                                  levels=args.levels, shrink=args.shrink, runner=rn,
-                                  progress=bars.stage)
+                                  levels=args.levels, shrink=args.shrink, noise=args.noise,
+                                  level=args.level, runner=rn, progress=bars.stage)
     write_study_reports(args, res, art)
-    v = res["nominal"]["verdict"]
-    print(f"baseline: {res['baseline']['n_tests']} tests x {res['baseline']['n_features']} "
-          f"features ({res['baseline']['covariance']} covariance)")
-    print(f"model {res['model']}: {'PASS' if v['pass'] else 'FAIL'} - median D "
-          f"{v['median_d']:.4g} vs {v['threshold_kind']} threshold {v['threshold']:.4g} "
-          f"({100 * v['fraction_within']:.0f} % of tests within)")
-    pt = res["nominal"]["paired"]
-    if pt["pass"] is not None:
-        print(f"paired test (each test's force, bias = 0): {'PASS' if pt['pass'] else 'FAIL'} - "
-              f"p = {pt['p_value']:.3g}")
+    v = res["verdict"]
+    print(vd.headline(v, res["model"]))
+    print(f"  baseline: {res['baseline']['n_tests']} tests x "
+          f"{res['baseline']['n_features']} features")
+    for line in vd.evidence_lines(v):
+        print(line)
     if "doe" in res:
         d = res["doe"]
         print(f"DOE {d['design']} x {d['runs']}: Spearman(D, RMSE) = "
               f"{d['spearman_d_vs_rmse']:.3f}; best run {d['best_run']}")
     if "pca" in res:
         print(f"PCA: {res['pca']['n_components_98']} components hold 98 %")
-    return 0
+    return int(v["exit_code"])
