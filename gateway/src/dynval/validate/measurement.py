@@ -35,7 +35,7 @@ from dynval.io.recording import Recording
 log = logging.getLogger(__name__)
 
 HOLD = "cubic"
-OVERSAMPLE = 2
+OVERSAMPLE = 4
 NOISE_SEED = 20_260_000  # the simulated sensor noise is reproducible: seed + test index
 
 Noise = Mapping[str, float]  # channel -> white noise RMS (channel units)

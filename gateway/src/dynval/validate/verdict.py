@@ -8,6 +8,7 @@ gateway/docs/validate-error-rates.md).
 """
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from dynval.validate.mahalanobis import PairedTest
@@ -53,13 +54,18 @@ def headline(v: dict[str, Any], model: str) -> str:
     return f"{v['verdict']}: model {model}: {v['meaning']}"
 
 
+def _finite(x: Any) -> bool:
+    return isinstance(x, (int, float)) and math.isfinite(x)
+
+
 def evidence_lines(v: dict[str, Any]) -> list[str]:
     """The evidence under the verdict, one line each with its role."""
     pt = v["evidence"]["paired"]
     mh = v["evidence"]["mahalanobis"]
-    pv = "-" if pt["p_value"] is None else f"{pt['p_value']:.3g}"
+    pv = f"{pt['p_value']:.3g}" if _finite(pt["p_value"]) else "-"
+    dist = f"{pt['distance']:.4g}" if _finite(pt["distance"]) else "-"
     return [f"  paired test ({pt['test']}, {pt['n']} tests x {pt['p']} features): distance of "
-            f"the mean residual {pt['distance']:.4g}, p = {pv} - {pt['role']}",
+            f"the mean residual {dist}, p = {pv} - {pt['role']}",
             f"  Mahalanobis eq. 41: median D {mh['median_d']:.4g} vs {mh['threshold_kind']} "
             f"95 % limit {mh['threshold']:.4g} ({100 * mh['fraction_within']:.0f} % of tests "
             f"within) - {mh['role']}"]
