@@ -5,6 +5,7 @@ optional design of experiments (Latin hypercube or full factorial), RMSE, ANOVA 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
 from dynval.cli_common import (
@@ -25,6 +26,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--levels", type=int, default=3, help="factorial levels (%(default)s)")
     p.add_argument("--ref-test", type=int, default=0, metavar="I",
                    help="0-based test whose force drives the sweep and is the RMSE reference")
+    p.add_argument("--rank-against", type=Path, default=None, metavar="MODEL_B",
+                   help="feature selection instead of a verdict: rank the --features "
+                   "candidates by how well they tell --model from MODEL_B on these tests")
     p.set_defaults(run=run)
 
 
@@ -34,6 +38,8 @@ def run(args: argparse.Namespace) -> int:
     from dynval.validate import verdict as vd
 
     m, recs, ranges = study_inputs(args)
+    if args.rank_against is not None:
+        return _rank(args, m, recs)
     with runner_for(args) as rn, Progress(args) as bars:
         res, art = study.validate(m, recs, args.features, ranges, runs=args.runs,
                                   design=args.doe, ref_test=args.ref_test,
@@ -54,3 +60,24 @@ def run(args: argparse.Namespace) -> int:
     if "pca" in res:
         print(f"PCA: {res['pca']['n_components_98']} components hold 98 %")
     return int(v["exit_code"])
+
+
+def _rank(args: argparse.Namespace, m: Any, recs: Any) -> int:
+    """--rank-against: the candidate features ranked for the pair of models (exit code 0)."""
+    from dynval import model as mdl
+    from dynval.validate import report, selection
+
+    m_b = mdl.load(args.rank_against)
+    ranked = selection.rank(m, m_b, recs, args.features, noise=args.noise)
+    for line in selection.table(ranked, len(recs)):
+        print(line)
+    yes = [r.feature for r in ranked if r.tells_apart]
+    print(f"{len(yes)} of {len(ranked)} candidate features tell A from B with {len(recs)} "
+          f"tests (z >= {selection.Z_TELL:.2f}: the one-feature paired test at 5 % has >= 80 % "
+          "power)" + (f"; best: {', '.join(yes[:4])}" if yes else ""))
+    if args.json_out:
+        report.write_json({"format": "dynval-validate/2", "kind": "rank-features",
+                           "model_a": str(args.model), "model_b": str(args.rank_against),
+                           "n_tests": len(recs), "z_tell": selection.Z_TELL,
+                           "ranking": [r.summary() for r in ranked]}, args.json_out)
+    return 0

@@ -4,12 +4,13 @@ tests at hand, and which cannot.
 
 Both models are driven by each test's measured input and get the same simulated sensor noise
 (measurement.py), so d_k = f_B,k - f_A,k is the effect of the difference alone on test k. A
-feature's scatter is the SD over the tests of the measured features' paired residual against
-the hypothesis that fits them better (the smaller SD of the two: the other one adds the
-effect's test-to-test variation): what the paired test of one feature sees. The separation is
-|mean_k d_k| / scatter, and z = separation x sqrt(n) is the paired test's signal for n tests:
-with z >= Z_TELL (1.96 + 0.84) the one-feature paired test at 5 % rejects the wrong hypothesis
-with probability >= 80 %; below 1 it is a coin toss.
+feature's scatter is what the paired test of one feature sees when the other hypothesis is
+true: the noise of its paired residual (the SD over the tests of the measured features'
+residual against the hypothesis that fits them better) and the effect's own test-to-test
+spread (SD of d_k: a bumper that closes only in the high-level tests), in quadrature. The
+separation is |mean_k d_k| / scatter, and z = separation x sqrt(n) is the paired test's signal
+for n tests: with z >= Z_TELL (1.96 + 0.84) the one-feature paired test at 5 % rejects the wrong
+hypothesis with probability >= 80 %; below 1 it is a coin toss.
 """
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ Z_TELL = 1.96 + 0.84  # two-sided 5 % test, 80 % power
 class Ranked:
     feature: str
     effect: float  # mean of f_B - f_A over the tests (feature units)
-    scatter: float  # SD of the better hypothesis' paired residual (feature units)
+    scatter: float  # noise and the effect's spread over the tests, in quadrature
     separation: float  # |effect| / scatter
     z: float  # separation x sqrt(n)
     scatter_from: str
@@ -63,10 +64,13 @@ def rank(m_a: mdl.Model, m_b: mdl.Model, recs: Sequence[Recording], candidates: 
     fa, fb = _features_of(s, m_a), _features_of(s, m_b)
     n = x.shape[0]
     sd_a, sd_b = (np.std(x - f, axis=0, ddof=1) for f in (fa, fb))
-    effect = np.mean(fb - fa, axis=0)
+    d = fb - fa
+    effect = np.mean(d, axis=0)
+    spread = np.var(d, axis=0, ddof=1)
     out = []
     for j, lab in enumerate(s.features.labels()):
-        sc, frm = (sd_a[j], "A") if sd_a[j] <= sd_b[j] else (sd_b[j], "B")
+        frm = "A" if sd_a[j] <= sd_b[j] else "B"
+        sc = math.sqrt(float(min(sd_a[j], sd_b[j])) ** 2 + float(spread[j]))
         sep = abs(effect[j]) / sc if sc > 0 else math.inf
         out.append(Ranked(lab, float(effect[j]), float(sc), float(sep),
                           float(sep * math.sqrt(n)), frm))
