@@ -49,7 +49,8 @@ def test_right_model_is_rejected_at_about_the_nominal_rate(declared: mdl.Model) 
     """12 generated studies of 10 tests: a 5 % test rejects 0.6 on average; 4 or more would
     happen with probability 0.2 % for a test at its level."""
     specs = ["peak,std@acc3,acc4", "segstd64@acc4"]
-    tallies = mc.run(declared, specs, {"right": synth.Truth()}, 12, first_seed=1000)
+    tallies = mc.run(declared, specs, {"right": mc.Scenario(synth.Truth())}, 12,
+                     first_seed=1000)
     for spec in specs:
         t = tallies[("right", spec)]
         assert t.runs == 12 and t.inconclusive == 0

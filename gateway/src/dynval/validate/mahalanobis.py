@@ -13,6 +13,15 @@ Threshold for a verdict at level 1 - a (default 95 %):
 * ``chi2`` (shrinkage covariance): chi^2_{1-a}(p), the limit for a known covariance;
 * the empirical (1 - a) percentile of the baseline distribution (eq. 40) is reported beside it
   (in-sample distances are smaller than a new test's: it is the stricter figure).
+
+That check (``verdict``) is the size of a model's discrepancy against the test-to-test
+scatter, not the study's verdict: the forces' randomness fills that scatter and a wrong model
+sits inside it. The verdict is the paired test (``paired_test``): each test's measured
+features against the model's driven by the same measured input; the mean residual's
+Mahalanobis distance in the residuals' own metric, Hotelling's T^2 or a sign-flip test
+(validate/verdict.py, gateway/docs/validate-error-rates.md). ``paired_d`` /
+``paired_distance`` give the per-test residual's distance in the experiments' metric, the
+size that falls as a model improves (discover's before / after).
 """
 from __future__ import annotations
 
