@@ -164,7 +164,7 @@ def _sweep(s: Setup, runner: doe.Runner, ranges: Sequence[doe.ParamRange], x: np
            forces: Sequence[np.ndarray], ref: Recording | None,
            progress: Progress | None) -> doe.SweepResult:
     refs = {c: ref.channel(c).data for c in s.rmse_channels} if ref is not None else None
-    job = doe.make_job(s.model, forces, s.fs_hz, s.features, rmse_refs=refs)
+    job = doe.make_job(s.model, forces, s.fs_hz, s.features, rmse_refs=refs, noise=s.noise)
     return runner.run(job, doe.as_sets(ranges, x), on_progress=progress)
 
 
