@@ -17,7 +17,7 @@ EXIT = {"PASS": 0, "FAIL": 1, "INCONCLUSIVE": 3}  # 2: an error (bad input), as 
 
 ROLE_PAIRED = ("the verdict: do the measured features differ from the model's, driven by each "
                "test's own measured input and carrying the same sensor noise, by more than "
-               "the noise explains? An exactly right model is rejected in (1 - level) of the "
+               "the noise explains? An exactly right model is rejected in {alpha:g} % of the "
                "studies")
 ROLE_MAHALANOBIS = ("the size: how far the model's features lie from the experiments, in "
                     "units of the test-to-test scatter (report eq. 39-41); not a test (a wrong "
@@ -41,11 +41,11 @@ def decide(paired: PairedTest, mahalanobis: dict[str, Any]) -> dict[str, Any]:
         word = "PASS"
         meaning = (f"no evidence against the model at the {alpha:g} % level: p = "
                    f"{paired.p_value:.3g}; a PASS is only as strong as the features' power "
-                   "against the effect in question (dynval validate --rank-features)")
+                   "against the effect in question (dynval validate --rank-against)")
     return {"verdict": word, "exit_code": EXIT[word], "meaning": meaning, "level": lvl,
             "false_rejection_rate": 1 - lvl, "test": paired.method,
             "p_value": paired.p_value,
-            "evidence": {"paired": {"role": ROLE_PAIRED, **paired.summary()},
+            "evidence": {"paired": {"role": ROLE_PAIRED.format(alpha=alpha), **paired.summary()},
                          "mahalanobis": {"role": ROLE_MAHALANOBIS, **mahalanobis}}}
 
 
