@@ -22,10 +22,9 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
+from bench_discover import best_linear  # the script's folder is on sys.path
 from dynval import model as mdl
 from dynval import synth as gen
-from dynval.discover import effects as fx
-from dynval.discover import fit as ft
 from dynval.discover import loop
 from dynval.discover import residual as rs
 from dynval.io.recording import Recording
@@ -109,15 +108,6 @@ def cheap_daq(recs: list[Recording], rng: np.random.Generator) -> None:
                                               + rng.standard_normal(ch.data.size)))
             off = 0.03 * float(np.std(ch.data)) * (i + 1) if ch.role == "output" else 0.0
             ch.data = ch.data + noise + 2 * lv * np.sin(2 * np.pi * 50 * t + i) + off
-
-
-def best_linear(m: mdl.Model, recs: list[Recording]) -> mdl.Model:
-    tests = rs.prepare(m, recs)
-    chans = rs.common_channels(m, tests)
-    names = tuple(f"k{i}" for i in range(2, m.n_dof + 1)) + tuple(
-        f"zeta{i}" for i in range(1, m.n_dof + 1))
-    return ft.fit(m, fx.NONE.candidates(m)[0], [], tests, chans,
-                  rs.channel_scales(tests, chans), 40, names).model
 
 
 def run(seed: int) -> str:

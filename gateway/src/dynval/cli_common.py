@@ -118,6 +118,13 @@ def add_study_options(p: Any) -> None:
                    help="run the sweeps on a Dask distributed scheduler (tcp://host:8786)")
     p.add_argument("--shrink", choices=("auto", "always", "never"), default="auto",
                    help="Ledoit-Wolf covariance shrinkage (auto: when tests <= features + 1)")
+    p.add_argument("--noise", default="auto", metavar="auto|none|FRAC|CH=RMS,...",
+                   help="sensor noise the simulated features get, as the measured ones carry "
+                   "it: estimated from the tests (auto), none, a fraction of each channel's "
+                   "RMS (0.01) or an RMS per channel (%(default)s)")
+    p.add_argument("--level", type=float, default=0.95,
+                   help="confidence level of the verdict: an exactly right model fails in "
+                   "1 - level of studies (%(default)s)")
     p.add_argument("--json", dest="json_out", type=Path, default=None, metavar="OUT",
                    help="write the JSON result here")
     p.add_argument("--html", dest="html_out", type=Path, default=None, metavar="OUT",

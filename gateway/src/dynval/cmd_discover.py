@@ -88,8 +88,9 @@ def run(args: argparse.Namespace) -> int:
         how = doc["noise_method"].get(c, {}).get("method", "")
         print(f"  {c:<{width}} {b:>21.5g} {a:>12.5g} {doc['noise_floor'][c]:>10.4g}  {how}")
     mah = doc["mahalanobis"]
-    print(f"  Mahalanobis before {_g(mah.get('before'))}, after {_g(mah.get('after'))} "
-          f"(measured reference {_g(mah.get('measured_reference'))})")
+    print(f"  Mahalanobis (paired) before {_g(mah.get('before'))}, after "
+          f"{_g(mah.get('after'))}; paired test p before {_g(mah.get('p_before'))}, after "
+          f"{_g(mah.get('p_after'))}")
     log.info("discover: %d tests in %.1f s", len(recs), time.perf_counter() - t0)
     sys.stdout.flush()
     return 0

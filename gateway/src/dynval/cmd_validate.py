@@ -5,6 +5,7 @@ optional design of experiments (Latin hypercube or full factorial), RMSE, ANOVA 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
 from dynval.cli_common import (
@@ -25,34 +26,58 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--levels", type=int, default=3, help="factorial levels (%(default)s)")
     p.add_argument("--ref-test", type=int, default=0, metavar="I",
                    help="0-based test whose force drives the sweep and is the RMSE reference")
+    p.add_argument("--rank-against", type=Path, default=None, metavar="MODEL_B",
+                   help="feature selection instead of a verdict: rank the --features "
+                   "candidates by how well they tell --model from MODEL_B on these tests")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    """Exit code: 0 PASS, 1 FAIL, 3 INCONCLUSIVE (verdict.EXIT); 2 an error."""
     from dynval.validate import study
+    from dynval.validate import verdict as vd
 
     m, recs, ranges = study_inputs(args)
+    if args.rank_against is not None:
+        return _rank(args, m, recs)
     with runner_for(args) as rn, Progress(args) as bars:
         res, art = study.validate(m, recs, args.features, ranges, runs=args.runs,
                                   design=args.doe, ref_test=args.ref_test,
                                   rmse_channels=args.rmse_channel, seed=args.seed,
-                                  levels=args.levels, shrink=args.shrink, runner=rn,
-                                  progress=bars.stage)
+                                  levels=args.levels, shrink=args.shrink, noise=args.noise,
+                                  level=args.level, runner=rn, progress=bars.stage)
     write_study_reports(args, res, art)
-    v = res["nominal"]["verdict"]
-    print(f"baseline: {res['baseline']['n_tests']} tests x {res['baseline']['n_features']} "
-          f"features ({res['baseline']['covariance']} covariance)")
-    print(f"model {res['model']}: {'PASS' if v['pass'] else 'FAIL'} - median D "
-          f"{v['median_d']:.4g} vs {v['threshold_kind']} threshold {v['threshold']:.4g} "
-          f"({100 * v['fraction_within']:.0f} % of tests within)")
-    pt = res["nominal"]["paired"]
-    if pt["pass"] is not None:
-        print(f"paired test (each test's force, bias = 0): {'PASS' if pt['pass'] else 'FAIL'} - "
-              f"p = {pt['p_value']:.3g}")
+    v = res["verdict"]
+    print(vd.headline(v, res["model"]))
+    print(f"  baseline: {res['baseline']['n_tests']} tests x "
+          f"{res['baseline']['n_features']} features")
+    for line in vd.evidence_lines(v):
+        print(line)
     if "doe" in res:
         d = res["doe"]
         print(f"DOE {d['design']} x {d['runs']}: Spearman(D, RMSE) = "
               f"{d['spearman_d_vs_rmse']:.3f}; best run {d['best_run']}")
     if "pca" in res:
         print(f"PCA: {res['pca']['n_components_98']} components hold 98 %")
+    return int(v["exit_code"])
+
+
+def _rank(args: argparse.Namespace, m: Any, recs: Any) -> int:
+    """--rank-against: the candidate features ranked for the pair of models (exit code 0)."""
+    from dynval import model as mdl
+    from dynval.validate import report, selection
+
+    m_b = mdl.load(args.rank_against)
+    ranked = selection.rank(m, m_b, recs, args.features, noise=args.noise)
+    for line in selection.table(ranked, len(recs)):
+        print(line)
+    yes = [r.feature for r in ranked if r.tells_apart]
+    print(f"{len(yes)} of {len(ranked)} candidate features tell A from B with {len(recs)} "
+          f"tests (z >= {selection.Z_TELL:.2f}: the one-feature paired test at 5 % has >= 80 % "
+          "power)" + (f"; best: {', '.join(yes[:4])}" if yes else ""))
+    if args.json_out:
+        report.write_json({"format": "dynval-validate/2", "kind": "rank-features",
+                           "model_a": str(args.model), "model_b": str(args.rank_against),
+                           "n_tests": len(recs), "z_tell": selection.Z_TELL,
+                           "ranking": [r.summary() for r in ranked]}, args.json_out)
     return 0

@@ -147,14 +147,15 @@ def _mahal(m0: mdl.Model, m1: mdl.Model, tests: Sequence[rs.TestData],
     meas = np.array([rs.features(t.y, t.u, chans, fs, band) for t in tests])
     out: dict[str, Any] = {"features": [f"{k}:{c}" for c in chans
                                         for k in ("log_std_gain", "kurtosis")],
-                           "method": "mean distance of each test's simulated feature vector (noise "
-                                     "floor added) from the measured vectors' distribution "
-                                     "(standardised features, Ledoit-Wolf covariance when "
-                                     "tests <= features + 1: dynval.validate.mahalanobis); "
-                                     "reference: the measured vectors' own leave-one-out "
-                                     "distance"}
+                           "method": "mean over the tests of the paired Mahalanobis distance "
+                                     "between each test's measured and simulated feature "
+                                     "vectors (the simulation driven by the test's input, the "
+                                     "noise floor added), in the measured vectors' metric "
+                                     "(dynval.validate.mahalanobis.paired_distance); p_before / "
+                                     "p_after: the paired test's p-value (is what is left more "
+                                     "than noise?)"}
     if len(tests) < 3:  # a covariance of the measured features needs a few tests
-        out.update(before=math.nan, after=math.nan, measured_reference=math.nan,
+        out.update(before=math.nan, after=math.nan, p_before=math.nan, p_after=math.nan,
                    note=f"not computed: {len(tests)} test(s), a feature distribution needs 3 "
                         "or more")
         return out
@@ -172,30 +173,14 @@ def _mahal(m0: mdl.Model, m1: mdl.Model, tests: Sequence[rs.TestData],
             out[key] = math.nan
             continue
         try:
-            d, ref = mh.mean_distance(meas, np.array(sims), out["features"], quiet=True)
+            pd = mh.paired_distance(meas, np.array(sims), out["features"])
         except DynvalError as exc:
-            log.info("no Mahalanobis baseline of the measured features: %s", exc)
-            d, ref = math.nan, math.nan
-        out[key] = d
-        out["measured_reference"] = ref
-        vm = _validate_mahalanobis()
-        if vm is not None:  # the project's validation module (report eq. 39-41), if usable
-            try:
-                base = vm.fit(meas, out["features"], quiet=True)
-                dq = np.asarray(base.distance(np.array(sims)))
-                out[f"validate_{key}"] = {"median_d": float(np.median(dq)),
-                                          **vm.verdict(base, dq)}
-                out["validate_threshold"] = float(base.threshold)
-            except DynvalError as exc:
-                log.info("dynval.validate.mahalanobis not usable here: %s", exc)
+            log.info("no Mahalanobis metric of the measured features: %s", exc)
+            out[key] = math.nan
+            continue
+        out[key] = pd["distance"]
+        out[f"p_{key}"] = pd["test"]["p_value"]
     return out
-
-
-def _validate_mahalanobis() -> Any:
-    try:
-        return importlib.import_module("dynval.validate.mahalanobis")
-    except ImportError:
-        return None
 
 
 @dataclass

@@ -299,9 +299,10 @@ def _html_tests(r: DiscoverResult, doc: dict[str, Any]) -> str:
 def _html_mahal(mah: dict[str, Any]) -> str:
     if mah.get("note"):
         return f"Mahalanobis distance of the features: {html.escape(str(mah['note']))}."
-    return ("Mahalanobis distance of the simulated features from the measured ones: before "
-            f"{_g(mah.get('before'))}, after {_g(mah.get('after'))} (the measured tests' own "
-            f"leave-one-out distance: {_g(mah.get('measured_reference'))}).")
+    return ("Paired Mahalanobis distance of the simulated features from the measured ones "
+            f"(the measured tests' metric): before {_g(mah.get('before'))}, after "
+            f"{_g(mah.get('after'))}; the paired test's p-value (is what is left more than "
+            f"noise?): before {_g(mah.get('p_before'))}, after {_g(mah.get('p_after'))}.")
 
 
 def write_html(r: DiscoverResult, doc: dict[str, Any], path: Path | str) -> None:

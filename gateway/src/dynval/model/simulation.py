@@ -305,6 +305,12 @@ def _resolve_oversample(m: Model, oversample: int | None) -> int:
     return r
 
 
+# scipy's default Kaiser beta 5 ripples by up to 0.2 % in the pass band: the response STDs of
+# the report's frame came out 0.03 % high (two standard errors of a 10-test paired residual);
+# beta 12 matches an exact (FFT) band-limited interpolation to 1e-5 up to 0.31 fs
+KAISER_BETA = 12.0
+
+
 def interpolate_input(u: np.ndarray, r: int) -> np.ndarray:
     """Band-limited interpolation by r (zeros before the first sample: the structure starts at
     rest; zeros padded after the last so its tail is not cut by the filter)."""
@@ -312,7 +318,8 @@ def interpolate_input(u: np.ndarray, r: int) -> np.ndarray:
         return _core.as_doubles(u)
     pad = np.concatenate([_core.as_doubles(u), np.zeros(32)])
     resample_poly = importlib.import_module("scipy.signal").resample_poly
-    return np.ascontiguousarray(resample_poly(pad, r, 1)[: u.size * r])
+    return np.ascontiguousarray(resample_poly(pad, r, 1, window=("kaiser", KAISER_BETA))
+                                [: u.size * r])
 
 
 def _prepare_input(u: Any, r: int) -> np.ndarray:

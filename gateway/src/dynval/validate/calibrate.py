@@ -3,26 +3,30 @@
 
 Statistical model (paired). Each of the m training tests k gives a standardised feature vector
 z_k (standardised by the experimental baseline) and its measured force drives the model:
-eta_k(theta). The residual z_k - eta_k(theta*) holds sensor noise and test-to-test scatter of
-the structure, with covariance R; the forces' own randomness cancels in the pairing. With
-z_obs = mean_k z_k and eta(theta) = mean_k eta_k(theta),
+eta_k(theta), simulated as measured (measurement.py: the validation input hold, the tests'
+sensor noise on the simulated outputs, one draw per test for every theta). The residuals
+B (z_k - eta_k(theta*)) are independent N(0, R) in the reduced coordinates (B: the leading
+principal directions of the sweep's features, at most 8 and at most m - 2); R holds the
+sensor noise of both sides and the test-to-test scatter of the structure; the forces' own
+randomness cancels in the pairing. R is not known: it is estimated from the m residuals at
+the sweep run closest to the tests (residual_at_best) and integrated out under the Jeffreys
+prior, which turns the Gaussian likelihood of the mean residual into a multivariate t:
 
-    log L(theta) = -1/2 r^T Sigma^-1 r - 1/2 log det Sigma,   r = B (z_obs - eta(theta)),
-    Sigma = B R B^T / m + diag(emulator variance),
+    log L(theta) = -(m/2) log(1 + Q / (m - 1)) - 1/2 log det Sigma,
+    Q = r^T Sigma^-1 r,  r = B (z_obs - eta(theta)),  Sigma = S / m_mean + diag(emulator var)
 
-B being the leading principal directions of the sweep's features (the report calibrates the
-first PCA coordinates; here the components holding 99.9 % of the variance, at most 8) and R
-the plug-in covariance of the paired residuals at the sweep run closest to the tests
-(residual_cov). The prior is uniform on the parameter ranges; the posterior is sampled with
-emcee (affine-invariant ensemble MCMC) in unit-cube coordinates:
+with S the sample covariance of the m residuals, z_obs and eta the means over the m_mean tests
+whose forces drive the simulations. A plug-in Gaussian (the t's limit for many tests) made the
+intervals too narrow with 8 tests; the t is what makes the 95 % intervals cover (table in
+gateway/docs/validate-error-rates.md). The prior is uniform on the parameter ranges; the
+posterior is sampled with emcee (affine-invariant ensemble MCMC) in unit-cube coordinates:
 
 * ``gp``: the report's way. A Latin-hypercube sweep, one scikit-learn GaussianProcessRegressor
   per reduced coordinate (constant x anisotropic RBF + white noise) as the emulator of eta, its
   predictive variance added to Sigma;
 * ``direct``: eta from the C model itself at every MCMC step (walkers evaluated in parallel by
-  the sweep Runner), with the forces of fewer tests (m is smaller: a wider posterior, the price
-  of m simulations per step). The model's own input interpolation (oversample) is used unless
-  one is given; oversample=1 is 3-4x faster at the cost of the sinc^2 attenuation near 70 Hz.
+  the sweep Runner), with the forces of fewer tests (m_mean is smaller: a wider posterior, the
+  price of m_mean simulations per step).
 """
 from __future__ import annotations
 
@@ -37,7 +41,7 @@ import numpy as np
 
 from dynval.errors import ConfigError
 from dynval.validate.doe import ParamRange, Runner, SweepJob, as_sets, latin_hypercube
-from dynval.validate.mahalanobis import Baseline, ledoit_wolf
+from dynval.validate.mahalanobis import Baseline, quad
 from dynval.validate.sensitivity import pca
 
 log = logging.getLogger(__name__)
@@ -54,15 +58,17 @@ def _emcee() -> Any:
 
 @dataclass
 class Target:
-    """What the calibration matches, in standardised feature units: z_obs, the mean feature
-    vector of the m tests whose measured forces drive the simulations; resid_cov, the
-    covariance of one test's residual z_k - eta_k(theta*); basis B (q x p)."""
+    """What the calibration matches, in reduced standardised feature units: z_obs, the mean
+    feature vector of the m_mean tests whose measured forces drive the simulations; resid_cov
+    (q x q), the sample covariance of one test's reduced residual, from m_cov tests; basis B
+    (q x p)."""
 
     baseline: Baseline
     z_obs: np.ndarray
     resid_cov: np.ndarray
     basis: np.ndarray
     m_forces: int
+    m_cov: int
 
     @property
     def q(self) -> int:
@@ -72,49 +78,47 @@ class Target:
         return np.asarray(self.basis @ self.z_obs)
 
     def cov(self) -> np.ndarray:
-        return np.asarray(self.basis @ self.resid_cov @ self.basis.T) / self.m_forces
+        return np.asarray(self.resid_cov / self.m_forces)
 
     def reduce(self, feats_mean: np.ndarray) -> np.ndarray:
         """Raw mean feature vectors (rows) -> reduced standardised coordinates."""
         return np.asarray(self.baseline.standardise(feats_mean) @ self.basis.T)
 
 
-def choose_basis(base: Baseline, sweep_mean_feats: np.ndarray, frac: float = 0.999,
-                 q_max: int = 8) -> np.ndarray:
-    """B: the leading principal directions of the sweep's standardised features."""
+def choose_basis(base: Baseline, sweep_mean_feats: np.ndarray, m_cov: int,
+                 frac: float = 0.999, q_max: int = 8) -> np.ndarray:
+    """B: the leading principal directions of the sweep's standardised features, at most
+    m_cov - 2 of them (the t likelihood needs m_cov - q >= 2 degrees of freedom)."""
     pc = pca(base.standardise(sweep_mean_feats))
-    q = min(pc.n_for(frac), q_max, base.p)
+    q = max(1, min(pc.n_for(frac), q_max, base.p, m_cov - 2))
     return np.asarray(pc.components[:q])
 
 
-def residual_cov(base: Baseline, test_feats: np.ndarray, sweep_feats: np.ndarray
-                 ) -> tuple[np.ndarray, int]:
-    """Plug-in covariance of the paired residuals z_k - eta_k at the sweep run closest to the
+def residual_at_best(base: Baseline, test_feats: np.ndarray, sweep_feats: np.ndarray
+                     ) -> tuple[np.ndarray, int]:
+    """The standardised paired residuals z_k - eta_k (m, p) at the sweep run closest to the
     tests (smallest Mahalanobis distance of the mean residual): test_feats (m, p) raw,
-    sweep_feats (runs, m, p) raw, simulated with the same m forces. Ledoit-Wolf when m <= p+1.
-    Returns (covariance, index of that run)."""
+    sweep_feats (runs, m, p) raw, simulated with the same m forces. Returns (residuals, run)."""
     z = base.standardise(test_feats)
     eta = base.standardise(sweep_feats)
     r_mean = z.mean(axis=0)[None, :] - eta.mean(axis=1)
-    d = np.einsum("ij,jk,ik->i", r_mean, base.inv, r_mean)
+    d = quad(r_mean, base.inv)
     d[~np.isfinite(d)] = np.inf
     j = int(np.argmin(d))
-    r = z - eta[j]
-    m, p = r.shape
-    if m <= p + 1:
-        cov, _ = ledoit_wolf(r)
-    else:
-        cov = np.cov(r, rowvar=False, ddof=1).reshape(p, p)
-    cov = cov + 1e-9 * float(np.trace(cov)) / p * np.eye(p)
-    return np.asarray(cov), j
+    return np.asarray(z - eta[j]), j
 
 
-def make_target(base: Baseline, test_feats: np.ndarray, resid_cov: np.ndarray,
+def make_target(base: Baseline, test_feats: np.ndarray, resid: np.ndarray,
                 basis: np.ndarray) -> Target:
     """Target for simulations driven by the forces of the tests whose raw features are the
-    rows of test_feats (paired)."""
+    rows of test_feats (paired); resid: the residuals (m_cov, p) the covariance comes from."""
     z = base.standardise(test_feats)
-    return Target(base, np.asarray(z.mean(axis=0)), resid_cov, basis, int(z.shape[0]))
+    w = resid @ basis.T
+    q = basis.shape[0]
+    cov = np.cov(w, rowvar=False, ddof=1).reshape(q, q)
+    cov = cov + 1e-9 * float(np.trace(cov)) / q * np.eye(q)
+    return Target(base, np.asarray(z.mean(axis=0)), cov, basis, int(z.shape[0]),
+                  int(resid.shape[0]))
 
 
 @dataclass
@@ -143,11 +147,18 @@ class Posterior:
     def as_params(self) -> dict[str, float]:
         return {n: float(v) for n, v in zip(self.names, self.mean, strict=True)}
 
-    def summary(self) -> dict[str, Any]:
+    def interval(self, level: float = 0.95) -> np.ndarray:
+        """Equal-tailed credible interval of each parameter: (2, k) lower and upper rows."""
+        a = 50 * (1 - level)
+        return np.asarray(np.percentile(self.samples, [a, 100 - a], axis=0))
+
+    def summary(self, level: float = 0.95) -> dict[str, Any]:
         q = np.percentile(self.samples, [2.5, 50, 97.5], axis=0)
-        return {"method": self.method, "parameters": {
+        iv = self.interval(level)
+        return {"method": self.method, "interval_level": level, "parameters": {
             n: {"mean": float(self.mean[j]), "std": float(self.std[j]),
-                "q2.5": float(q[0, j]), "median": float(q[1, j]), "q97.5": float(q[2, j])}
+                "q2.5": float(q[0, j]), "median": float(q[1, j]), "q97.5": float(q[2, j]),
+                "lo": float(iv[0, j]), "hi": float(iv[1, j])}
             for j, n in enumerate(self.names)},
             "correlation": self.corr.tolist(), "n_samples": int(self.samples.shape[0]),
             "acceptance": self.acceptance, "autocorr_steps": self.autocorr,
@@ -155,7 +166,8 @@ class Posterior:
 
 
 def _loglik(target: Target, w: np.ndarray, var: np.ndarray | None = None) -> np.ndarray:
-    """log L of reduced predictions w (rows) with optional extra diagonal variance rows."""
+    """log L of reduced predictions w (rows) with optional extra diagonal variance rows: the
+    multivariate t of the module doc (R integrated out)."""
     r = target.obs()[None, :] - w
     c = np.broadcast_to(target.cov(), (w.shape[0], target.q, target.q)).copy()
     if var is not None:
@@ -166,7 +178,9 @@ def _loglik(target: Target, w: np.ndarray, var: np.ndarray | None = None) -> np.
     out = np.full(w.shape[0], -np.inf)
     if ok.any():
         sol = np.linalg.solve(c[ok], r[ok][:, :, None])[:, :, 0]
-        out[ok] = -0.5 * np.sum(r[ok] * sol, axis=1) - 0.5 * logdet[ok]
+        qf = np.sum(r[ok] * sol, axis=1)
+        m = target.m_cov
+        out[ok] = -0.5 * m * np.log1p(qf / (m - 1)) - 0.5 * logdet[ok]
     return out
 
 

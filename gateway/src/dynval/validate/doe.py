@@ -25,6 +25,7 @@ import numpy as np
 
 from dynval import model as mdl
 from dynval.errors import ConfigError
+from dynval.validate import measurement as meas
 from dynval.validate.featvec import FeatureSet
 
 log = logging.getLogger(__name__)
@@ -114,14 +115,17 @@ class SweepJob:
     oversample: int | None = None
     rmse_channels: tuple[str, ...] = ()
     rmse_refs: tuple[np.ndarray, ...] = ()
+    noise: tuple[tuple[str, float], ...] = ()  # sensor noise RMS per channel on the features
 
 
 def make_job(m: mdl.Model, forces: Sequence[np.ndarray], fs_hz: float, features: FeatureSet,
-             *, oversample: int | None = None, rmse_refs: Mapping[str, np.ndarray] | None = None
-             ) -> SweepJob:
+             *, oversample: int | None = None, rmse_refs: Mapping[str, np.ndarray] | None = None,
+             noise: Mapping[str, float] | None = None) -> SweepJob:
     """A job whose model predicts only the channels the features and RMSE read (fewer
-    outputs: a faster core run). rmse_refs: channel -> the measured record that forces[0]
-    drove (eq. 47 reference)."""
+    outputs: a faster core run), with the validation input hold (measurement.py; oversample
+    None: measurement.OVERSAMPLE). rmse_refs: channel -> the measured record that forces[0]
+    drove (eq. 47 reference). noise: sensor noise RMS per channel added before the features
+    (the draw of force i is the one measurement.add_noise gives test i)."""
     refs = dict(rmse_refs or {})
     need = list(features.channels)
     need += [c for c in refs if c not in need]
@@ -129,10 +133,12 @@ def make_job(m: mdl.Model, forces: Sequence[np.ndarray], fs_hz: float, features:
     if missing:
         raise ConfigError(f"the model does not predict {', '.join(missing)} (outputs: "
                           f"{', '.join(m.outputs)})")
-    cut = dataclasses.replace(m, outputs={c: m.outputs[c] for c in need})
+    cut = meas.predictor(dataclasses.replace(m, outputs={c: m.outputs[c] for c in need}))
     return SweepJob(cut, tuple(np.ascontiguousarray(f, dtype=np.float64) for f in forces),
-                    fs_hz, features, oversample, tuple(refs),
-                    tuple(np.ascontiguousarray(v, dtype=np.float64) for v in refs.values()))
+                    fs_hz, features, meas.OVERSAMPLE if oversample is None else oversample,
+                    tuple(refs),
+                    tuple(np.ascontiguousarray(v, dtype=np.float64) for v in refs.values()),
+                    tuple(sorted((noise or {}).items())))
 
 
 @dataclass
@@ -197,7 +203,8 @@ def _chunk_run(job: SweepJob, sets: list[dict[str, float]]
                     log.warning("run %s diverged (a prediction that is not finite)", sets[i])
                 continue
             y = {c: ys[i, :, j] for j, c in enumerate(chans)}
-            feats[i, fi] = job.features.extract(y, job.fs_hz)
+            feats[i, fi] = job.features.extract(meas.add_noise(y, dict(job.noise), fi),
+                                                job.fs_hz)
             if fi == 0:
                 for j, (c, ref) in enumerate(zip(job.rmse_channels, job.rmse_refs, strict=True)):
                     rmse[i, j] = rmse_eq47(y[c], ref)
@@ -310,4 +317,4 @@ class Runner:
 def simulate_one(m: mdl.Model, params: Mapping[str, float], force: np.ndarray, fs_hz: float,
                  oversample: int | None = None) -> dict[str, np.ndarray]:
     """Time histories of one run (all outputs of m)."""
-    return mdl.simulate(m.with_params(params), force, fs_hz, oversample=oversample)
+    return meas.simulate(m.with_params(params), force, fs_hz, oversample)

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from dynval.errors import ConfigError, InputFileError
+from dynval.validate import verdict as verdict_mod
 from dynval.validate.study import Artifacts
 
 
@@ -246,19 +247,8 @@ def _summary_html(res: dict[str, Any]) -> str:
                  f"{b['covariance']} covariance; threshold {b['threshold_kind']} "
                  f"{b['threshold']:.4g} (empirical 95th percentile {b['empirical_threshold']:.4g})"
                  "</p>")
-    for key in ("nominal",):
-        if key in res:
-            v = res[key]["verdict"]
-            parts.append(f"<p><b>Verdict ({key} model): {'PASS' if v['pass'] else 'FAIL'}</b> "
-                         f"&mdash; {html.escape(v['rule'])}: median D {v['median_d']:.4g} vs "
-                         f"{v['threshold']:.4g}; {100 * v['fraction_within']:.0f} % of tests "
-                         "within.</p>")
-            pt = res[key].get("paired", {})
-            if pt.get("pass") is not None:
-                parts.append(f"<p>Paired test (model driven by each test's force; "
-                             f"{html.escape(pt['test'])}): "
-                             f"<b>{'PASS' if pt['pass'] else 'FAIL'}</b>, p = "
-                             f"{pt['p_value']:.3g}.</p>")
+    if "verdict" in res:
+        parts.append(_verdict_html(res["verdict"], res.get("model", "")))
     if "doe" in res:
         d = res["doe"]
         parts.append(f"<p>DOE: {d['design']} with {d['runs']} runs driven by {d['ref_test']}; "
@@ -292,12 +282,21 @@ def _summary_html(res: dict[str, Any]) -> str:
         for k in ("calibrated", "nominal"):
             v = c[k]["verdict"]
             rm = {ch: float(np.mean(x)) for ch, x in c[k]["rmse"].items()}
-            parts.append(f"<p><b>Held-out check, {k} model: {'PASS' if v['pass'] else 'FAIL'}"
-                         f"</b> &mdash; median D {v['median_d']:.4g} (threshold "
-                         f"{v['threshold']:.4g}); mean RMSE "
+            parts.append(f"<p>Held-out check, {k} model: <b>{v['verdict']}</b> &mdash; "
+                         f"{html.escape(v['meaning'])}; mean RMSE "
                          f"{html.escape(json.dumps({k2: round(v2, 5) for k2, v2 in rm.items()}))}"
                          "</p>")
     return "\n".join(parts)
+
+
+def _verdict_html(v: dict[str, Any], model: str) -> str:
+    """The verdict as the headline, the evidence under it with each one's role."""
+    out = [f"<h2>Verdict: {html.escape(v['verdict'])} (exit code {v['exit_code']})</h2>",
+           f"<p>{html.escape(verdict_mod.headline(v, model))}</p>"]
+    if v.get("evidence"):
+        out.append("<ul>" + "".join(f"<li>{html.escape(line.strip())}</li>"
+                                     for line in verdict_mod.evidence_lines(v)) + "</ul>")
+    return "\n".join(out)
 
 
 def write_html(result: dict[str, Any], art: Artifacts, path: Path | str,

@@ -21,6 +21,8 @@ from dynval.io.recording import Recording
 from dynval.validate import calibrate as cal
 from dynval.validate import doe
 from dynval.validate import mahalanobis as mh
+from dynval.validate import measurement as meas
+from dynval.validate import verdict as vd
 from dynval.validate.featvec import FeatureSet, parse
 from dynval.validate.sensitivity import anova_table, pca
 
@@ -60,11 +62,13 @@ class Setup:
     fs_hz: float
     input_channel: str
     rmse_channels: list[str]
+    noise: dict[str, float] = field(default_factory=dict)
 
 
 def setup(m: mdl.Model, recs: Sequence[Recording], spec: str,
-          rmse_channels: Sequence[str] | None = None) -> Setup:
-    """Check the tests (same rate and length, the model's channels) and bind the features."""
+          rmse_channels: Sequence[str] | None = None, noise: str = "auto") -> Setup:
+    """Check the tests (same rate and length, the model's channels), bind the features and
+    find the sensor noise the simulated features get (measurement.noise_levels)."""
     if len(recs) < 2:
         raise ConfigError(f"validation needs at least 2 experimental tests, got {len(recs)}")
     fs = recs[0].fs_hz
@@ -81,23 +85,42 @@ def setup(m: mdl.Model, recs: Sequence[Recording], spec: str,
     inp = mdl.input_channel(m, recs[0])
     rc = list(rmse_channels) if rmse_channels else fset.channels
     rc = parse("rms@" + ",".join(rc)).resolve(avail).channels
-    return Setup(m, list(recs), fset, fs, inp, rc)
+    nz = meas.noise_levels(noise, m, recs, fset.channels, inp)
+    return Setup(m, list(recs), fset, fs, inp, rc, nz)
 
 
 def experiment_features(s: Setup, recs: Sequence[Recording]) -> np.ndarray:
     return np.array([s.features.extract(_data(r), s.fs_hz) for r in recs])
 
 
-def _model_on_tests(s: Setup, m: mdl.Model, recs: Sequence[Recording]
+def _model_on_tests(s: Setup, m: mdl.Model, recs: Sequence[Recording], first: int = 0
                     ) -> tuple[np.ndarray, np.ndarray, list[dict[str, np.ndarray]]]:
-    """Features and RMSE per RMSE channel of model m driven by each test's force."""
+    """Features (as measured: with the sensor noise of test first + k) and RMSE per RMSE
+    channel of model m driven by each test's force."""
     feats, rmse, preds = [], [], []
-    for r in recs:
-        y = mdl.simulate(m, r.channel(s.input_channel).data, s.fs_hz)
-        feats.append(s.features.extract(y, s.fs_hz))
+    for k, r in enumerate(recs):
+        y = meas.simulate(m, r.channel(s.input_channel).data, s.fs_hz)
+        feats.append(s.features.extract(meas.add_noise(y, s.noise, first + k), s.fs_hz))
         rmse.append([doe.rmse_eq47(y[c], r.channel(c).data) for c in s.rmse_channels])
         preds.append(y)
     return np.array(feats), np.array(rmse), preds
+
+
+def _sim_summary(s: Setup) -> dict[str, Any]:
+    return {"input_hold": meas.HOLD, "oversample": meas.OVERSAMPLE,
+            "sensor_noise_rms": dict(s.noise)}
+
+
+def _check(s: Setup, base: mh.Baseline, x_exp: np.ndarray, f_mod: np.ndarray,
+           rmse: np.ndarray) -> dict[str, Any]:
+    """A model's features against the tests': the verdict, its evidence, distances, RMSE."""
+    d = base.distance(f_mod)
+    size = mh.verdict(base, d)
+    paired = mh.paired_test(base, x_exp, f_mod, base.level)
+    return {"d": d.tolist(), "rmse": {c: rmse[:, j].tolist()
+                                      for j, c in enumerate(s.rmse_channels)},
+            "verdict": vd.decide(paired, size), "mahalanobis": size,
+            "paired": paired.summary()}
 
 
 def _spearman(a: np.ndarray, b: np.ndarray) -> float:
@@ -141,31 +164,30 @@ def _sweep(s: Setup, runner: doe.Runner, ranges: Sequence[doe.ParamRange], x: np
            forces: Sequence[np.ndarray], ref: Recording | None,
            progress: Progress | None) -> doe.SweepResult:
     refs = {c: ref.channel(c).data for c in s.rmse_channels} if ref is not None else None
-    job = doe.make_job(s.model, forces, s.fs_hz, s.features, rmse_refs=refs)
+    job = doe.make_job(s.model, forces, s.fs_hz, s.features, rmse_refs=refs, noise=s.noise)
     return runner.run(job, doe.as_sets(ranges, x), on_progress=progress)
 
 
 def validate(m: mdl.Model, recs: Sequence[Recording], spec: str,
              ranges: Sequence[doe.ParamRange] = (), *, runs: int = 200, design: str = "lhs",
              ref_test: int = 0, rmse_channels: Sequence[str] | None = None, seed: int = 0,
-             levels: int = 3, shrink: str = "auto", runner: doe.Runner | None = None,
-             progress: ProgressFactory = _no_progress) -> tuple[dict[str, Any], Artifacts]:
-    """Mahalanobis validation of m against the tests, with an optional DOE over ranges."""
-    s = setup(m, recs, spec, rmse_channels)
+             levels: int = 3, shrink: str = "auto", noise: str = "auto", level: float = 0.95,
+             runner: doe.Runner | None = None, progress: ProgressFactory = _no_progress
+             ) -> tuple[dict[str, Any], Artifacts]:
+    """Validation of m against the tests (one verdict: verdict.decide), with an optional DOE
+    over ranges."""
+    s = setup(m, recs, spec, rmse_channels, noise)
     x_exp = experiment_features(s, s.recs)
-    base = mh.fit(x_exp, s.features.labels(), shrink=shrink)
+    base = mh.fit(x_exp, s.features.labels(), shrink=shrink, level=level)
     f_nom, r_nom, preds = _model_on_tests(s, m, s.recs)
     d_nom = base.distance(f_nom)
+    check = _check(s, base, x_exp, f_nom, r_nom)
     res: dict[str, Any] = {
-        "format": "dynval-validate/1", "kind": "validate", "dynval": __version__,
+        "format": "dynval-validate/2", "kind": "validate", "dynval": __version__,
         "model": m.source or m.name, "tests": [r.name for r in s.recs], "fs_hz": s.fs_hz,
         "features": {"spec": spec, "labels": s.features.labels()},
-        "baseline": base.summary(),
-        "nominal": {"d": d_nom.tolist(), "rmse": {c: r_nom[:, j].tolist()
-                                                  for j, c in enumerate(s.rmse_channels)},
-                    "verdict": mh.verdict(base, d_nom),
-                    "paired": mh.paired_test(base, x_exp, f_nom)},
-        "rmse_channels": s.rmse_channels}
+        "simulation": _sim_summary(s), "baseline": base.summary(),
+        "verdict": check["verdict"], "nominal": check, "rmse_channels": s.rmse_channels}
     art = Artifacts(s.fs_hz, d_exp=base.baseline_d, threshold=base.threshold, d_model=d_nom)
     ref = s.recs[ref_test] if 0 <= ref_test < len(s.recs) else None
     if ref is None:
@@ -231,32 +253,36 @@ def calibrate(m: mdl.Model, recs: Sequence[Recording], spec: str,
               walkers: int = 32, steps: int = 1500, direct_walkers: int = 16,
               direct_steps: int = 300, rmse_channels: Sequence[str] | None = None,
               seed: int = 0, shrink: str = "auto", oversample: int | None = None,
-              runner: doe.Runner | None = None, progress: ProgressFactory = _no_progress
+              noise: str = "auto", level: float = 0.95, runner: doe.Runner | None = None,
+              progress: ProgressFactory = _no_progress
               ) -> tuple[dict[str, Any], Artifacts, mdl.Model]:
     """Bayesian calibration of the ranged parameters (see calibrate.py), then the report's
     consistency check on held-out tests. Returns (result, artifacts, calibrated model)."""
     if method not in ("gp", "direct", "both"):
         raise ConfigError(f"--method must be gp, direct or both, not {method!r}")
     doe.check_params(m, ranges)
-    s = setup(m, recs, spec, rmse_channels)
+    s = setup(m, recs, spec, rmse_channels, noise)
     n = len(s.recs)
     h = max(1, n // 4) if holdout is None else holdout
-    if not 0 <= h <= n - 2:
-        raise ConfigError(f"--holdout {h}: need at least 2 training tests of {n}")
+    if not 0 <= h <= n - 3:
+        raise ConfigError(f"--holdout {h}: need at least 3 training tests of {n}")
     train, held = s.recs[: n - h], s.recs[n - h:]
     x_tr = experiment_features(s, train)
-    base = mh.fit(x_tr, s.features.labels(), shrink=shrink)
+    base = mh.fit(x_tr, s.features.labels(), shrink=shrink, level=level)
     mg = min(len(train), gp_forces or len(train))
     md = min(len(train), direct_forces)
     own = runner is None
     rn = runner or doe.Runner()
     res: dict[str, Any] = {
-        "format": "dynval-validate/1", "kind": "calibrate", "dynval": __version__,
+        "format": "dynval-validate/2", "kind": "calibrate", "dynval": __version__,
         "model": m.source or m.name, "fs_hz": s.fs_hz,
         "tests": {"training": [r.name for r in train], "held_out": [r.name for r in held]},
         "features": {"spec": spec, "labels": s.features.labels()},
         "parameters": [dataclasses.asdict(r) for r in ranges], "baseline": base.summary(),
-        "rmse_channels": s.rmse_channels}
+        "rmse_channels": s.rmse_channels, "simulation": _sim_summary(s),
+        "verdict": {"verdict": "INCONCLUSIVE", "exit_code": vd.EXIT["INCONCLUSIVE"],
+                    "meaning": "no held-out tests (--holdout 0): nothing checks the "
+                               "calibrated model", "evidence": {}}}
     art = Artifacts(s.fs_hz, param_names=[r.name for r in ranges],
                     ranges=[(r.lo, r.hi) for r in ranges], d_exp=base.baseline_d,
                     threshold=base.threshold, model_label="calibrated")
@@ -265,10 +291,11 @@ def calibrate(m: mdl.Model, recs: Sequence[Recording], spec: str,
         with single_thread_blas():
             x = doe.latin_hypercube(ranges, runs, seed)
             forces = [r.channel(s.input_channel).data for r in train[:mg]]
-            job = doe.make_job(s.model, forces, s.fs_hz, s.features, oversample=oversample)
+            job = doe.make_job(s.model, forces, s.fs_hz, s.features, oversample=oversample,
+                               noise=s.noise)
             sw = rn.run(job, doe.as_sets(ranges, x), on_progress=progress("sweep"))
-            basis = cal.choose_basis(base, sw.mean_features)
-            rcov, jbest = cal.residual_cov(base, x_tr[:mg], sw.features)
+            resid, jbest = cal.residual_at_best(base, x_tr[:mg], sw.features)
+            basis = cal.choose_basis(base, sw.mean_features, mg)
             res["sweep"] = {"design": "lhs", "runs": runs, "forces": mg, "seed": seed,
                             "x": x.tolist(), "d": base.distance(sw.mean_features).tolist(),
                             "reduced_dims": int(basis.shape[0]),
@@ -277,23 +304,23 @@ def calibrate(m: mdl.Model, recs: Sequence[Recording], spec: str,
             art.x, art.d_runs = x, base.distance(sw.mean_features)
             start = None
             if method in ("gp", "both"):
-                tg = cal.make_target(base, x_tr[:mg], rcov, basis)
+                tg = cal.make_target(base, x_tr[:mg], resid, basis)
                 post, _ = cal.calibrate_gp(tg, ranges, x, sw.mean_features, walkers=walkers,
                                            steps=steps, seed=seed, on_progress=progress("gp"))
                 posts["gp"] = post
                 start = post.samples[-4 * direct_walkers:]
             if method in ("direct", "both"):
-                tg2 = cal.make_target(base, x_tr[:md], rcov, basis)
+                tg2 = cal.make_target(base, x_tr[:md], resid, basis)
                 job2 = doe.make_job(s.model, [r.channel(s.input_channel).data
                                               for r in train[:md]], s.fs_hz, s.features,
-                                    oversample=oversample)
+                                    oversample=oversample, noise=s.noise)
                 posts["direct"] = cal.calibrate_direct(
                     tg2, ranges, job2, rn, start=start, walkers=direct_walkers,
                     steps=direct_steps, seed=seed, on_progress=progress("direct"))
     finally:
         if own:
             rn.close()
-    res["posterior"] = {k: p.summary() for k, p in posts.items()}
+    res["posterior"] = {k: p.summary(level) for k, p in posts.items()}
     if len(posts) == 2:
         res["comparison"] = {"gp_minus_direct": cal.compare(posts["gp"], posts["direct"])}
     chosen = posts["direct"] if "direct" in posts else posts["gp"]
@@ -305,21 +332,16 @@ def calibrate(m: mdl.Model, recs: Sequence[Recording], spec: str,
         art.posteriors[k] = p.samples[:: max(1, p.samples.shape[0] // 4000)]
     # consistency check (Section 6.2.4) on the held-out tests
     if held:
-        f_cal, r_cal, p_cal = _model_on_tests(s, m_cal, held)
-        f_nom, r_nom, p_nom = _model_on_tests(s, m, held)
-        d_cal, d_nom = base.distance(f_cal), base.distance(f_nom)
+        f_cal, r_cal, p_cal = _model_on_tests(s, m_cal, held, n - h)
+        f_nom, r_nom, p_nom = _model_on_tests(s, m, held, n - h)
         x_hx = experiment_features(s, held)
         d_hx = base.distance(x_hx)
-        res["consistency"] = {
-            "held_out": [r.name for r in held], "d_experiments": d_hx.tolist(),
-            "calibrated": {"d": d_cal.tolist(), "rmse": {c: r_cal[:, j].tolist()
-                                                         for j, c in enumerate(s.rmse_channels)},
-                           "verdict": mh.verdict(base, d_cal),
-                           "paired": mh.paired_test(base, x_hx, f_cal)},
-            "nominal": {"d": d_nom.tolist(), "rmse": {c: r_nom[:, j].tolist()
-                                                      for j, c in enumerate(s.rmse_channels)},
-                        "verdict": mh.verdict(base, d_nom),
-                        "paired": mh.paired_test(base, x_hx, f_nom)}}
+        cal_chk = _check(s, base, x_hx, f_cal, r_cal)
+        res["consistency"] = {"held_out": [r.name for r in held],
+                              "d_experiments": d_hx.tolist(), "calibrated": cal_chk,
+                              "nominal": _check(s, base, x_hx, f_nom, r_nom)}
+        res["verdict"] = cal_chk["verdict"]
+        d_cal = np.asarray(cal_chk["d"])
         art.d_model, art.d_heldout_exp = d_cal, d_hx
         ch0 = s.rmse_channels[0]
         art.overlay_channel = ch0

@@ -1,0 +1,71 @@
+"""One verdict per study, its meaning and error rate, and the exit code CI gates on.
+
+The verdict is the paired test (mahalanobis.paired_test); the Mahalanobis distance of the
+model from the experiments (eq. 41, mahalanobis.verdict) is reported under it as the size of
+the discrepancy against the test-to-test scatter, not as a second verdict: a model can sit well
+inside that scatter and still be wrong (its power against the report's effects is near zero,
+gateway/docs/validate-error-rates.md).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from dynval.validate.mahalanobis import PairedTest
+
+EXIT = {"PASS": 0, "FAIL": 1, "INCONCLUSIVE": 3}  # 2: an error (bad input), as every command
+
+ROLE_PAIRED = ("the verdict: do the measured features differ from the model's, driven by each "
+               "test's own measured input and carrying the same sensor noise, by more than "
+               "the noise explains? An exactly right model is rejected in {alpha:g} % of the "
+               "studies")
+ROLE_MAHALANOBIS = ("the size: how far the model's features lie from the experiments, in "
+                    "units of the test-to-test scatter (report eq. 39-41); not a test (a wrong "
+                    "model can sit inside the scatter the forces' randomness makes)")
+
+
+def decide(paired: PairedTest, mahalanobis: dict[str, Any]) -> dict[str, Any]:
+    """The study's verdict from the paired test, with the evidence and what it means."""
+    lvl = paired.level
+    alpha = 100 * (1 - lvl)
+    if paired.reject is None:
+        word = "INCONCLUSIVE"
+        meaning = f"no paired test could be made: {paired.note}"
+    elif paired.reject:
+        word = "FAIL"
+        meaning = (f"the model is rejected at the {alpha:g} % level: p = {paired.p_value:.3g} "
+                   f"< {1 - lvl:g}, the measured features differ from the model's by more than "
+                   "the sensor noise explains (a right model is rejected this way in "
+                   f"{alpha:g} % of studies)")
+    else:
+        word = "PASS"
+        meaning = (f"no evidence against the model at the {alpha:g} % level: p = "
+                   f"{paired.p_value:.3g}; a PASS is only as strong as the features' power "
+                   "against the effect in question (dynval validate --rank-against)")
+    return {"verdict": word, "exit_code": EXIT[word], "meaning": meaning, "level": lvl,
+            "false_rejection_rate": 1 - lvl, "test": paired.method,
+            "p_value": paired.p_value,
+            "evidence": {"paired": {"role": ROLE_PAIRED.format(alpha=alpha), **paired.summary()},
+                         "mahalanobis": {"role": ROLE_MAHALANOBIS, **mahalanobis}}}
+
+
+def headline(v: dict[str, Any], model: str) -> str:
+    """The one line the CLI prints and the HTML report heads with."""
+    return f"{v['verdict']}: model {model}: {v['meaning']}"
+
+
+def _finite(x: Any) -> bool:
+    return isinstance(x, (int, float)) and math.isfinite(x)
+
+
+def evidence_lines(v: dict[str, Any]) -> list[str]:
+    """The evidence under the verdict, one line each with its role."""
+    pt = v["evidence"]["paired"]
+    mh = v["evidence"]["mahalanobis"]
+    pv = f"{pt['p_value']:.3g}" if _finite(pt["p_value"]) else "-"
+    dist = f"{pt['distance']:.4g}" if _finite(pt["distance"]) else "-"
+    return [f"  paired test ({pt['test']}, {pt['n']} tests x {pt['p']} features): distance of "
+            f"the mean residual {dist}, p = {pv} - {pt['role']}",
+            f"  Mahalanobis eq. 41: median D {mh['median_d']:.4g} vs {mh['threshold_kind']} "
+            f"95 % limit {mh['threshold']:.4g} ({100 * mh['fraction_within']:.0f} % of tests "
+            f"within) - {mh['role']}"]
