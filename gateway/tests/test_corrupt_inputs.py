@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import random
 import signal
 import struct
@@ -286,10 +287,22 @@ def test_non_utf8_model_is_one_line(seeds: dict[str, Path], tmp_path: Path,
     assert "not UTF-8" in out.errors[0].getMessage()
 
 
+def test_features_drop_and_count_a_sample_beyond_the_core_range(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "one_1e200.csv"
+    p.write_text(_csv_with("1e200"))
+    out = run_cli(["features", str(p), "--json"], caplog, capsys)
+    assert out.rc == 0
+    row = json.loads(out.stdout)["channels"]["acc2_mps2"]
+    assert row["dropped_out_of_range"] == 1 and row["count"] == 199
+    assert all(math.isfinite(v) for v in row.values() if isinstance(v, float))
+    assert any("beyond the features' range" in r.getMessage() for r in caplog.records)
+
+
 @pytest.mark.parametrize("name, text, what", [
     ("time_only", "time_s\n0\n0.1\n0.2\n", "no channel columns"),
-    ("spans_1e308", "time_s,acc1_mps2\n0,1e308\n0.1,-1e308\n", "not finite"),
-    ("one_1e200", _csv_with("1e200"), "acc2_mps2: var, std, rms"),
+    ("spans_1e308", "time_s,acc1_mps2\n0,1e308\n0.1,-1e308\n", "no sample within the features"),
     ("zero_step", "time_s,a\n0,1\n0,2\n", "time does not increase"),
     ("tiny_step", "time_s,a\n0,1\n1e-300,2\n2e-300,3\n", "not a usable sample period"),
 ])

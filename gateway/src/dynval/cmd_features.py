@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import math
 import sys
 from pathlib import Path
@@ -13,6 +14,8 @@ import numpy as np
 from dynval.cli_common import add_test_options, read_with_options
 from dynval.errors import InputFileError
 from dynval.io import Recording
+
+log = logging.getLogger(__name__)
 
 COLUMNS = ("mean", "std", "rms", "skew", "kurt", "peak", "crest", "kfactor")
 TEMPORAL = ("energy", "central_time", "rms_duration")
@@ -34,6 +37,7 @@ def compute(rec: Recording, seg_len: int = 64) -> dict[str, Any]:
     out: dict[str, Any] = {"test": rec.name, "fs_hz": rec.fs_hz, "n_samples": rec.n_samples,
                            "sha256": rec.sha256, "warnings": len(rec.warnings), "channels": {}}
     for ch in rec.channels:
+        dropped = _in_range(rec, ch.name, ch.data)
         st = features.moments(ch.data)
         tm = features.temporal(ch.data, 1.0 / rec.fs_hz)
         seg = features.segstd(ch.data, seg_len) if ch.data.size >= seg_len else None
@@ -42,8 +46,29 @@ def compute(rec: Recording, seg_len: int = 64) -> dict[str, Any]:
         if seg is not None:
             row["segstd_min"], row["segstd_max"] = float(seg.min()), float(seg.max())
         _check_finite(rec, ch.name, ch.data, row)
+        if dropped:
+            row["dropped_out_of_range"] = dropped
         out["channels"][ch.name] = row
     return out
+
+
+def _in_range(rec: Recording, name: str, x: np.ndarray) -> int:
+    """How many samples lie beyond the core's feature range |x| <= DV_FEAT_MAX (it drops and
+    counts them, like NaN): logged and returned (counted in the output); an error naming the
+    channel when no finite sample is left within it."""
+    from dynval import contract
+
+    limit = float(contract.MACROS["DV_FEAT_MAX"])
+    over = int(np.count_nonzero(np.abs(x) > limit))
+    if over and not np.any(np.abs(x) <= limit):
+        raise InputFileError(rec.source or rec.name, f"channel {name}: no sample within the "
+                             f"features' range |x| <= {limit:.3g} (the core's DV_FEAT_MAX); "
+                             "rescale the channel (channel map 'scale')")
+    if over:
+        log.warning("%s: channel %s: %d sample(s) beyond the features' range |x| <= %.3g "
+                    "dropped (counted in dropped_out_of_range)", rec.source or rec.name, name,
+                    over, limit)
+    return over
 
 
 def _check_finite(rec: Recording, name: str, x: np.ndarray, row: dict[str, Any]) -> None:
@@ -71,4 +96,8 @@ def run(args: argparse.Namespace) -> int:
     for n in names:
         r = res["channels"][n]
         print(f"{n:<{width}} {r['unit']:<6} " + " ".join(f"{r[c]:>12.5g}" for c in cols))
+    for n in names:
+        if res["channels"][n].get("dropped_out_of_range"):
+            print(f"{n}: {res['channels'][n]['dropped_out_of_range']} sample(s) beyond the "
+                  "features' range were dropped")
     return 0

@@ -11,10 +11,13 @@ Decisions (all documented in gateway/docs/discover-schema.md):
   tests (or blocks) exceeds SIGNIFICANCE_RATIO x its noise floor (residual.noise_floor, or the
   stated noise);
 * acceptance of a fitted candidate: the held-out normalised SSE drops by at least ``min_gain``
-  (default 10 %), no held-out test gets worse by more than 2 %, and the BIC over the fitting
-  tests (with the autocorrelation-corrected effective sample count) decreases;
-* among accepted candidates of a round the largest held-out gain wins; the loop repeats on
-  the updated model until nothing is significant, nothing is accepted, or ``max_effects``.
+  (default 10 %), no held-out test gets worse by more than 5 % (a test where the effect never
+  acts, a low-level one below a contact's gap, moves by the re-adjustment's noise: 2.2 % on a
+  run-cut bumper case), and the BIC over the fitting tests (with the autocorrelation-corrected
+  effective sample count) decreases;
+* among accepted candidates of a round the lowest held-out error wins (a special case of it at
+  the same place within half of min_gain instead); the loop repeats on the updated model until
+  nothing is significant, nothing is accepted, or ``max_effects``.
 """
 from __future__ import annotations
 
@@ -51,7 +54,7 @@ class Options:
     max_effects: int = 3
     top_k: int = 4
     min_gain: float = 0.10
-    max_worse: float = 0.02
+    max_worse: float = 0.05  # a held-out test where the effect never acts moves by fit noise
     significance_ratio: float = rs.SIGNIFICANCE_RATIO
     noise: dict[str, float] | None = None  # stated noise RMS per channel (channel units)
     max_nfev: int = 40
