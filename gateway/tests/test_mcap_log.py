@@ -33,11 +33,14 @@ def test_mcap_channels_schemas_and_metadata(tmp_path):
                   for c in r.get_summary().channels.values()}  # type: ignore
         md = {m.name: m.metadata for m in r.iter_metadata()}
     assert topics["/can/raw"] == "jsonschema" and "/dv/samples/a" in topics
-    assert {"/dv/features", "/dv/residuals", "/dv/status", "/dv/events"} <= set(topics)
+    assert {"/dv/features", "/dv/residuals", "/dv/status", "/dv/events", "/dv/log"} <= set(topics)
     assert md["dynval"]["test"] == "t" and md["dynval"]["software"].startswith("dynval")
     s = [m.data for m in iter_messages(p, prefix="/dv/samples/")]
-    assert s == [{"channel": 1, "seq": 0, "index": 0, "raw": [2, -4, -32768],
-                  "values": [1.0, -2.0, None], "verdict": "ok"}]
+    # one message per sample, the missing one without a value (no START yet: no t_s)
+    assert s == [{"channel": 1, "index": 0, "value": 1.0, "raw": 2, "seq": 0, "verdict": "ok"},
+                 {"channel": 1, "index": 1, "value": -2.0, "raw": -4, "seq": 0,
+                  "verdict": "ok"},
+                 {"channel": 1, "index": 2, "raw": -32768, "seq": 0, "verdict": "ok"}]
     f = [m.data for m in iter_messages(p, topics={"/dv/features"})]
     assert f[0]["feature"] == "rec_rms" and f[0]["value"] == 1.0 and f[0]["name"] == "a"
 
@@ -49,7 +52,7 @@ def test_truncated_file_reads_to_the_last_complete_chunk(tmp_path):
         lg.on_frame(k, *bus.encode_samples(0, k, (k, k, k)))
     lg.close()
     full = [m.data["seq"] for m in iter_messages(p, prefix="/dv/samples/")]
-    assert len(full) == 3000
+    assert len(full) == 3 * 3000
     data = p.read_bytes()
     for cut in (len(data) // 2, len(data) - 100, 200):
         q = tmp_path / f"cut{cut}.mcap"
@@ -94,7 +97,7 @@ def test_sigkill_mid_record_leaves_a_readable_file(tmp_path):
     assert sc.metadata["dynval"]["test"] == "test_high_01"
     assert seqs and all(v == list(range(len(v))) for v in seqs.values())  # gap-free prefix
     lost_s = (t_kill - last) / 1e9
-    sent = len(seqs["/dv/samples/force_N"])
+    sent = len(seqs["/dv/samples/force_N"]) // 3
     # at 640 Hz, 5 channels: 1067 sample frames/s were on the bus when it was killed
     print(f"SIGKILL: {sc.chunks} chunks readable, {n_raw} raw frames, {sent} frames/channel, "
           f"{sc.truncated_bytes} bytes of an unfinished chunk, last message {lost_s:.2f} s "

@@ -439,14 +439,20 @@ def bus_config(interface: str | None = None, channel: str | int | None = None,
                                ("bitrate", bitrate)) if v is not None}
     given.update(options or {})
     try:
-        cfg = dict(can.util.load_config(config=given, context=context))
+        try:
+            cfg = dict(can.util.load_config(config=given, context=context))
+        except can.CanInterfaceNotImplementedError:
+            if "interface" in given:
+                raise
+            # no source names an interface (python-can says 'Unknown interface type "None"'),
+            # or one names an unknown one: the default interface, the sources' other values
+            cfg = dict(can.util.load_config(
+                config={**given, "interface": DEFAULT_CONFIG["interface"]}, context=context))
+            if cfg["interface"] == DEFAULT_CONFIG["interface"] and cfg.get("channel") is None:
+                cfg["channel"] = DEFAULT_CONFIG["channel"]
     except can.CanInterfaceNotImplementedError as exc:
         raise ConfigError(f"{exc} (python-can interfaces: "
                           f"{', '.join(sorted(can.VALID_INTERFACES))})") from None
-    if cfg.get("interface") is None:
-        cfg["interface"] = DEFAULT_CONFIG["interface"]
-        if cfg.get("channel") is None:
-            cfg["channel"] = DEFAULT_CONFIG["channel"]
     return {k: v for k, v in cfg.items() if v is not None}
 
 

@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import logging
 import re
+import struct
 import time
+import zlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -76,7 +78,8 @@ def frames(path: Path | str) -> Iterator[Any]:
             for m in reader:
                 n += 1
                 yield m
-    except (ValueError, KeyError, IndexError, OSError, can.CanError) as exc:
+    except (ValueError, KeyError, IndexError, OSError, EOFError, struct.error, zlib.error,
+            can.CanError) as exc:
         raise InputFileError(p, f"unreadable CAN log after frame {n}: "
                              f"{type(exc).__name__}: {exc}") from None
 
@@ -146,6 +149,8 @@ def record(bus_obj: Any, path: Path | str, *, stop: Callable[[], bool] | None = 
     """Receive frames from a bus into a CAN log (python-can's writer for the suffix) until
     stop() is true, a KeyboardInterrupt, or idle_timeout_s without a frame; the file is
     finished in any case. Returns the frames written."""
+    from can.util import channel2int
+
     n = 0
     w = open_writer(path)
     try:
@@ -157,6 +162,8 @@ def record(bus_obj: Any, path: Path | str, *, stop: Callable[[], bool] | None = 
                     break
                 continue
             idle_since = time.monotonic()
+            if isinstance(m.channel, str) and (channel2int(m.channel) or 0) > 0xFFFE:
+                m.channel = None  # BLF numbers channels by a name's trailing digits (16 bits)
             w.on_message_received(m)
             n += 1
     finally:
