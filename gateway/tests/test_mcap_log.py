@@ -103,3 +103,41 @@ def test_sigkill_mid_record_leaves_a_readable_file(tmp_path):
           f"{sc.truncated_bytes} bytes of an unfinished chunk, last message {lost_s:.2f} s "
           f"before the kill (~{lost_s * 640 / 3 * 5:.0f} sample frames lost)")
     assert 0 <= lost_s < 2.5
+
+
+def test_one_sample_layout_reads_back_and_refuses_a_non_numeric_value(tmp_path):
+    """read_mcap of the one-sample-per-message layout: absent values are missing samples
+    (NaN); a value that is not a number is one error naming the file and the record."""
+    import json
+
+    import numpy as np
+    from mcap.writer import Writer
+
+    from dynval.errors import InputFileError
+    from dynval.io.mcapfile import read_mcap
+
+    def write(p, values):
+        with open(p, "wb") as f:
+            w = Writer(f)
+            w.start()
+            w.add_metadata("dynval", {"fs_hz": "100", "n_samples": str(len(values))})
+            sid = w.register_schema("dynval.Sample", "jsonschema", b"{}")
+            cid = w.register_channel("/dv/samples/a", "json", sid)
+            for i, v in enumerate(values):
+                d = {"channel": 0, "index": i, "verdict": "ok"}
+                if v is not None:
+                    d["value"] = v
+                w.add_message(cid, log_time=i, publish_time=i, sequence=i,
+                              data=json.dumps(d).encode())
+            w.finish()
+
+    good = tmp_path / "good.mcap"
+    write(good, [0.5, None, -2.0, 3])
+    r = read_mcap(good)
+    assert r.fs_hz == 100.0 and r.channels[0].name == "a"
+    assert np.array_equal(r.channels[0].data, [0.5, np.nan, -2.0, 3.0], equal_nan=True)
+    bad = tmp_path / "bad.mcap"
+    write(bad, [0.5, "1.0"])
+    with pytest.raises(InputFileError, match="must be a number") as e:
+        read_mcap(bad)
+    assert str(bad) in str(e.value) and "sequence 1" in str(e.value)
