@@ -14,7 +14,7 @@ import pytest
 
 from dynval import bus, canlog
 from dynval.cli import main
-from dynval.errors import InputFileError
+from dynval.errors import ConfigError, InputFileError
 from dynval.io import read_test
 from dynval.io.mcapfile import read_mcap
 from dynval.io.recording import Channel, Recording
@@ -65,6 +65,9 @@ def test_bus_config_takes_arguments_then_environment_then_canrc(
     monkeypatch.setenv("CAN_INTERFACE", "kvaser")
     monkeypatch.setenv("CAN_CHANNEL", "0")
     assert bus.bus_config() == {"interface": "kvaser", "channel": 0, "bitrate": 500000}
+    monkeypatch.setenv("CAN_INTERFACE", "nosuchbus")  # a misspelt interface is not ignored
+    with pytest.raises(ConfigError, match="nosuchbus"):
+        bus.bus_config()
     cfg = bus.bus_config("virtual", "x", 250000, {"receive_own_messages": True})
     assert cfg == {"interface": "virtual", "channel": "x", "bitrate": 250000,
                    "receive_own_messages": True}

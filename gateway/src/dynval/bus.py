@@ -441,11 +441,11 @@ def bus_config(interface: str | None = None, channel: str | int | None = None,
     try:
         try:
             cfg = dict(can.util.load_config(config=given, context=context))
-        except can.CanInterfaceNotImplementedError:
-            if "interface" in given:
-                raise
-            # no source names an interface (python-can says 'Unknown interface type "None"'),
-            # or one names an unknown one: the default interface, the sources' other values
+        except can.CanInterfaceNotImplementedError as exc:
+            if "interface" in given or '"None"' not in str(exc):
+                raise  # an interface python-can does not know, from any source
+            # no source names an interface (python-can: 'Unknown interface type "None"'): the
+            # default interface, with the sources' other values
             cfg = dict(can.util.load_config(
                 config={**given, "interface": DEFAULT_CONFIG["interface"]}, context=context))
             if cfg["interface"] == DEFAULT_CONFIG["interface"] and cfg.get("channel") is None:
