@@ -49,8 +49,9 @@ def main() -> int:
     for who, r in mw.items():
         L.append(f"| {who} | {r['frames_per_s']:.0f} | {r['messages_per_s']:.0f} | "
                  f"{r['mb_per_s']:.2f} | {r['file_mb']:.2f} |")
-    L += ["", "dynval_logger decodes every frame with the C codec and writes two JSON messages "
-          "per sample frame (/can/raw and /dv/samples/<ch>); the raw writer adds the 8 bytes.",
+    L += ["", "dynval_logger decodes every frame with the C codec and writes four JSON messages "
+          "per sample frame (/can/raw, and one /dv/samples/<ch> message per sample, for "
+          "Foxglove's plots); the raw writer adds the 8 bytes.",
           "", f"## Logging a {a.hours:g}-hour test streamed (5 x 640 Hz)", "",
           f"{int(lg['frames'])} sample frames in {lg['wall_s']:.0f} s, file "
           f"{lg['file_mb']:.0f} MB; peak RSS {lg['rss_start_mb']:.0f} MB before, "

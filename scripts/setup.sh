@@ -3,6 +3,7 @@
 # cmocka, Eigen, libmodbus, the Cortex-M toolchain, QEMU for the vcan VM and the emulated MCU,
 # valgrind; then a project virtual environment .venv (PEP 668: Debian's python3 refuses
 # system-wide pip installs) with the test tools and the package (its build compiles the C core).
+# Then node/npm with Foxglove's npm packages for the MCAP check (gateway/tests/foxglove).
 # Idempotent: installed apt packages are not fetched again, and pip runs only when the
 # requirements or the package's sources changed since the last install (a stamp in .venv).
 # PYTHON picks the interpreter the venv is made from (default: the distribution's python3).
@@ -13,6 +14,11 @@ APT_PKGS=(cmake ninja-build gcc g++ clang libclang-rt-14-dev pkg-config libcmock
           libeigen3-dev libmodbus-dev gcc-arm-none-eabi libnewlib-arm-none-eabi
           qemu-system-arm qemu-system-x86 busybox-static kmod iproute2 valgrind
           python3 python3-venv python3-dev)
+# node and npm for the check of the MCAP files with Foxglove's own reader and parser
+# (gateway/tests/foxglove); a node that is already there (with its npm) is used as it is
+if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+    APT_PKGS+=(nodejs npm)
+fi
 missing=()
 for p in "${APT_PKGS[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -55,5 +61,14 @@ if [ "$(cat "$VENV/.dv-pkg" 2>/dev/null)" != "$pkg_hash" ]; then
     echo "setup: the dynval package (builds the C core)"
     "${PIP[@]}" "./gateway[validate]"
     echo "$pkg_hash" >"$VENV/.dv-pkg"
+fi
+# Foxglove's npm packages (gateway/tests/foxglove/package-lock.json) and the JSON-schema
+# parser of the open-source Foxglove Studio, for gateway/tests/test_foxglove.py
+FOX=gateway/tests/foxglove
+fox_hash=$(sha256sum "$FOX/package-lock.json" "$FOX/fetch_studio_parser.sh" | sha256sum | cut -c1-16)
+if [ "$(cat "$FOX/node_modules/.dv-stamp" 2>/dev/null)" != "$fox_hash" ]; then
+    echo "setup: Foxglove's MCAP reader and parser (npm, $FOX)"
+    (cd "$FOX" && npm ci --silent --no-audit --no-fund && ./fetch_studio_parser.sh)
+    echo "$fox_hash" >"$FOX/node_modules/.dv-stamp"
 fi
 echo "setup: done (commands in $VENV/bin: dynval, python; scripts put it first on PATH)"

@@ -52,8 +52,9 @@ step "Cortex-M4F cross build + size" tests/scripts/cross_m4.sh
 step "Cortex-M4F self-test on an emulated MCU (qemu mps2-an386)" tests/m4/run_m4.sh
 step "consumer: find_package and add_subdirectory" tests/consumer/run.sh
 step "Python lint and types (ruff, mypy --strict)" bash -c 'cd gateway && ruff check src tests && mypy src'
-# the C reference tools of the bit-for-bit tests: set, so a missing tool fails instead of skipping
-step "Python package (pytest)" env DV_FEATURES_DUMP="$ROOT/build/f64/tests/dv_features_dump" \
+# the C reference tools of the bit-for-bit tests and Foxglove's parser (gateway/tests/foxglove):
+# set, so a missing tool fails instead of skipping
+step "Python package (pytest)" env DV_FOXGLOVE_CHECK=1 DV_FEATURES_DUMP="$ROOT/build/f64/tests/dv_features_dump" \
     DV_AR_DUMP="$ROOT/build/f64/tests/dv_ar_dump" DV_MODEL_DUMP="$ROOT/build/f64/tests/dv_model_dump" \
     python3 -m pytest -q -p no:cacheprovider gateway/tests tests/py
 if [ -x tests/e2e/run_e2e.sh ]; then

@@ -84,10 +84,10 @@ MINIMAL_ARGS = {"features": ["t.csv"], "simulate": ["m.json", "t.csv", "-o", "p.
                               "rms"]}
 
 
-def test_every_command_but_inspect_and_recover_reads_tests() -> None:
+def test_every_command_but_inspect_recover_and_convert_reads_tests() -> None:
     from dynval.cli import COMMANDS
 
-    assert set(COMMANDS) - set(TEST_READING) == {"inspect", "recover"}
+    assert set(COMMANDS) - set(TEST_READING) == {"inspect", "recover", "convert"}
 
 
 @pytest.mark.parametrize("cmd", TEST_READING)

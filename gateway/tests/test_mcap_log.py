@@ -33,11 +33,14 @@ def test_mcap_channels_schemas_and_metadata(tmp_path):
                   for c in r.get_summary().channels.values()}  # type: ignore
         md = {m.name: m.metadata for m in r.iter_metadata()}
     assert topics["/can/raw"] == "jsonschema" and "/dv/samples/a" in topics
-    assert {"/dv/features", "/dv/residuals", "/dv/status", "/dv/events"} <= set(topics)
+    assert {"/dv/features", "/dv/residuals", "/dv/status", "/dv/events", "/dv/log"} <= set(topics)
     assert md["dynval"]["test"] == "t" and md["dynval"]["software"].startswith("dynval")
     s = [m.data for m in iter_messages(p, prefix="/dv/samples/")]
-    assert s == [{"channel": 1, "seq": 0, "index": 0, "raw": [2, -4, -32768],
-                  "values": [1.0, -2.0, None], "verdict": "ok"}]
+    # one message per sample, the missing one without a value (no START yet: no t_s)
+    assert s == [{"channel": 1, "index": 0, "value": 1.0, "raw": 2, "seq": 0, "verdict": "ok"},
+                 {"channel": 1, "index": 1, "value": -2.0, "raw": -4, "seq": 0,
+                  "verdict": "ok"},
+                 {"channel": 1, "index": 2, "raw": -32768, "seq": 0, "verdict": "ok"}]
     f = [m.data for m in iter_messages(p, topics={"/dv/features"})]
     assert f[0]["feature"] == "rec_rms" and f[0]["value"] == 1.0 and f[0]["name"] == "a"
 
@@ -49,7 +52,7 @@ def test_truncated_file_reads_to_the_last_complete_chunk(tmp_path):
         lg.on_frame(k, *bus.encode_samples(0, k, (k, k, k)))
     lg.close()
     full = [m.data["seq"] for m in iter_messages(p, prefix="/dv/samples/")]
-    assert len(full) == 3000
+    assert len(full) == 3 * 3000
     data = p.read_bytes()
     for cut in (len(data) // 2, len(data) - 100, 200):
         q = tmp_path / f"cut{cut}.mcap"
@@ -94,9 +97,47 @@ def test_sigkill_mid_record_leaves_a_readable_file(tmp_path):
     assert sc.metadata["dynval"]["test"] == "test_high_01"
     assert seqs and all(v == list(range(len(v))) for v in seqs.values())  # gap-free prefix
     lost_s = (t_kill - last) / 1e9
-    sent = len(seqs["/dv/samples/force_N"])
+    sent = len(seqs["/dv/samples/force_N"]) // 3
     # at 640 Hz, 5 channels: 1067 sample frames/s were on the bus when it was killed
     print(f"SIGKILL: {sc.chunks} chunks readable, {n_raw} raw frames, {sent} frames/channel, "
           f"{sc.truncated_bytes} bytes of an unfinished chunk, last message {lost_s:.2f} s "
           f"before the kill (~{lost_s * 640 / 3 * 5:.0f} sample frames lost)")
     assert 0 <= lost_s < 2.5
+
+
+def test_one_sample_layout_reads_back_and_refuses_a_non_numeric_value(tmp_path):
+    """read_mcap of the one-sample-per-message layout: absent values are missing samples
+    (NaN); a value that is not a number is one error naming the file and the record."""
+    import json
+
+    import numpy as np
+    from mcap.writer import Writer
+
+    from dynval.errors import InputFileError
+    from dynval.io.mcapfile import read_mcap
+
+    def write(p, values):
+        with open(p, "wb") as f:
+            w = Writer(f)
+            w.start()
+            w.add_metadata("dynval", {"fs_hz": "100", "n_samples": str(len(values))})
+            sid = w.register_schema("dynval.Sample", "jsonschema", b"{}")
+            cid = w.register_channel("/dv/samples/a", "json", sid)
+            for i, v in enumerate(values):
+                d = {"channel": 0, "index": i, "verdict": "ok"}
+                if v is not None:
+                    d["value"] = v
+                w.add_message(cid, log_time=i, publish_time=i, sequence=i,
+                              data=json.dumps(d).encode())
+            w.finish()
+
+    good = tmp_path / "good.mcap"
+    write(good, [0.5, None, -2.0, 3])
+    r = read_mcap(good)
+    assert r.fs_hz == 100.0 and r.channels[0].name == "a"
+    assert np.array_equal(r.channels[0].data, [0.5, np.nan, -2.0, 3.0], equal_nan=True)
+    bad = tmp_path / "bad.mcap"
+    write(bad, [0.5, "1.0"])
+    with pytest.raises(InputFileError, match="must be a number") as e:
+        read_mcap(bad)
+    assert str(bad) in str(e.value) and "sequence 1" in str(e.value)

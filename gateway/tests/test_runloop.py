@@ -119,7 +119,12 @@ def test_cli_run_and_inspect_on_bundled_data(tmp_path, capsys):
     from dynval.cmd_inspect import inspect
 
     r = inspect(mc)
-    assert r["complete"] and r["topics"]["/dv/samples/force_N"]["count"] == 2731
+    # one message per sample (2731 frames of 3), logged on the test's clock: an --asap run
+    # still shows the test's 640 Hz, evenly spaced (no gaps)
+    f = r["topics"]["/dv/samples/force_N"]
+    assert r["complete"] and f["count"] == 3 * 2731
+    assert f["rate_hz"] == pytest.approx(640.0, rel=1e-6) and f["gaps"] == 0
+    assert f["max_gap_ms"] == pytest.approx(1000 / 640, abs=1e-3)
     # cubic hold: each residual comes one sample late, none for the first sample, and none
     # for the last one (the frame padding after it is a missing sample, not an input)
     assert r["topics"]["/dv/residuals"]["count"] == 4 * 8191

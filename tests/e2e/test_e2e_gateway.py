@@ -63,7 +63,8 @@ def test_dynval_run_socketcan_against_firmware_sim(tmp_path):
     plan = bus.make_plan(rec)
     nf = plan.n_frames_per_channel
     assert sorted(seqs) == [0, 1, 2, 3, 4]
-    assert all(v == list(range(nf)) for v in seqs.values())  # nothing lost or reordered
+    # one message per sample, its sequence the sample number: nothing lost or reordered
+    assert all(v == list(range(3 * nf)) for v in seqs.values())
     # declared model: observer on, cubic hold (one sample late): residuals for steps
     # 0 .. nf*3-3 — the last sample waits for an input that is padding (missing), not data
     assert n_resid == 4 * len(range(0, nf * 3 - 2, DECIM))

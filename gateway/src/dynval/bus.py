@@ -418,15 +418,64 @@ def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
     return ReplayResult(sent, sample_frames, wall, rep, errors)
 
 
-def open_bus(interface: str, channel: str, **kw: Any) -> Any:
-    """A python-can bus, or BusError with the reason (e.g. a kernel without CAN)."""
+#: what a person without a CAN interface is told to use instead
+NO_BUS_HINT = ("use --interface virtual (python-can's in-process bus, no hardware), a "
+               "configured interface (--interface/--channel, CAN_INTERFACE, ~/.canrc), or "
+               "`dynval run`, which replays through the firmware loop without any CAN "
+               "interface")
+DEFAULT_CONFIG = {"interface": "socketcan", "channel": "vcan0"}  # when nothing is configured
+
+
+def bus_config(interface: str | None = None, channel: str | int | None = None,
+               bitrate: int | None = None, options: dict[str, Any] | None = None,
+               context: str | None = None) -> dict[str, Any]:
+    """The python-can configuration of a bus, can.Bus(**config) semantics: the given values
+    first, then python-can's own sources (can.rc, CAN_INTERFACE / CAN_CHANNEL / CAN_BITRATE /
+    CAN_CONFIG, ~/.canrc, can.ini; context selects a section), then DEFAULT_CONFIG.
+    ConfigError for an interface python-can does not know."""
     import can
 
+    given = {k: v for k, v in (("interface", interface), ("channel", channel),
+                               ("bitrate", bitrate)) if v is not None}
+    given.update(options or {})
     try:
-        b = can.Bus(interface=interface, channel=channel, **kw)
-    except (OSError, can.CanError, ValueError) as exc:
-        raise BusError(f"cannot open {interface} bus '{channel}': {exc}") from exc
-    if interface == "socketcan":
+        try:
+            cfg = dict(can.util.load_config(config=given, context=context))
+        except can.CanInterfaceNotImplementedError as exc:
+            if "interface" in given or '"None"' not in str(exc):
+                raise  # an interface python-can does not know, from any source
+            # no source names an interface (python-can: 'Unknown interface type "None"'): the
+            # default interface, with the sources' other values
+            cfg = dict(can.util.load_config(
+                config={**given, "interface": DEFAULT_CONFIG["interface"]}, context=context))
+            if cfg["interface"] == DEFAULT_CONFIG["interface"] and cfg.get("channel") is None:
+                cfg["channel"] = DEFAULT_CONFIG["channel"]
+    except can.CanInterfaceNotImplementedError as exc:
+        raise ConfigError(f"{exc} (python-can interfaces: "
+                          f"{', '.join(sorted(can.VALID_INTERFACES))})") from None
+    return {k: v for k, v in cfg.items() if v is not None}
+
+
+def describe(config: dict[str, Any]) -> str:
+    """interface:channel of a bus configuration, for messages."""
+    return f"{config.get('interface')}:{config.get('channel', '')}"
+
+
+def open_bus(interface: str | dict[str, Any], channel: str | int | None = None,
+             **kw: Any) -> Any:
+    """A python-can bus of a configuration (bus_config(), or an interface name with channel
+    and keyword arguments: can.Bus semantics), or BusError saying why it cannot be opened (a
+    kernel without CAN, a missing driver) and what to use instead."""
+    import can
+
+    cfg = dict(interface) if isinstance(interface, dict) else {"interface": interface,
+                                                                "channel": channel}
+    cfg.update(kw)
+    try:
+        b = can.Bus(**cfg)
+    except (OSError, can.CanError, ValueError, ImportError, NotImplementedError) as exc:
+        raise BusError(f"cannot open the {describe(cfg)} bus: {exc}; {NO_BUS_HINT}") from exc
+    if cfg.get("interface") == "socketcan":
         _enlarge_rx_buffer(b)
     return b
 

@@ -15,7 +15,7 @@ log = logging.getLogger("dynval")
 
 # Each name maps to dynval.cmd_<name>, which defines add_parser(sub) and run(args) -> int.
 COMMANDS = ("features", "simulate", "residual", "replay", "log", "run", "inspect", "discover",
-            "validate", "calibrate", "recover")
+            "validate", "calibrate", "recover", "convert")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -98,6 +98,42 @@ class Progress:
             b.close()
 
 
+def add_bus_options(p: Any) -> None:
+    """-i/--interface, -c/--channel, -b/--bitrate, --bus-option: a python-can bus as can.Bus
+    takes it; what is not given comes from python-can's configuration (CAN_INTERFACE,
+    CAN_CHANNEL, CAN_BITRATE, ~/.canrc, can.ini), else socketcan on vcan0."""
+    g = p.add_argument_group("CAN bus (python-can configuration)")
+    g.add_argument("-i", "--interface", "--bus", dest="interface", default=None,
+                   metavar="NAME", help="python-can interface: socketcan, virtual, pcan, "
+                   "kvaser, vector, slcan, gs_usb, udp_multicast, ... (default: CAN_INTERFACE "
+                   "or ~/.canrc, else socketcan)")
+    g.add_argument("-c", "--channel", default=None, help="bus channel, e.g. vcan0, "
+                   "PCAN_USBBUS1, 0 (default: CAN_CHANNEL or ~/.canrc, else vcan0)")
+    g.add_argument("-b", "--bitrate", type=int, default=None, help="bit rate in bit/s")
+    g.add_argument("--bus-option", action="append", default=[], metavar="KEY=VALUE",
+                   help="more can.Bus keyword arguments (repeat), e.g. fd=true, "
+                   "app_name=CANalyzer, tty_baudrate=115200")
+
+
+def bus_config_of(args: argparse.Namespace) -> dict[str, Any]:
+    """The bus configuration of add_bus_options (bus.bus_config)."""
+    from can.util import cast_from_string
+
+    from dynval.bus import bus_config
+    from dynval.errors import ConfigError
+
+    opts: dict[str, Any] = {}
+    for item in args.bus_option:
+        key, eq, val = item.partition("=")
+        if not eq or not key.strip():
+            raise ConfigError(f"--bus-option {item!r}: expected KEY=VALUE")
+        opts[key.strip()] = cast_from_string(val.strip())
+    channel: Any = args.channel
+    if channel is not None:
+        channel = cast_from_string(channel)
+    return bus_config(args.interface, channel, args.bitrate, opts)
+
+
 def add_study_options(p: Any) -> None:
     """Options shared by validate and calibrate."""
     p.add_argument("--model", type=Path, required=True, help="model file (dynval format or "

@@ -1,5 +1,7 @@
 """`dynval log -o FILE.mcap`: record the dynval bus to MCAP until Ctrl-C / SIGTERM (or
---duration / --idle-timeout); the file is finalised on exit."""
+--duration / --idle-timeout); the file is finalised on exit. `-o FILE.blf` (.asc, .trc,
+candump .log) writes the raw frames with python-can's writer for that format instead. The bus
+is any python-can interface (--interface/--channel/--bitrate, CAN_INTERFACE, ~/.canrc)."""
 from __future__ import annotations
 
 import argparse
@@ -7,15 +9,22 @@ import time
 from pathlib import Path
 from typing import Any
 
-from dynval.cli_common import add_test_options, read_with_options, sigterm_interrupts
+from dynval.cli_common import (
+    add_bus_options,
+    add_test_options,
+    bus_config_of,
+    read_with_options,
+    sigterm_interrupts,
+)
+from dynval.errors import InputFileError
 
 
 def add_parser(sub: Any) -> None:
-    p = sub.add_parser("log", help="record the CAN bus to an MCAP file")
-    p.add_argument("-o", "--output", type=Path, required=True, help="MCAP file to write")
-    p.add_argument("--bus", choices=("socketcan", "virtual"), default="socketcan",
-                   help="python-can interface (%(default)s)")
-    p.add_argument("--channel", default="vcan0", help="bus channel (%(default)s)")
+    p = sub.add_parser("log", help="record the CAN bus to an MCAP file (or a CAN log)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="file to write: .mcap "
+                   "(decoded, for dynval and Foxglove) or a CAN log .asc, .blf, .trc, .log "
+                   "(raw frames)")
+    add_bus_options(p)
     p.add_argument("--test", type=Path, default=None,
                    help="the recorded test being replayed: its name, channel map, rate, units "
                    "and hash go into the metadata record")
@@ -29,10 +38,28 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dynval import bus
+    from dynval import bus, canlog
     from dynval.mcap_log import McapLog, log_bus
     from dynval.runloop import recording_meta
 
+    cfg = bus_config_of(args)
+    t_end = time.monotonic() + args.duration if args.duration else None
+    if args.output.suffix.lower() != ".mcap":
+        if args.output.suffix.lower() not in canlog.LOG_SUFFIXES:
+            raise InputFileError(args.output, "the output is an .mcap or a CAN log "
+                                 f"({', '.join(canlog.LOG_SUFFIXES)})")
+        b = bus.open_bus(cfg)
+        n = 0
+        try:
+            with sigterm_interrupts():
+                n = canlog.record(b, args.output, idle_timeout_s=args.idle_timeout,
+                                  stop=(lambda: time.monotonic() > t_end) if t_end else None)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            b.shutdown()
+        print(f"{args.output}: {n} frames from {bus.describe(cfg)}")
+        return 0
     meta: dict[str, Any] = {}
     names: list[str] = []
     if args.test is not None:
@@ -43,10 +70,9 @@ def run(args: argparse.Namespace) -> int:
         from dynval import model
 
         meta["model"] = model.to_dict(model.load(args.model))
-    b = bus.open_bus(args.bus, args.channel)
+    b = bus.open_bus(cfg)
     out = McapLog(args.output, meta=meta, channel_names=names, chunk_size=args.chunk_kb * 1024)
 
-    t_end = time.monotonic() + args.duration if args.duration else None
     n = 0
     try:
         with sigterm_interrupts():

@@ -1,5 +1,7 @@
 """`dynval replay TEST`: send a recorded test as dynval CAN frames, paced by its sample clock
-(or --speed N times faster, or --asap), then report the timing fidelity."""
+(or --speed N times faster, or --asap), then report the timing fidelity. A CAN log (.asc, .blf,
+.trc, candump .log) is sent as recorded, frame by frame at its own timestamps. The bus is any
+python-can interface (--interface/--channel/--bitrate, CAN_INTERFACE, ~/.canrc)."""
 from __future__ import annotations
 
 import argparse
@@ -8,15 +10,22 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from dynval.cli_common import Progress, add_test_options, fmt_timing, read_with_options
+from dynval.cli_common import (
+    Progress,
+    add_bus_options,
+    add_test_options,
+    bus_config_of,
+    fmt_timing,
+    read_with_options,
+)
 
 
 def add_parser(sub: Any) -> None:
-    p = sub.add_parser("replay", help="send a recorded test on a CAN bus (DBC sample frames)")
-    p.add_argument("test", type=Path, help="recorded test (csv, txt, json, mcap)")
-    p.add_argument("--bus", choices=("socketcan", "virtual"), default="socketcan",
-                   help="python-can interface (%(default)s)")
-    p.add_argument("--channel", default="vcan0", help="bus channel (%(default)s)")
+    p = sub.add_parser("replay", help="send a recorded test (DBC sample frames) or a CAN log "
+                       "on a CAN bus")
+    p.add_argument("test", type=Path, help="recorded test (csv, txt, json, mcap) or CAN log "
+                   "(asc, blf, trc, candump log)")
+    add_bus_options(p)
     g = p.add_mutually_exclusive_group()
     g.add_argument("--speed", type=float, default=1.0,
                    help="replay N times faster than recorded (%(default)s)")
@@ -28,11 +37,14 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dynval import bus
+    from dynval import bus, canlog
 
+    cfg = bus_config_of(args)
+    if canlog.is_can_log(args.test):
+        return _replay_log(args, cfg)
     rec = read_with_options(args.test, args)
     plan = bus.make_plan(rec, args.record_id)
-    b = bus.open_bus(args.bus, args.channel)
+    b = bus.open_bus(cfg)
     try:
         with Progress(args) as bars:
             res = bus.replay(b, plan, speed=args.speed, asap=args.asap,
@@ -48,11 +60,38 @@ def run(args: argparse.Namespace) -> int:
         return 0 if res.send_errors == 0 else 1
     print(f"{rec.name}: {res.frames_sent} frames ({res.sample_frames} sample frames, "
           f"{len(rec.channels)} ch x {rec.n_samples} samples at {rec.fs_hz:g} Hz) in "
-          f"{res.wall_s:.2f} s = {res.frames_per_s:.0f} frames/s on {args.bus}:{args.channel}")
+          f"{res.wall_s:.2f} s = {res.frames_per_s:.0f} frames/s on {bus.describe(cfg)}")
     if not args.asap:
         print(f"timing vs the recorded clock (x{args.speed:g}): {fmt_timing(res.timing)}")
     if res.send_errors:
         print(f"{res.send_errors} frames could not be sent")
     if rec.warnings:
         print(f"{len(rec.warnings)} reader warnings (see the log)")
+    return 0 if res.send_errors == 0 else 1
+
+
+def _replay_log(args: argparse.Namespace, cfg: dict[str, Any]) -> int:
+    """A CAN log, frame by frame at its recorded times."""
+    from dynval import bus, canlog
+
+    b = bus.open_bus(cfg)
+    try:
+        with Progress(args) as bars:
+            res = canlog.replay_log(b, args.test, speed=args.speed, asap=args.asap,
+                                    on_progress=bars.counter(args.test.name, 0))
+    finally:
+        b.shutdown()
+    if args.json:
+        json.dump({"log": str(args.test), "frames_sent": res.frames_sent, "wall_s": res.wall_s,
+                   "frames_per_s": res.frames_per_s, "send_errors": res.send_errors,
+                   "timing": res.timing}, sys.stdout, indent=1)
+        sys.stdout.write("\n")
+    else:
+        print(f"{args.test}: {res.frames_sent} frames in {res.wall_s:.2f} s = "
+              f"{res.frames_per_s:.0f} frames/s on {bus.describe(cfg)}")
+        if not args.asap and res.timing.get("frames"):
+            print(f"timing vs the log's timestamps (x{args.speed:g}): "
+                  f"{fmt_timing(res.timing)}")
+        if res.send_errors:
+            print(f"{res.send_errors} frames could not be sent")
     return 0 if res.send_errors == 0 else 1

@@ -8,4 +8,5 @@ T_RESID = "/dv/residuals"  # DV_RESID, decoded
 T_STATUS = "/dv/status"  # DV_STATUS, decoded
 T_CONTROL = "/dv/control"  # DV_CTRL and DV_CHCFG, decoded
 T_EVENTS = "/dv/events"  # counted anomalies: refused frames, sequence gaps
-T_SAMPLES = "/dv/samples/"  # + channel name: DV_SAMPLES, decoded and scaled
+T_SAMPLES = "/dv/samples/"  # + channel name: DV_SAMPLES, decoded and scaled, one per sample
+T_LOG = "/dv/log"  # foxglove.Log: run control and anomalies as text, for a log panel

@@ -64,6 +64,12 @@ def read_test(path: Path | str, *, lenient: bool = False, fs_hz: float | None = 
 
         rec = read_mcap(p, lenient=lenient)
     elif suf in (".txt", ".dat", ".asc"):
+        from dynval.canlog import is_vector_asc
+
+        if suf == ".asc" and is_vector_asc(p):
+            raise InputFileError(p, "a Vector ASC CAN log, not a test of numbers: send it with "
+                                 "`dynval replay`, or decode it with `dynval convert FILE -o "
+                                 "FILE.mcap`", 1)
         if looks_like_dropbear(p):
             rec = read_dropbear(p, lenient=lenient)
         elif fs_hz is None:

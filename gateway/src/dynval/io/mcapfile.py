@@ -4,7 +4,9 @@ iter_messages() reads records sequentially with mcap's non-seeking StreamReader.
 without its footer (the logger was killed) is read up to the last complete record: the
 records are first walked by their length prefixes, and the reader only sees the complete ones;
 a chunk whose CRC does not match ends the read. read_mcap() turns the /dv/samples/<channel>
-topics back into a Recording (the values the firmware saw)."""
+topics back into a Recording (the values the firmware saw), of either layout: one sample per
+message ("index", "value", absent when missing: mcap_log's) or three per message ("index",
+"values" with null for missing: logs written before it)."""
 from __future__ import annotations
 
 import importlib
@@ -21,14 +23,14 @@ import numpy as np
 from dynval.errors import InputFileError
 from dynval.io.jsonfile import parse_json
 from dynval.io.recording import MAX_RATE_HZ, Channel, Recording, file_sha256
-from dynval.topics import T_SAMPLES
+from dynval.topics import T_CONTROL, T_SAMPLES
 
 log = logging.getLogger(__name__)
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_FOOTER = 0x02
 OP_CHUNK = 0x06
-SAMPLES_PER_MESSAGE = 3  # a DV_SAMPLES frame carries 3 samples of one channel
+SAMPLES_PER_MESSAGE = 3  # at most, in the old layout: a DV_SAMPLES frame's 3 samples
 MAX_SAMPLES = 1 << 40  # beyond any test: a larger index or count is a damaged file
 GAP_LIMIT = 64  # without n_samples, indices may spread this many samples per message at most
 
@@ -106,6 +108,7 @@ class Message:
     log_time: int
     data: dict[str, Any]
     sequence: int = 0
+    publish_time: int = 0
 
 
 def _decode_errors() -> tuple[type[BaseException], ...]:
@@ -176,8 +179,9 @@ def iter_records(path: Path | str, *, scan_out: Scan | None = None) -> Iterator[
 
 def iter_messages(path: Path | str, *, topics: set[str] | None = None,
                   prefix: str | None = None, scan_out: Scan | None = None) -> Iterator[Message]:
-    """Messages in file order (decoded JSON) of iter_records; a payload that is not a JSON
-    object is an InputFileError naming the record."""
+    """Messages in file order (decoded JSON) of iter_records, all or those on `topics` or
+    under `prefix`; a payload that is not a JSON object is an InputFileError naming the
+    record."""
     from mcap.records import Channel as McapChannel
     from mcap.records import Message as McapMessage
 
@@ -190,8 +194,10 @@ def iter_messages(path: Path | str, *, topics: set[str] | None = None,
         elif isinstance(r, McapMessage):
             n += 1
             t = chans.get(r.channel_id, "?")
-            if (topics is None or t in topics) and (prefix is None or t.startswith(prefix)):
-                yield Message(t, r.log_time, _payload(p, r.data, t, n), r.sequence)
+            if (topics is None and prefix is None) or (topics is not None and t in topics) or (
+                    prefix is not None and t.startswith(prefix)):
+                yield Message(t, r.log_time, _payload(p, r.data, t, n), r.sequence,
+                              r.publish_time)
 
 
 MAX_CHANNELS = 256  # DV_CHCFG's channel field is a byte
@@ -205,18 +211,29 @@ def _int_field(p: Path, m: Message, key: str, lo: int, hi: int) -> int:
     return v
 
 
-def _values(p: Path, m: Message) -> list[float]:
-    v = m.data.get("values")
-    if not isinstance(v, list) or len(v) > SAMPLES_PER_MESSAGE or not all(
-            x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in v):
-        raise InputFileError(p, f"{m.topic} message: 'values' must be a list of at most "
-                             f"{SAMPLES_PER_MESSAGE} numbers or null", None,
-                             f"sequence {m.sequence}")
+def _number(p: Path, m: Message, x: Any) -> float:
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise InputFileError(p, f"{m.topic} message: a sample value must be a number, got "
+                             f"{str(x)[:40]}", None, f"sequence {m.sequence}")
     try:
-        return [np.nan if x is None else float(x) for x in v]
+        return float(x)
     except OverflowError:
         raise InputFileError(p, f"{m.topic} message: a value beyond the float range", None,
                              f"sequence {m.sequence}") from None
+
+
+def _values(p: Path, m: Message) -> list[float]:
+    """The samples of a message: [value] (NaN when absent) of the one-sample layout, or the
+    old layout's 'values' (null for missing)."""
+    if "values" not in m.data:
+        v = m.data.get("value")
+        return [np.nan if v is None else _number(p, m, v)]
+    v = m.data["values"]
+    if not isinstance(v, list) or len(v) > SAMPLES_PER_MESSAGE:
+        raise InputFileError(p, f"{m.topic} message: 'values' must be a list of at most "
+                             f"{SAMPLES_PER_MESSAGE} numbers or null", None,
+                             f"sequence {m.sequence}")
+    return [np.nan if x is None else _number(p, m, x) for x in v]
 
 
 def _meta_json(p: Path, meta: dict[str, str], key: str) -> dict[str, str]:
@@ -230,13 +247,17 @@ def _meta_json(p: Path, meta: dict[str, str], key: str) -> dict[str, str]:
     return d
 
 
-def _meta_rate(p: Path, meta: dict[str, str]) -> float:
+def _meta_rate(p: Path, meta: dict[str, str], chcfg_hz: float | None = None) -> float:
+    """fs_hz of the metadata, else the DV_CHCFG frames' (a log decoded from a CAN log)."""
     try:
         fs = float(meta.get("fs_hz", "nan"))
     except (TypeError, ValueError):
         fs = float("nan")
+    if fs != fs and chcfg_hz is not None:
+        fs = chcfg_hz
     if not 0 < fs <= MAX_RATE_HZ:
-        raise InputFileError(p, "the 'dynval' metadata record has no usable fs_hz")
+        raise InputFileError(p, "the 'dynval' metadata record has no usable fs_hz (nor the "
+                             "DV_CHCFG frames)")
     return fs
 
 
@@ -264,7 +285,13 @@ def read_mcap(path: Path | str, *, lenient: bool = False) -> Recording:
     sc = Scan()
     per: dict[int, dict[int, list[float]]] = {}
     names: dict[int, str] = {}
-    for m in iter_messages(p, prefix=T_SAMPLES, scan_out=sc):
+    chcfg_hz: float | None = None
+    for m in iter_messages(p, topics={T_CONTROL}, prefix=T_SAMPLES, scan_out=sc):
+        if m.topic == T_CONTROL:
+            fs_cfg = m.data.get("fs_hz")
+            if m.data.get("kind") == "chcfg" and isinstance(fs_cfg, int) and fs_cfg > 0:
+                chcfg_hz = float(fs_cfg)
+            continue
         if m.data.get("verdict") not in ("ok", "gap"):
             continue
         ch = _int_field(p, m, "channel", 0, MAX_CHANNELS)
@@ -282,15 +309,15 @@ def read_mcap(path: Path | str, *, lenient: bool = False) -> Recording:
     meta = sc.metadata.get("dynval", {})
     if not per:
         raise InputFileError(p, "no /dv/samples/* messages in this MCAP")
-    fs = _meta_rate(p, meta)
+    fs = _meta_rate(p, meta, chcfg_hz)
     units = _meta_json(p, meta, "units")
     roles = _meta_json(p, meta, "roles")
     n_rec = _meta_count(p, meta)
-    n = max(max(d) + SAMPLES_PER_MESSAGE for d in per.values())
-    n_msgs = sum(len(d) for d in per.values())
+    n = max(i + len(v) for d in per.values() for i, v in d.items())
+    n_msgs = sum(len(v) for d in per.values() for v in d.values())
     limit = n_rec + SAMPLES_PER_MESSAGE if n_rec is not None else GAP_LIMIT * n_msgs
     if n > limit:
-        raise InputFileError(p, f"sample index {n - SAMPLES_PER_MESSAGE} is beyond the "
+        raise InputFileError(p, f"sample index {n - 1} is beyond the "
                              f"record ({'n_samples ' + str(n_rec) if n_rec is not None else ''}"
                              f"{'' if n_rec is not None else str(n_msgs) + ' sample messages'})")
     if n_rec is not None and n < n_rec:  # the log ends early (a recovered, killed logger)
