@@ -53,7 +53,7 @@ pkg_hash=$( { src_hash gateway/src gateway/pyproject.toml include src cmake CMak
             sha256sum | cut -c1-16)
 if [ "$(cat "$VENV/.dv-pkg" 2>/dev/null)" != "$pkg_hash" ]; then
     echo "setup: the dynval package (builds the C core)"
-    "${PIP[@]}" "./gateway[validate]"
+    "${PIP[@]}" "./gateway[validate,formats]"
     echo "$pkg_hash" >"$VENV/.dv-pkg"
 fi
 echo "setup: done (commands in $VENV/bin: dynval, python; scripts put it first on PATH)"

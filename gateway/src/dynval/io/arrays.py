@@ -37,9 +37,15 @@ def one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text[0][:200]}" if text else type(exc).__name__
 
 
-def guarded(p: Path, what: str, read: Callable[[], T]) -> T:
+def guarded(p: Path, what: str, read: Callable[[], T], quiet: tuple[str, ...] = ()) -> T:
     """Run a third-party reader; anything it raises on a damaged file (its own exceptions,
-    ValueError, struct errors, ...) becomes one InputFileError naming the file."""
+    ValueError, struct errors, ...) becomes one InputFileError naming the file. The loggers
+    in `quiet` (the library's own, which logs its errors with a traceback before raising)
+    are silenced meanwhile: the one line is ours."""
+    loggers = [logging.getLogger(n) for n in quiet]
+    was = [lg.disabled for lg in loggers]
+    for lg in loggers:
+        lg.disabled = True
     try:
         return read()
     except DynvalError:
@@ -53,6 +59,9 @@ def guarded(p: Path, what: str, read: Callable[[], T]) -> T:
         raise InputFileError(p, f"not a readable {what} file ({one_line(exc)})") from None
     except Exception as exc:  # noqa: BLE001 - the boundary of a third-party parser
         raise InputFileError(p, f"not a readable {what} file ({one_line(exc)})") from None
+    finally:
+        for lg, w in zip(loggers, was, strict=True):
+            lg.disabled = w
 
 
 def regular_period(p: Path | str, t: np.ndarray, *, lenient: bool, warnings: list[str],

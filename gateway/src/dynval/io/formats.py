@@ -75,7 +75,7 @@ def read_uff(path: Path | str, *, lenient: bool = False) -> Recording:
         out = u.read_sets(idx)
         return out if isinstance(out, list) else [out]
 
-    dsets = guarded(p, "universal (UFF 58)", sets)
+    dsets = guarded(p, "universal (UFF 58)", sets, quiet=("pyuff",))
     cols: dict[str, Any] = {}
     units: dict[str, str] = {}
     roles: dict[str, str] = {}
@@ -129,13 +129,13 @@ def read_mdf(path: Path | str, *, lenient: bool = False) -> Recording:
             out = []
             for gi, group in enumerate(mdf.groups):
                 master = mdf.masters_db.get(gi)
-                for ci, ch in enumerate(group.channels):
+                for ci in range(len(group.channels)):
                     if ci == master:
                         continue
                     out.append(mdf.get(group=gi, index=ci, raw=False))
             return out
 
-    sigs = guarded(p, "MDF", signals)
+    sigs = guarded(p, "MDF", signals, quiet=("asammdf",))
     sigs = [s for s in sigs if np.asarray(s.samples).dtype.kind in "biuf"
             and np.asarray(s.samples).ndim == 1]
     if not sigs:
