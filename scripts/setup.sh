@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Install what dynval needs on Debian 12 / Ubuntu (as root, or a user with sudo): compilers,
 # cmocka, Eigen, libmodbus, the Cortex-M toolchain, QEMU for the vcan VM and the emulated MCU,
-# valgrind; then a project virtual environment .venv (PEP 668: Debian's python3 refuses
-# system-wide pip installs) with the test tools and the package (its build compiles the C core).
+# valgrind, Doxygen (the C API docs); then a project virtual environment .venv (PEP 668:
+# Debian's python3 refuses system-wide pip installs) with the test tools and the package (its
+# build compiles the C core).
 # Idempotent: installed apt packages are not fetched again, and pip runs only when the
 # requirements or the package's sources changed since the last install (a stamp in .venv).
 # PYTHON picks the interpreter the venv is made from (default: the distribution's python3).
@@ -12,7 +13,7 @@ cd "$(dirname "$0")/.."
 APT_PKGS=(cmake ninja-build gcc g++ clang libclang-rt-14-dev pkg-config libcmocka-dev
           libeigen3-dev libmodbus-dev gcc-arm-none-eabi libnewlib-arm-none-eabi
           qemu-system-arm qemu-system-x86 busybox-static kmod iproute2 valgrind
-          python3 python3-venv python3-dev)
+          python3 python3-venv python3-dev doxygen)
 missing=()
 for p in "${APT_PKGS[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -35,10 +35,16 @@ typedef struct {
     dv_real_t dt_s;       /**< sample period, s */
     dv_real_t w;          /**< merged weight (sum x^2) */
     dv_real_t mean;       /**< merged centroid, samples from record start */
-    dv_real_t m2, m3, m4; /**< merged weighted central sums, samples^k */
+    dv_real_t m2; /**< merged weighted central sums, samples^k (m2) */
+    dv_real_t m3; /**< merged weighted central sums, samples^k (m3) */
+    dv_real_t m4; /**< merged weighted central sums, samples^k (m4) */
     dv_real_t t0;         /**< start of the open block, samples */
     dv_real_t tau;        /**< local time of the next sample in the open block */
-    dv_real_t s0, s1, s2, s3, s4; /**< sums of w tau^k in the open block */
+    dv_real_t s0; /**< sums of w tau^k in the open block (s0) */
+    dv_real_t s1; /**< sums of w tau^k in the open block (s1) */
+    dv_real_t s2; /**< sums of w tau^k in the open block (s2) */
+    dv_real_t s3; /**< sums of w tau^k in the open block (s3) */
+    dv_real_t s4; /**< sums of w tau^k in the open block (s4) */
     uint32_t blk;         /**< samples in the open block */
     uint64_t count;       /**< accepted samples */
     uint64_t n_nonfinite; /**< NaN/Inf samples dropped */
@@ -46,6 +52,7 @@ typedef struct {
 
 /**
  * @brief Clear state.
+ * @param[out] s instance
  * @param[in] dt_s sample period in seconds, finite and > 0
  * @retval DV_OK / DV_EINVAL (NULL @p s, bad @p dt_s)
  */
