@@ -142,12 +142,13 @@ def segstd(x: Any, seg_len: int = 64, n_seg: int | None = None) -> np.ndarray:
     if k == 0:
         raise ValueError(f"segstd needs a record of {n_seg} x {seg_len} samples, got {a.size}")
     seg = a[(k - 1) * rec: k * rec].reshape(n_seg, seg_len)
-    d = np.ascontiguousarray((seg - seg[:, :1]).T)  # (seg_len, n_seg): rows added in order
-    s1 = np.cumsum(d, axis=0)[-1]  # cumsum adds in order, as the core does (sum is pairwise)
-    s2 = np.cumsum(d * d, axis=0)[-1]
-    n = float(seg_len)
-    var = (s2 - s1 * s1 / n) / n
-    return np.asarray(np.sqrt(np.maximum(var, 0.0)), dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):  # Inf/NaN as the core gives them
+        d = np.ascontiguousarray((seg - seg[:, :1]).T)  # (seg_len, n_seg): rows added in order
+        s1 = np.cumsum(d, axis=0)[-1]  # cumsum adds in order, as the core does (sum: pairwise)
+        s2 = np.cumsum(d * d, axis=0)[-1]
+        n = float(seg_len)
+        var = (s2 - s1 * s1 / n) / n
+        return np.asarray(np.sqrt(np.where(var > 0.0, var, 0.0)), dtype=np.float64)
 
 
 def temporal(x: Any, dt_s: float) -> Temporal:
