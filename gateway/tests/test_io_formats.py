@@ -198,3 +198,18 @@ def test_csv_errors_keep_their_line_after_a_preamble(tmp_path: Path, fast: bool,
     p.write_text("# a\n# b\ntime_s;force_N;acc1\n" + "\n".join(rows) + "\n")
     rec = read_test(p)
     assert rec.n_samples == 100 and rec.channel("force_N").data[3] == 3.5
+
+
+def test_matlab_v73_is_read_as_hdf5(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A v7.3 .mat is HDF5 after a 512-byte text header (MATLAB writes column vectors n x 1)."""
+    h5py = pytest.importorskip("h5py")
+    p = tmp_path / "v73.mat"
+    with h5py.File(p, "w", userblock_size=512) as f:
+        f["t"] = T.reshape(-1, 1)
+        f["force"] = FORCE.reshape(-1, 1)
+        f["force"].attrs["unit"] = "N"
+        f["acc1"] = ACC.reshape(-1, 1)
+        f["acc1"].attrs["unit"] = "m/s^2"
+    with open(p, "r+b") as fh:
+        fh.write(b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Wed Nov 25 2026 HDF5 schema")
+    check(features_json(p, capsys))
