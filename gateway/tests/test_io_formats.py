@@ -213,3 +213,23 @@ def test_matlab_v73_is_read_as_hdf5(tmp_path: Path, capsys: pytest.CaptureFixtur
     with open(p, "r+b") as fh:
         fh.write(b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Wed Nov 25 2026 HDF5 schema")
     check(features_json(p, capsys))
+
+
+def test_damaged_mdf_is_one_stderr_line_in_a_real_run(tmp_path: Path) -> None:
+    """asammdf's half-built MDF4 fails in its destructor too: that must not reach stderr."""
+    import os
+    import subprocess
+    import sys
+
+    import dynval
+
+    good = tmp_path / "t.mf4"
+    write_mdf(good)
+    bad = tmp_path / "bad.mf4"
+    bad.write_bytes(good.read_bytes()[:3000])
+    env = {**os.environ, "PYTHONPATH": str(Path(dynval.__file__).parents[1])}
+    r = subprocess.run([sys.executable, "-m", "dynval", "features", str(bad)], env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "bad.mf4: not a readable MDF file" in lines[0], r.stderr

@@ -4,7 +4,9 @@ finite values, a time that increases regularly (or a given rate). Errors name th
 channel (and the sample, counted from 0, where there is one)."""
 from __future__ import annotations
 
+import gc
 import logging
+import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
@@ -41,50 +43,63 @@ def guarded(p: Path, what: str, read: Callable[[], T], quiet: tuple[str, ...] = 
     """Run a third-party reader; anything it raises on a damaged file (its own exceptions,
     ValueError, struct errors, ...) becomes one InputFileError naming the file. The loggers
     in `quiet` (the library's own, which logs its errors with a traceback before raising)
-    are silenced meanwhile: the one line is ours."""
+    are silenced meanwhile, and so are the errors of its half-built objects' destructors
+    (asammdf's MDF4.__del__ on a damaged file): the one line is ours."""
     loggers = [logging.getLogger(n) for n in quiet]
     was = [lg.disabled for lg in loggers]
+    hook = sys.unraisablehook
+    sys.unraisablehook = _unraisable
     for lg in loggers:
         lg.disabled = True
     try:
-        return read()
-    except DynvalError:
-        raise
-    except MemoryError:
-        raise InputFileError(p, f"not a readable {what} file (it claims more data than fits "
-                             "in memory)") from None
-    except OSError as exc:
-        if not p.is_file():
-            raise InputFileError(p, "no such file") from None
-        raise InputFileError(p, f"not a readable {what} file ({one_line(exc)})") from None
-    except Exception as exc:  # noqa: BLE001 - the boundary of a third-party parser
-        raise InputFileError(p, f"not a readable {what} file ({one_line(exc)})") from None
+        try:
+            return read()
+        except DynvalError:
+            raise
+        except MemoryError:
+            failure = f"not a readable {what} file (it claims more data than fits in memory)"
+        except OSError as exc:
+            failure = ("no such file" if not p.is_file() else
+                       f"not a readable {what} file ({one_line(exc)})")
+        except Exception as exc:  # noqa: BLE001 - the boundary of a third-party parser
+            failure = f"not a readable {what} file ({one_line(exc)})"
+        gc.collect()  # the failed reader's objects go now, under the quiet hooks
     finally:
+        sys.unraisablehook = hook
         for lg, w in zip(loggers, was, strict=True):
             lg.disabled = w
+    raise InputFileError(p, failure)
+
+
+def _unraisable(u: Any) -> None:
+    log.debug("ignored in a reader's clean-up: %s: %s", type(u.exc_value).__name__, u.exc_value)
 
 
 def regular_period(p: Path | str, t: np.ndarray, *, lenient: bool, warnings: list[str],
-                   locate: Callable[[int], tuple[int | None, str]]) -> float:
+                   locate: Callable[[int], tuple[int | None, str]],
+                   column: str | None = None) -> float:
     """The sample period of the time stamps t: increasing, a usable rate and regular within
     TIME_JITTER of a period (lenient=True counts irregular steps as a warning instead).
-    locate(i) gives (line or None, where) of the i-th time stamp for the error message."""
+    locate(i) gives (line or None, where) of the i-th time stamp for the error message; column
+    names the time's column in it. Every reader with time stamps checks them here."""
     if t.size < 2:
         raise InputFileError(p, f"needs at least 2 samples, found {t.size}")
     if not np.isfinite(t).all():
         i = int(np.flatnonzero(~np.isfinite(t))[0])
         ln, where = locate(i)
-        raise InputFileError(p, f"non-finite time {t[i]!r}{where}", ln)
+        raise InputFileError(p, f"non-finite time {t[i]!r}{where}", ln, column)
     dt = np.diff(t)
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         i = int(bad[0])
         ln, where = locate(i + 1)
-        raise InputFileError(p, f"time does not increase ({t[i]!r} then {t[i + 1]!r}){where}", ln)
+        raise InputFileError(p, f"time does not increase ({t[i]!r} then {t[i + 1]!r}){where}", ln,
+                             column)
     period = float(np.median(dt))
     if not 0 < 1.0 / period <= MAX_RATE_HZ:
         ln, where = locate(0)
-        raise InputFileError(p, f"time step {period!r} s is not a usable sample period{where}", ln)
+        raise InputFileError(p, f"time step {period!r} s is not a usable sample period{where}", ln,
+                             column)
     off = np.flatnonzero(np.abs(dt - period) > TIME_JITTER * period + 1e-12)
     if off.size:
         i = int(off[0])
@@ -92,7 +107,7 @@ def regular_period(p: Path | str, t: np.ndarray, *, lenient: bool, warnings: lis
         msg = (f"irregular sampling: step {dt[i]!r} s where the period is {period!r} s "
                f"({off.size} irregular steps){where}")
         if not lenient:
-            raise InputFileError(p, msg, ln)
+            raise InputFileError(p, msg, ln, column)
         warnings.append(f"{p}{'' if ln is None else f':{ln}'}: {msg}")
         log.warning(warnings[-1])
     return period

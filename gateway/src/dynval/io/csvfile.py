@@ -14,8 +14,8 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from dynval.errors import InputFileError
+from dynval.io.arrays import regular_period
 from dynval.io.recording import (
-    MAX_RATE_HZ,
     Channel,
     Recording,
     default_role,
@@ -31,10 +31,6 @@ try:
     _pd = importlib.import_module("pandas")
 except ImportError:  # pragma: no cover - numpy's block parser then
     _pd = None
-
-# Sample clocks jitter by less than this fraction of a period in any real DAQ file.
-_TIME_JITTER = 1e-3
-
 
 _BLOCK_BYTES = 1 << 20  # text parsed at once: 1 MB of lines, whatever the file's size
 _QUOTE = '"'
@@ -215,26 +211,8 @@ def _parse_block(p: Path, block: bytes, ln0: int, header: list[str], dialect: _D
 def _recording(p: Path, header: list[str], data: np.ndarray, lines: np.ndarray, lenient: bool,
                warnings: list[str]) -> Recording:
     t = data[:, 0]
-    dt = np.diff(t)
-    bad = np.flatnonzero(dt <= 0)
-    if bad.size:
-        i = int(bad[0])
-        raise InputFileError(p, f"time does not increase ({t[i]!r} then {t[i + 1]!r})",
-                             int(lines[i + 1]), header[0])
-    period = float(np.median(dt))
-    if not 0 < 1.0 / period <= MAX_RATE_HZ:
-        raise InputFileError(p, f"time step {period!r} s is not a usable sample period",
-                             int(lines[0]),
-                             header[0])
-    off = np.flatnonzero(np.abs(dt - period) > _TIME_JITTER * period + 1e-12)
-    if off.size:
-        i = int(off[0])
-        msg = (f"irregular sampling: step {dt[i]!r} s where the period is {period!r} s "
-               f"({off.size} irregular steps)")
-        if not lenient:
-            raise InputFileError(p, msg, int(lines[i + 1]), header[0])
-        warnings.append(f"{p}:{int(lines[i + 1])}: {msg}")
-        log.warning(warnings[-1])
+    period = regular_period(p, t, lenient=lenient, warnings=warnings,
+                            locate=lambda i: (int(lines[i]), ""), column=header[0])
     channels = []
     for j, col in enumerate(header[1:], start=1):
         name, unit = split_unit(col)
