@@ -122,6 +122,8 @@ def test_dataframe_in_the_python_api() -> None:
     assert rec2.fs_hz == pytest.approx(FS, rel=1e-9)
     rec3 = read_dataframe(pd.DataFrame({"acc1": ACC}), fs_hz=FS, units={"acc1": "g"})
     assert rec3.channels[0].unit == "g" and rec3.n_samples == N
+    rec4 = read_dataframe(pd.DataFrame({"t": T + 2.0, "acc1": ACC}), fs_hz=FS)
+    assert rec4.names == ["acc1"] and rec4.fs_hz == FS and rec4.t0_s == 2.0
     with pytest.raises(InputFileError, match="no time channel and no sampling rate"):
         read_dataframe(pd.DataFrame({"acc1": ACC}))
 

@@ -250,8 +250,9 @@ def read_dataframe(df: Any, *, name: str = "dataframe", fs_hz: float | None = No
                    lenient: bool = False) -> Recording:
     """A pandas DataFrame as a Recording (the Python API): one column per channel, timed by
     time_column, else a time column (time, time_s, t, ...), else a numeric, timedelta or
-    datetime index (not a plain 0..n-1 RangeIndex), else fs_hz. Units from `units`, else
-    df.attrs['units'] (a dict), else a unit suffix of the column name (acc1_mps2)."""
+    datetime index (not a plain 0..n-1 RangeIndex), else fs_hz (which, when given, sets the
+    rate even with a time column: that column then gives the start time only). Units from
+    `units`, else df.attrs['units'] (a dict), else a unit suffix of the column name."""
     try:
         pd = importlib.import_module("pandas")
     except ImportError:
@@ -262,11 +263,15 @@ def read_dataframe(df: Any, *, name: str = "dataframe", fs_hz: float | None = No
     if len(cols) != len(df.columns):
         raise ConfigError(f"{name}: duplicate column names")
     time = None
-    tname = time_column if time_column is not None else (None if fs_hz else find_time(list(cols)))
+    t0 = 0.0
+    tname = time_column if time_column is not None else find_time(list(cols))
     if tname is not None:
         if tname not in cols:
             raise ConfigError(f"{name}: no column '{tname}' (have {', '.join(cols)})")
         time = cols.pop(tname)
+        if fs_hz is not None:  # the given rate wins; the time column gives the start only
+            t0 = float(np.asarray(time, dtype=np.float64)[0]) if len(time) else 0.0
+            time = None
     elif fs_hz is None and not isinstance(df.index, pd.RangeIndex):
         idx = df.index
         if isinstance(idx, pd.DatetimeIndex | pd.TimedeltaIndex):
@@ -276,4 +281,4 @@ def read_dataframe(df: Any, *, name: str = "dataframe", fs_hz: float | None = No
     attrs_units = df.attrs.get("units") if isinstance(df.attrs.get("units"), dict) else {}
     merged = {**{str(k): str(v) for k, v in attrs_units.items()}, **(units or {})}
     return recording_from_arrays(name, name, cols, units=merged, time=time, fs_hz=fs_hz,
-                                 lenient=lenient)
+                                 t0_s=t0, lenient=lenient)
