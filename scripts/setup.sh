@@ -50,7 +50,8 @@ if [ "$(cat "$VENV/.dv-req" 2>/dev/null)" != "$req_hash" ]; then
     "${PIP[@]}" -r requirements-dev.txt
     echo "$req_hash" >"$VENV/.dv-req"
 fi
-pkg_hash=$( { src_hash gateway/src gateway/pyproject.toml include src cmake CMakeLists.txt firmware_sim can; echo "$req_hash"; } |
+pkg_hash=$( { src_hash gateway/src gateway/pyproject.toml gateway/CMakeLists.txt include src cmake \
+                     CMakeLists.txt firmware_sim can; echo "$req_hash"; } |
             sha256sum | cut -c1-16)
 if [ "$(cat "$VENV/.dv-pkg" 2>/dev/null)" != "$pkg_hash" ]; then
     echo "setup: the dynval package (builds the C core)"
