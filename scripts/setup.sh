@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Install what dynval needs on Debian 12 / Ubuntu (as root, or a user with sudo): compilers,
 # cmocka, Eigen, libmodbus, the Cortex-M toolchain, QEMU for the vcan VM and the emulated MCU,
-# valgrind; then a project virtual environment .venv (PEP 668: Debian's python3 refuses
-# system-wide pip installs) with the test tools and the package (its build compiles the C core).
-# Then node/npm with Foxglove's npm packages for the MCAP check (gateway/tests/foxglove).
+# valgrind, Doxygen (the C API docs); then a project virtual environment .venv (PEP 668:
+# Debian's python3 refuses system-wide pip installs) with the test tools and the package (its
+# build compiles the C core). Then node/npm with Foxglove's npm packages for the MCAP check
+# (gateway/tests/foxglove).
 # Idempotent: installed apt packages are not fetched again, and pip runs only when the
 # requirements or the package's sources changed since the last install (a stamp in .venv).
 # PYTHON picks the interpreter the venv is made from (default: the distribution's python3).
@@ -13,7 +14,7 @@ cd "$(dirname "$0")/.."
 APT_PKGS=(cmake ninja-build gcc g++ clang libclang-rt-14-dev pkg-config libcmocka-dev
           libeigen3-dev libmodbus-dev gcc-arm-none-eabi libnewlib-arm-none-eabi
           qemu-system-arm qemu-system-x86 busybox-static kmod iproute2 valgrind
-          python3 python3-venv python3-dev)
+          python3 python3-venv python3-dev doxygen)
 # node and npm for the check of the MCAP files with Foxglove's own reader and parser
 # (gateway/tests/foxglove); a node that is already there (with its npm) is used as it is
 if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
@@ -55,11 +56,12 @@ if [ "$(cat "$VENV/.dv-req" 2>/dev/null)" != "$req_hash" ]; then
     "${PIP[@]}" -r requirements-dev.txt
     echo "$req_hash" >"$VENV/.dv-req"
 fi
-pkg_hash=$( { src_hash gateway/src gateway/pyproject.toml include src cmake CMakeLists.txt firmware_sim can; echo "$req_hash"; } |
+pkg_hash=$( { src_hash gateway/src gateway/pyproject.toml gateway/CMakeLists.txt include src cmake \
+                     CMakeLists.txt firmware_sim can; echo "$req_hash"; } |
             sha256sum | cut -c1-16)
 if [ "$(cat "$VENV/.dv-pkg" 2>/dev/null)" != "$pkg_hash" ]; then
     echo "setup: the dynval package (builds the C core)"
-    "${PIP[@]}" "./gateway[validate]"
+    "${PIP[@]}" "./gateway[validate,formats]"
     echo "$pkg_hash" >"$VENV/.dv-pkg"
 fi
 # Foxglove's npm packages (gateway/tests/foxglove/package-lock.json) and the JSON-schema

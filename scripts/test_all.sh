@@ -50,7 +50,11 @@ step "no malloc/stdio/abort, no .data/.bss (double)" tests/scripts/check_lib_sym
 step "no -ffast-math in the build" bash -c '! grep -rn -- "-ffast-math\|-Ofast" CMakeLists.txt CMakePresets.json cmake/ src/ gateway/pyproject.toml'
 step "Cortex-M4F cross build + size" tests/scripts/cross_m4.sh
 step "Cortex-M4F self-test on an emulated MCU (qemu mps2-an386)" tests/m4/run_m4.sh
-step "consumer: find_package and add_subdirectory" tests/consumer/run.sh
+step "consumer: find_package (f32, f64 side by side), pkg-config, add_subdirectory" \
+    tests/consumer/run.sh
+step "C API docs: Doxygen, 0 warnings (public headers)" cmake --build build/f64 --target docs
+step "Python sdist: carries the C core, pip install into a fresh venv" \
+    tests/packaging/sdist_install.sh
 step "Python lint and types (ruff, mypy --strict)" bash -c 'cd gateway && ruff check src tests && mypy src'
 # the C reference tools of the bit-for-bit tests and Foxglove's parser (gateway/tests/foxglove):
 # set, so a missing tool fails instead of skipping

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import logging
 from pathlib import Path
 
 import pytest
@@ -60,8 +61,23 @@ def test_lenient_counts_instead_of_failing(tmp_path: Path,
 
 
 def test_missing_file_and_no_command(tmp_path: Path) -> None:
-    assert main(["features", str(tmp_path / "nope.csv")]) == 2
-    assert main([]) == 2
+    assert main(["features", str(tmp_path / "nope.csv")]) == 2  # bad input
+    assert main([]) == 64  # a usage error (sysexits EX_USAGE), not bad data
+
+
+def test_usage_errors_are_64_and_third_party_info_is_quiet(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as e:
+        main(["features", "--no-such-option", "x.csv"])
+    assert e.value.code == 64 and "usage: dynval" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        main(["simulate"])  # missing arguments
+    assert e.value.code == 64
+    p = write(tmp_path, "time_s,force_N\n0,1\n0.01,2\n0.02,3")
+    assert main(["features", str(p)]) == 0
+    logging.getLogger("numexpr.utils").info("NumExpr defaulting to 2 threads.")
+    assert not [r for r in caplog.records if r.name.startswith("numexpr")]
 
 
 def test_real_data_file(shared_data: Path, capsys: pytest.CaptureFixture[str]) -> None:

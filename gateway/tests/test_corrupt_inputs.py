@@ -1,6 +1,7 @@
 """Malformed input of every reader, through the CLI in-process (cli.main): a corpus generated
 here (truncated, bit-flipped, foreign, oversized, non-UTF-8, deeply nested files for the CSV,
-whitespace text, DROPBEAR text, BRFD JSON, MCAP, model and channel-map readers) must give
+whitespace text, DROPBEAR text, BRFD JSON, MCAP, UFF 58, MDF 4, HDF5, MATLAB, model and
+channel-map readers; the CSV also as ';' with decimal commas after a '#' preamble) must give
 exit 2 and one error line naming the file, or exit 0 with finite numbers: never a traceback,
 an internal error or a hang. Plus property tests of the readers (hypothesis)."""
 from __future__ import annotations
@@ -136,6 +137,52 @@ def cmap_text() -> str:
                                     {"column": "acc1_mps2", "scale": 2.0, "dof": 1}]})
 
 
+def _uff(p: Path) -> None:
+    pyuff = pytest.importorskip("pyuff")
+    rng = np.random.default_rng(4)
+    pyuff.UFF(str(p)).write_sets([pyuff.prepare_58(
+        binary=0, func_type=1, rsp_node=k + 1, rsp_dir=3, ref_node=1, ref_dir=3, ord_data_type=4,
+        id1=name, abscissa_spacing=1, abscissa_inc=1 / 640, abscissa_min=0.0,
+        data=rng.normal(size=200), x=np.arange(200) / 640, ordinate_axis_units_lab=unit,
+        ordinate_spec_data_type=spec, abscissa_spec_data_type=17, abscissa_axis_units_lab="s",
+        orddenom_spec_data_type=0, z_axis_spec_data_type=0)
+        for k, (name, spec, unit) in enumerate((("force", 13, "N"), ("acc1", 12, "m/s^2")))],
+        mode="overwrite")
+
+
+def _mdf(p: Path) -> None:
+    asammdf = pytest.importorskip("asammdf")
+    t = np.arange(200) / 640
+    rng = np.random.default_rng(5)
+    mdf = asammdf.MDF(version="4.10")
+    mdf.append([asammdf.Signal(rng.normal(size=200), t, name=n, unit=u)
+                for n, u in (("force", "N"), ("acc1", "m/s^2"))])
+    mdf.save(p, overwrite=True)
+    mdf.close()
+
+
+def _h5(p: Path) -> None:
+    h5py = pytest.importorskip("h5py")
+    rng = np.random.default_rng(6)
+    with h5py.File(p, "w") as f:
+        f["time_s"] = np.arange(200) / 640
+        f["force_N"] = rng.normal(size=200)
+        f["acc1"] = rng.normal(size=200)
+        f["acc1"].attrs["unit"] = "m/s^2"
+
+
+def _mat(p: Path) -> None:
+    from scipy.io import savemat
+
+    rng = np.random.default_rng(7)
+    savemat(p, {"fs": 640.0, "force_N": rng.normal(size=200), "acc1_mps2": rng.normal(size=200)})
+
+
+FORMAT_WRITERS: dict[str, Callable[[Path], None]] = {"uff": _uff, "mdf": _mdf, "h5": _h5,
+                                                     "mat": _mat}
+FORMAT_SUFFIX = {"uff": ".uff", "mdf": ".mf4", "h5": ".h5", "mat": ".mat"}
+
+
 @pytest.fixture(scope="module")
 def seeds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("seeds")
@@ -147,6 +194,11 @@ def seeds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     out["text"].write_text(whitespace_text())
     out["model"].write_text(model_text())
     out["cmap"].write_text(cmap_text())
+    for name, write in FORMAT_WRITERS.items():
+        out[name] = d / f"ok{FORMAT_SUFFIX[name]}"
+        write(out[name])
+    out["csv_eu"] = d / "eu.csv"
+    out["csv_eu"].write_text("# preamble\n" + csv_text().replace(",", ";").replace(".", ","))
     logdir = d / "log"
     assert cli.main(["-q", "run", str(out["csv"]), "-o", str(logdir), "--bus", "virtual",
                      "--asap", "--no-model"]) == 0
@@ -212,6 +264,9 @@ READERS: dict[str, tuple[str, str, Argv]] = {
     "brfd": ("brfd", ".json", lambda p, s, t: ["features", str(p), "--json"]),
     "dropbear": ("dropbear", ".txt", lambda p, s, t: ["features", str(p), "--json"]),
     "text": ("text", ".txt", lambda p, s, t: ["features", str(p), "--json", "--fs", "100"]),
+    "csv_eu": ("csv_eu", ".csv", lambda p, s, t: ["features", str(p), "--json"]),
+    **{k: (k, FORMAT_SUFFIX[k], lambda p, s, t: ["features", str(p), "--json"])
+       for k in FORMAT_WRITERS},
     "mcap": ("mcap", ".mcap", lambda p, s, t: ["features", str(p), "--json"]),
     "mcap_inspect": ("mcap", ".mcap", lambda p, s, t: ["inspect", str(p), "--json"]),
     "model": ("model", ".json", lambda p, s, t: ["simulate", str(p), str(s["csv"]), "-o",

@@ -102,3 +102,29 @@ def test_binding_is_bit_identical_to_c(x: np.ndarray, tmp_path: Path, features_d
     assert ref["temporal"] == [tm.energy, tm.central_time, tm.rms_duration, tm.central_skew,
                                tm.central_kurt]
     assert ref["segstd"] == features.segstd(x, 64).tolist()
+
+
+def test_segstd_in_numpy_is_the_cores_arithmetic(x: np.ndarray) -> None:
+    from dynval._core import check as core_check
+    from dynval._core import ffi, lib, ptr
+
+    y = np.concatenate([x, x[:1000] * 3 + 7])
+    y[[10, 3000]] = np.nan  # dropped, as the core drops them
+    for seg_len, n_seg in ((64, None), (64, 16), (100, 7), (2, 5)):
+        n = np.isfinite(y).sum() // seg_len if n_seg is None else n_seg
+        s = ffi.new("dv_segstd_t *")
+        buf = ffi.new("double[]", 2 * n)
+        core_check(lib.dv_segstd_init(s, seg_len, n, buf, 2 * n), "dv_segstd_init")
+        for v in y.tolist():
+            lib.dv_segstd_update(s, v)
+        ref = np.empty(n)
+        core_check(lib.dv_segstd_get(s, ptr(ref), n), "dv_segstd_get")
+        assert np.array_equal(features.segstd(y, seg_len, n_seg), ref)
+
+
+def test_features_refuse_a_2d_array(x: np.ndarray) -> None:
+    with pytest.raises(ValueError, match=r"one channel .* shape \(2, 512\)"):
+        features.moments(x[:1024].reshape(2, 512))
+    with pytest.raises(ValueError, match="apply_along_axis"):
+        features.segstd(x[:1024].reshape(512, 2))
+    assert features.moments(x[:512].reshape(512, 1)).count == 512  # one column is one channel

@@ -5,6 +5,7 @@
 #ifndef DV_H
 #define DV_H
 
+#include "dynval/dv_version.h"
 #include "dynval/dv_types.h"
 #include "dynval/dv_config.h"
 #include "dynval/dv_moments.h"

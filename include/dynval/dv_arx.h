@@ -72,6 +72,7 @@ void dv_lsq_reset(dv_lsq_t *s);
 
 /**
  * @brief Fold in one row: a . theta ~ y. O(q^2).
+ * @param[in,out] s instance
  * @param[in] a q regressors
  * @param[in] y target
  * @retval DV_OK       row added
@@ -81,6 +82,7 @@ dv_status_t dv_lsq_update(dv_lsq_t *s, const dv_real_t *a, dv_real_t y);
 
 /**
  * @brief Solve R theta = Q^T y.
+ * @param[in] s instance
  * @param[out] theta q unknowns, written only on DV_OK
  * @param[out] rss   residual sum of squares, may be NULL
  * @param[out] rcond min/max of |R_jj| / ||A_j|| (columns scaled to unit norm), a cheap
@@ -102,7 +104,9 @@ typedef struct {
 
 /** @brief A fitted ARX model. */
 typedef struct {
-    uint32_t na, nb, nk;               /**< orders, as in dv_arx_cfg_t */
+    uint32_t na; /**< orders, as in dv_arx_cfg_t (na) */
+    uint32_t nb; /**< orders, as in dv_arx_cfg_t (nb) */
+    uint32_t nk; /**< orders, as in dv_arx_cfg_t (nk) */
     uint32_t n_rows;                   /**< regression rows used */
     dv_real_t alpha[DV_AR_MAX_ORDER];  /**< alpha_1..alpha_na */
     dv_real_t beta[DV_AR_MAX_ORDER];   /**< beta_0..beta_{nb-1} (input lags nk..nk+nb-1) */
@@ -155,8 +159,11 @@ typedef struct {
     dv_real_t cb[DV_AR_MAX_ORDER]; /**< beta_{nb-1}..beta_0 (reversed) */
     dv_real_t *hx;                 /**< double-length output history, 2 na */
     dv_real_t *hf;                 /**< double-length input history, 2 (nb + nk) */
-    uint32_t na, nb, lf;           /**< orders; lf = nb + nk input samples kept */
-    uint32_t hx_head, hf_head;     /**< oldest slots */
+    uint32_t na; /**< orders; lf = nb + nk input samples kept (na) */
+    uint32_t nb; /**< orders; lf = nb + nk input samples kept (nb) */
+    uint32_t lf; /**< orders; lf = nb + nk input samples kept (lf) */
+    uint32_t hx_head; /**< oldest slots (hx_head) */
+    uint32_t hf_head; /**< oldest slots (hf_head) */
     uint32_t kern;                 /**< dot-product kernel */
     uint64_t count;                /**< sample pairs accepted */
     uint64_t n_nonfinite;          /**< pairs dropped for NaN/Inf */
@@ -164,7 +171,10 @@ typedef struct {
 
 /**
  * @brief Bind a model and storage, clear the history.
+ * @param[out] r instance
+ * @param[in] m fitted model (copied)
  * @param[in] buf DV_ARX_RESID_BUF_LEN(na, nb, nk) elements; outlives @p r
+ * @param[in] buf_len elements in @p buf
  * @retval DV_OK / DV_EINVAL (NULL, orders out of range) / DV_ESIZE / DV_ENUMERIC (non-finite
  *         coefficient)
  */
@@ -176,6 +186,9 @@ void dv_arx_resid_reset(dv_arx_resid_t *r);
 
 /**
  * @brief Push one (output, input) pair; e_i once max(na, nk + nb - 1) pairs precede it.
+ * @param[in,out] r instance
+ * @param[in] x output sample
+ * @param[in] f input sample
  * @param[out] e residual, written only on DV_OK
  * @retval DV_OK        @p e written
  * @retval DV_ENOTREADY history not full yet: pair stored, @p e untouched

@@ -47,7 +47,8 @@ typedef struct {
     dv_status_t last_st;    /**< status of last_stats (DV_ERANGE: the record overflowed) */
     dv_status_t last_tm_st; /**< status of last_tm (DV_ENUMERIC for an all-zero record) */
     dv_real_t shift;        /**< first sample of the open segment */
-    dv_real_t seg1, seg2;   /**< sums of (x - shift), (x - shift)^2 of earlier blocks of the segment */
+    dv_real_t seg1; /**< sums of (x - shift), (x - shift)^2 of earlier blocks of the segment (seg1) */
+    dv_real_t seg2; /**< sums of (x - shift), (x - shift)^2 of earlier blocks of the segment (seg2) */
     uint32_t left;          /**< samples until the open block closes */
     uint32_t blk_max;       /**< block length: min(DV_BLOCK_LEN, win_len), so a block is in the ring */
     uint32_t seg_pos;       /**< samples of the open segment in closed blocks */
@@ -61,8 +62,11 @@ size_t dv_chan_buf_len(const dv_chan_config_t *cfg);
 
 /**
  * @brief Bind storage and clear state.
+ * @param[out] s instance
+ * @param[in] cfg window, segment and record lengths, sample period (copied)
  * @param[in] buf DV_CHAN_BUF_LEN(cfg->win_len, cfg->n_seg) elements (n_seg 0 with
  *                cfg->no_seg_vectors), must outlive @p s
+ * @param[in] buf_len elements in @p buf
  * @retval DV_OK / DV_EINVAL (NULL or a config value out of range) / DV_ESIZE (buffer too small)
  */
 dv_status_t dv_chan_init(dv_chan_t *s, const dv_chan_config_t *cfg, dv_real_t *buf,
@@ -82,6 +86,9 @@ dv_status_t dv_chan_update(dv_chan_t *s, dv_real_t x);
 
 /**
  * @brief Add up to @p n samples, stopping right after a sample that completes a record.
+ * @param[in,out] s instance
+ * @param[in] x samples
+ * @param[in] n samples in @p x
  * @param[out] n_used samples consumed (<= n); call again with the rest
  * @retval DV_RECORD a record completed at x[*n_used - 1]
  * @retval DV_OK     all @p n consumed, no record completed (NaN/Inf and samples beyond
@@ -92,6 +99,8 @@ dv_status_t dv_chan_update_block(dv_chan_t *s, const dv_real_t *x, size_t n, siz
 
 /**
  * @brief Statistics and temporal moments of the last complete record.
+ * @param[in] s instance
+ * @param[out] st statistics of the record
  * @param[out] tm may be NULL; otherwise filled, or left untouched when the record's energy
  *                was zero (then DV_ENUMERIC is returned after @p st is filled)
  * @retval DV_OK        both filled, every value finite

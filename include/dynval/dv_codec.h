@@ -254,6 +254,7 @@ void dv_seq_reset(dv_seq_t *s);
  * A jump forward of 1..127 is accepted (1..127 - 1 frames counted lost); a counter 0..128
  * behind the newest is a duplicate if it was received, late if it was counted lost and is
  * within DV_SEQ_WINDOW, else stale (also a frame from before the first one seen).
+ * @param[in,out] s instance
  * @param[in] seq the frame's counter
  * @return the verdict (only OK and GAP frames should be used)
  */

@@ -7,7 +7,7 @@
 
 #include "dynval/dv_types.h"
 
-/* Samples accumulated before a block is merged into the running moments (Chan/Pebay merge).
+/** Samples accumulated before a block is merged into the running moments (Chan/Pebay merge).
  * 64 keeps float partial sums within ~1e-6 relative and the merge cost (two divides)
  * amortised to well under one instruction per sample. */
 #ifndef DV_BLOCK_LEN
@@ -30,14 +30,14 @@
 #endif
 #endif
 
-/* Longest sliding window: ring and deque indices are 32-bit. */
+/** Longest sliding window: ring and deque indices are 32-bit. */
 #ifndef DV_SLIDING_MAX_LEN
 #define DV_SLIDING_MAX_LEN 16777216u
 #endif
 
 DV_STATIC_ASSERT(DV_BLOCK_LEN >= 2u && DV_BLOCK_LEN <= 4096u, block_len_in_range);
 
-/* Highest AR / ARX order. The report fits AR(30..60) (AR(50), and AR(60) for AR-ARX stage 1);
+/** Highest AR / ARX order. The report fits AR(30..60) (AR(50), and AR(60) for AR-ARX stage 1);
  * 64 covers that, and fixed-size coefficient arrays of 64 keep a model at 0.5 kB in double. */
 #ifndef DV_AR_MAX_ORDER
 #define DV_AR_MAX_ORDER 64u
@@ -45,29 +45,29 @@ DV_STATIC_ASSERT(DV_BLOCK_LEN >= 2u && DV_BLOCK_LEN <= 4096u, block_len_in_range
 
 DV_STATIC_ASSERT(DV_AR_MAX_ORDER >= 64u && DV_AR_MAX_ORDER <= 1024u, ar_max_order_in_range);
 
-/* Degrees of freedom of the lumped-mass chain model. The report's frame has 4; 8 covers a
+/** Degrees of freedom of the lumped-mass chain model. The report's frame has 4; 8 covers a
  * refined chain, keeps the state (2n <= 16) in a few cache lines and Jacobi/expm at init cheap. */
 #ifndef DV_MAX_DOF
 #define DV_MAX_DOF 8u
 #endif
 
-/* Nonlinear elements per model (dv_elem.h): the report has one bumper; 4 covers both sides of two. */
+/** Nonlinear elements per model (dv_elem.h): the report has one bumper; 4 covers both sides of two. */
 #ifndef DV_MAX_ELEM
 #define DV_MAX_ELEM 4u
 #endif
 
-/* Linear links per model (dv_link_desc_t): springs and dashpots off the chain, e.g. an
+/** Linear links per model (dv_link_desc_t): springs and dashpots off the chain, e.g. an
  * appendage's mount or a coupling of two DOFs that are not neighbours. */
 #ifndef DV_MAX_LINK
 #define DV_MAX_LINK 4u
 #endif
 
-/* Output channels per model: accelerations of every DOF plus velocities/forces of 8 more. */
+/** Output channels per model: accelerations of every DOF plus velocities/forces of 8 more. */
 #ifndef DV_MAX_OUT
 #define DV_MAX_OUT 16u
 #endif
 
-/* Contact sub-steps per sample: 16 keeps omega_contact * h <= 0.25 for a contact frequency up
+/** Contact sub-steps per sample: 16 keeps omega_contact * h <= 0.25 for a contact frequency up
  * to fs (at 640 Hz, the report's bumper needs 8); more only costs time per step. */
 #ifndef DV_MAX_SUB
 #define DV_MAX_SUB 16u

@@ -16,8 +16,11 @@ extern "C" {
 
 /** @brief Correlation state. Fields are private. */
 typedef struct {
-    dv_real_t mx, my;     /**< running means */
-    dv_real_t cxx, cyy, cxy; /**< running central co-moments */
+    dv_real_t mx; /**< running means (mx) */
+    dv_real_t my; /**< running means (my) */
+    dv_real_t cxx; /**< running central co-moments (cxx) */
+    dv_real_t cyy; /**< running central co-moments (cyy) */
+    dv_real_t cxy; /**< running central co-moments (cxy) */
     uint64_t count;       /**< accepted sample pairs */
     uint64_t n_nonfinite; /**< pairs dropped: x or y NaN/Inf or beyond DV_FEAT_MAX */
 } dv_corr_t;

@@ -359,8 +359,10 @@ dv_status_t dv_model_init_ex(dv_model_t *m, const dv_model_desc_t *d, dv_real_t 
  *        model in a transient area, bind the observers, move the step part out). Bound observers
  *        step on bit for bit; what needs the build matrices (dv_obs_init(), dv_obs_set_gain(),
  *        dv_model_get_mat(), the mode shapes of dv_model_get_modes()) returns DV_EINVAL after.
+ * @param[in,out] m built model
  * @param[in] buf DV_MODEL_STEP_LEN_HOLD() elements, the model's storage or not overlapping it;
  *                must outlive @p m
+ * @param[in] len elements in @p buf
  * @retval DV_OK / DV_EINVAL (NULL, or @p m not built) / DV_ESIZE (@p len too small)
  */
 dv_status_t dv_model_keep_step_only(dv_model_t *m, dv_real_t *buf, size_t len);

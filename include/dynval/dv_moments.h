@@ -42,10 +42,16 @@ typedef struct {
 typedef struct {
     dv_real_t n;        /**< merged samples */
     dv_real_t mean;     /**< merged mean */
-    dv_real_t m2, m3, m4; /**< merged central sums */
+    dv_real_t m2; /**< merged central sums (m2) */
+    dv_real_t m3; /**< merged central sums (m3) */
+    dv_real_t m4; /**< merged central sums (m4) */
     dv_real_t shift;    /**< shift of the open block (the running mean) */
-    dv_real_t s1, s2, s3, s4; /**< shifted power sums of the open block */
-    dv_real_t min, max; /**< extremes so far */
+    dv_real_t s1; /**< shifted power sums of the open block (s1) */
+    dv_real_t s2; /**< shifted power sums of the open block (s2) */
+    dv_real_t s3; /**< shifted power sums of the open block (s3) */
+    dv_real_t s4; /**< shifted power sums of the open block (s4) */
+    dv_real_t min; /**< extremes so far (min) */
+    dv_real_t max; /**< extremes so far (max) */
     uint32_t blk;       /**< samples in the open block, < DV_BLOCK_LEN */
     uint64_t count;     /**< accepted samples */
     uint64_t n_nonfinite; /**< samples dropped: NaN/Inf or |x| > DV_FEAT_MAX */

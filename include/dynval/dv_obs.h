@@ -284,6 +284,7 @@ dv_status_t dv_obs_flush(dv_obs_t *o);
 
 /**
  * @brief Prediction and residual of the last step.
+ * @param[in] o observer
  * @param[out] y_pred  no predicted outputs, or NULL
  * @param[out] resid   no residuals (0 where no finite measurement), or NULL
  * @param[in]  len     elements available in each non-NULL array

@@ -29,17 +29,20 @@ typedef struct {
     uint32_t seg;         /**< index of the open segment in its record */
     uint32_t records;     /**< complete records so far */
     dv_real_t shift;      /**< first sample of the open segment */
-    dv_real_t s1, s2;     /**< shifted sums of the open segment */
+    dv_real_t s1; /**< shifted sums of the open segment (s1) */
+    dv_real_t s2; /**< shifted sums of the open segment (s2) */
     dv_real_t last;       /**< STD of the last completed segment */
     uint64_t n_nonfinite; /**< samples dropped: NaN/Inf or |x| > DV_FEAT_MAX */
 } dv_segstd_t;
 
 /**
  * @brief Bind storage and clear state.
+ * @param[out] s instance
  * @param[in] seg_len samples per segment, >= 2
  * @param[in] n_seg   segments per record, >= 1
  * @param[in] buf     DV_SEGSTD_BUF_LEN(n_seg) elements, must outlive @p s; or NULL with
  *                    @p buf_len 0: keep no vectors (dv_segstd_get() then returns DV_EINVAL)
+ * @param[in] buf_len elements in @p buf
  * @retval DV_OK / DV_EINVAL (NULL @p s, seg_len < 2, n_seg 0, NULL @p buf with @p buf_len > 0) /
  *         DV_ESIZE (@p buf_len too small)
  */
@@ -67,7 +70,9 @@ dv_status_t dv_segstd_last(const dv_segstd_t *s, dv_real_t *std, uint32_t *seg_i
 
 /**
  * @brief Copy the STD vector of the last complete record.
+ * @param[in] s instance
  * @param[out] out  n_seg elements
+ * @param[in] out_len elements in @p out
  * @retval DV_OK / DV_ENOTREADY (no complete record yet, @p out untouched) /
  *         DV_EINVAL (NULL, or @p s keeps no vectors) / DV_ESIZE (@p out_len < n_seg)
  */

@@ -39,12 +39,18 @@ typedef struct {
     dv_real_t dt_s;       /**< sample period, s */
     dv_real_t w;          /**< merged weight (sum x^2) times wsc */
     dv_real_t mean;       /**< merged centroid, samples from record start */
-    dv_real_t m2, m3, m4; /**< merged weighted central sums, samples^k, times wsc */
+    dv_real_t m2;         /**< merged weighted central sum, samples^2, times wsc */
+    dv_real_t m3;         /**< merged weighted central sum, samples^3, times wsc */
+    dv_real_t m4;         /**< merged weighted central sum, samples^4, times wsc */
     dv_real_t wsc;        /**< scale of the merged weights, a power of two (1 unless large or
                                small weights needed it) */
     dv_real_t t0;         /**< start of the open block, samples */
     dv_real_t tau;        /**< local time of the next sample in the open block */
-    dv_real_t s0, s1, s2, s3, s4; /**< sums of w tau^k in the open block */
+    dv_real_t s0; /**< sums of w tau^k in the open block (s0) */
+    dv_real_t s1; /**< sums of w tau^k in the open block (s1) */
+    dv_real_t s2; /**< sums of w tau^k in the open block (s2) */
+    dv_real_t s3; /**< sums of w tau^k in the open block (s3) */
+    dv_real_t s4; /**< sums of w tau^k in the open block (s4) */
     uint32_t blk;         /**< samples in the open block */
     uint64_t count;       /**< accepted samples */
     uint64_t n_nonfinite; /**< samples dropped: NaN/Inf or |x| > DV_FEAT_MAX */
@@ -52,8 +58,11 @@ typedef struct {
 
 /**
  * @brief Clear state.
- * @param[in] dt_s sample period in seconds, 0 < dt_s <= DV_TEMPORAL_MAX_DT_S
- * @retval DV_OK / DV_EINVAL (NULL @p s, @p dt_s NaN or out of range)
+    dv_real_t m2;         /**< merged weighted central sum, samples^2, times wsc */
+    dv_real_t m3;         /**< merged weighted central sum, samples^3, times wsc */
+    dv_real_t m4;         /**< merged weighted central sum, samples^4, times wsc */
+    dv_real_t wsc;        /**< scale of the merged weights, a power of two (1 unless large or
+                               small weights needed it) */
  */
 dv_status_t dv_temporal_init(dv_temporal_t *s, dv_real_t dt_s);
 

@@ -18,14 +18,22 @@ extern "C" {
 #endif
 
 #ifdef DV_REAL_DOUBLE
+/** The sample type: double (DV_REAL_DOUBLE defined), else float. */
 typedef double dv_real_t;
+/** A literal of the sample type: DV_R(0.5) is 0.5 (double) or 0.5f (float). */
 #define DV_R(x) (x)
+/** Machine epsilon of the sample type. */
 #define DV_REAL_EPS 2.220446049250313e-16
+/** Largest finite value of the sample type. */
 #define DV_REAL_MAX 1.7976931348623157e308
 #else
+/** The sample type: float (DV_REAL_DOUBLE not defined), else double. */
 typedef float dv_real_t;
+/** A literal of the sample type: DV_R(0.5) is 0.5f (float) or 0.5 (double). */
 #define DV_R(x) (x##f)
+/** Machine epsilon of the sample type. */
 #define DV_REAL_EPS 1.1920929e-07f
+/** Largest finite value of the sample type. */
 #define DV_REAL_MAX 3.4028235e38f
 #endif
 
@@ -48,21 +56,22 @@ const char *dv_status_str(dv_status_t st);
 /** @brief Size of dv_real_t in bytes (4 or 8): lets bindings check the build they load. */
 size_t dv_real_size(void);
 
-/* Hot-path argument checks: a hook, active in Debug builds only (no abort in release). */
 #ifndef DV_ASSERT
 #if defined(DV_DEBUG_ASSERT)
 #include <assert.h>
+/** Hot-path argument checks: a hook, active in Debug builds only (no abort in release). */
 #define DV_ASSERT(c) assert(c)
 #else
+/** Hot-path argument checks: a hook, active in Debug builds only (no abort in release). */
 #define DV_ASSERT(c) ((void)0)
 #endif
 #endif
 
-/* C99 compile-time check: a negative array size fails the build. (Empty for the cffi cdef,
- * which is the preprocessed headers and has no use for it.) */
 #ifdef DV_CDEF
 #define DV_STATIC_ASSERT(cond, msg)
 #else
+/** C99 compile-time check: a negative array size fails the build. (Empty for the cffi cdef,
+ * which is the preprocessed headers and has no use for it.) */
 #define DV_STATIC_ASSERT(cond, msg) typedef char dv_static_assert_##msg[(cond) ? 1 : -1]
 #endif
 

@@ -18,6 +18,10 @@ int main(void)
     }
     dv_stats_t st;
     if (records != 1 || dv_chan_get_record(&chan, &st, NULL) != DV_OK) return 1;
-    printf("consumer: crest %.6f (sqrt 2 = 1.414214)\n", (double)st.crest);
+#if !DV_VERSION_AT_LEAST(0, 1, 0)
+#error "dynval >= 0.1.0 expected"
+#endif
+    printf("consumer: dynval %s, %zu-byte samples, crest %.6f (sqrt 2 = 1.414214)\n",
+           DV_VERSION_STRING, sizeof(dv_real_t), (double)st.crest);
     return fabs((double)st.crest - 1.4142135623730951) < 1e-4 ? 0 : 1;
 }

@@ -6,6 +6,7 @@ import importlib
 import logging
 import os
 import sys
+import typing
 from collections.abc import Sequence
 
 from dynval import __version__
@@ -18,8 +19,22 @@ COMMANDS = ("features", "simulate", "residual", "replay", "log", "run", "inspect
             "validate", "calibrate", "recover", "convert")
 
 
+# Third-party libraries whose INFO lines ("NumExpr defaulting to 2 threads", font caches) are
+# noise in a dynval run: WARNING and above unless -v.
+QUIET_LIBRARIES = ("matplotlib", "numexpr", "PIL", "asammdf", "canmatrix", "h5py", "pyuff",
+                   "distributed", "fsspec", "can")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the usage-error exit code EXIT_USAGE (its own is 2, dynval's bad input)."""
+
+    def error(self, message: str) -> typing.NoReturn:
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="dynval", description="Structural-dynamics model "
+    p = _Parser(prog="dynval", description="Structural-dynamics model "
                                 "validation: features, replay, logging, validation.")
     p.add_argument("--version", action="version", version=f"dynval {__version__}")
     p.add_argument("-v", "--verbose", action="count", default=0,
@@ -46,16 +61,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         h.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
         root.addHandler(h)
     root.setLevel(level)
+    for name in QUIET_LIBRARIES:
+        logging.getLogger(name).setLevel(logging.WARNING if level >= logging.INFO and
+                                         not args.verbose else logging.NOTSET)
     if not getattr(args, "run", None):
         parser.print_help(sys.stderr)
-        return 2
+        return EXIT_USAGE
     return _run_reporting(args)
 
 
 # exit codes: 2 bad input (a DynvalError, one line naming the file), 3 an internal error (a bug
-# in dynval: one line, --debug shows the traceback), 130 interrupted, 141 stdout closed (the
-# shell's code for a SIGPIPE death, as when piped into `head`)
-EXIT_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_PIPE = 2, 3, 130, 141
+# in dynval: one line, --debug shows the traceback), 64 a usage error (unknown option, missing
+# argument: sysexits' EX_USAGE, argparse's usage line), 130 interrupted, 141 stdout closed (the
+# shell's code for a SIGPIPE death, as when piped into `head`). A command's verdict (a FAIL,
+# an effect found) has its own codes, documented with the command.
+EXIT_INPUT, EXIT_INTERNAL, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_PIPE = 2, 3, 64, 130, 141
 
 
 def _run_reporting(args: argparse.Namespace) -> int:

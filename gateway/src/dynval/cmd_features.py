@@ -23,7 +23,9 @@ TEMPORAL = ("energy", "central_time", "rms_duration")
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser("features", help="per-channel waveform features of a recorded test")
-    p.add_argument("file", type=Path, help="recorded test (CSV with a header: time_s,force_N,...)")
+    p.add_argument("file", type=Path,
+                   help="recorded test: CSV with a header (time_s,force_N,...), text, BRFD JSON, "
+                   "MCAP, UFF 58, MDF 4, HDF5 or MATLAB .mat")
     p.add_argument("--seg-len", type=int, default=64, help="segment length for segmented STD "
                    "(%(default)s)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")

@@ -7,7 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from dynval._core import DV_RECORD, as_doubles, check, ffi, lib, ptr
+from dynval._core import DV_RECORD, check, ffi, lib, ptr
+from dynval._core import as_doubles as _as_doubles
 
 STATS_NO_SHAPE = 0x1
 STATS_NO_CREST = 0x2
@@ -59,6 +60,16 @@ class Temporal:
 
     def as_dict(self) -> dict[str, float]:
         return {k: float(v) for k, v in asdict(self).items()}
+
+
+def as_doubles(x: Any) -> np.ndarray:
+    """One channel as contiguous float64. A 2-D array is refused rather than flattened (its
+    channels would run into one another): pass one column, or numpy.apply_along_axis."""
+    shape = np.shape(x)
+    if len(shape) > 1 and sum(n > 1 for n in shape) > 1:
+        raise ValueError(f"features take one channel (a 1-D array), got shape {shape}: pass "
+                         "x[:, j], or numpy.apply_along_axis(f, axis, x) for each channel")
+    return _as_doubles(x)
 
 
 def _stats(c: Any) -> Stats:
@@ -116,19 +127,28 @@ def sliding_series(x: Any, win_len: int, every: int = 1) -> dict[str, np.ndarray
 
 def segstd(x: Any, seg_len: int = 64, n_seg: int | None = None) -> np.ndarray:
     """STD of each consecutive segment of seg_len samples over one record of n_seg segments
-    (default: as many whole segments as x holds)."""
+    (default: as many whole segments as x holds); with more samples, the last whole record.
+    NaN/Inf samples are dropped, as the core drops them. The core's arithmetic (sums of the
+    samples less each segment's first, added in order) vectorised in numpy: bit-identical to
+    dv_segstd."""
     a = as_doubles(x)
+    a = a[np.isfinite(a)]
     n_seg = a.size // seg_len if n_seg is None else n_seg
-    if n_seg < 1:
-        raise ValueError(f"segstd needs at least one segment of {seg_len} samples, got {a.size}")
-    s = ffi.new("dv_segstd_t *")
-    buf = ffi.new("double[]", 2 * n_seg)
-    check(lib.dv_segstd_init(s, seg_len, n_seg, buf, 2 * n_seg), "dv_segstd_init")
-    for v in a.tolist():
-        lib.dv_segstd_update(s, v)
-    out = np.empty(n_seg)
-    check(lib.dv_segstd_get(s, ptr(out), n_seg), "dv_segstd_get")
-    return out
+    if seg_len < 2 or n_seg < 1:
+        raise ValueError(f"segstd needs at least one segment of {seg_len} >= 2 samples, "
+                         f"got {a.size}")
+    rec = seg_len * n_seg
+    k = a.size // rec
+    if k == 0:
+        raise ValueError(f"segstd needs a record of {n_seg} x {seg_len} samples, got {a.size}")
+    seg = a[(k - 1) * rec: k * rec].reshape(n_seg, seg_len)
+    with np.errstate(over="ignore", invalid="ignore"):  # Inf/NaN as the core gives them
+        d = np.ascontiguousarray((seg - seg[:, :1]).T)  # (seg_len, n_seg): rows added in order
+        s1 = np.cumsum(d, axis=0)[-1]  # cumsum adds in order, as the core does (sum: pairwise)
+        s2 = np.cumsum(d * d, axis=0)[-1]
+        n = float(seg_len)
+        var = (s2 - s1 * s1 / n) / n
+        return np.asarray(np.sqrt(np.where(var > 0.0, var, 0.0)), dtype=np.float64)
 
 
 def temporal(x: Any, dt_s: float) -> Temporal:

@@ -3,8 +3,10 @@ InputFileError naming the file, line and column (or, with lenient=True, recovera
 are counted in Recording.warnings and logged — never silently dropped).
 
 Formats: CSV with a header (.csv), whitespace text with a given rate (.txt/.dat/.asc, --fs),
-the BRFD JSON layout (.json), the DROPBEAR LabVIEW text (.txt with its header) and MCAP files
-written by dynval (.mcap). A channel map (io.channelmap) selects, renames and scales."""
+the BRFD JSON layout (.json), the DROPBEAR LabVIEW text (.txt with its header), MCAP files
+written by dynval (.mcap), and the test engineers' formats of io.formats: UFF 58 (.uff, .unv),
+MDF 4 (.mf4, .mdf), HDF5 (.h5, .hdf5, .hdf), MATLAB (.mat); a pandas DataFrame through
+read_dataframe. A channel map (io.channelmap) selects, renames and scales."""
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -15,14 +17,27 @@ from dynval.io.brfd import looks_like_brfd, read_brfd
 from dynval.io.channelmap import ChannelMap, apply_channel_map, load_channel_map
 from dynval.io.csvfile import read_csv
 from dynval.io.dropbear import looks_like_dropbear, read_dropbear
+from dynval.io.formats import (
+    HDF5_SUFFIXES,
+    MAT_SUFFIXES,
+    MDF_SUFFIXES,
+    UFF_SUFFIXES,
+    read_dataframe,
+    read_hdf5,
+    read_mat,
+    read_mdf,
+    read_uff,
+)
 from dynval.io.recording import Channel, Recording
 from dynval.io.text import read_text
 
 __all__ = ["Channel", "ChannelMap", "Recording", "apply_channel_map", "collect_tests",
-           "load_channel_map", "read_brfd", "read_csv", "read_dropbear", "read_test",
-           "read_text", "TEST_SUFFIXES"]
+           "load_channel_map", "read_brfd", "read_csv", "read_dataframe", "read_dropbear",
+           "read_hdf5", "read_mat", "read_mdf", "read_test", "read_text", "read_uff",
+           "TEST_SUFFIXES"]
 
-TEST_SUFFIXES = (".csv", ".txt", ".dat", ".asc", ".json", ".mcap")
+TEST_SUFFIXES = (".csv", ".txt", ".dat", ".asc", ".json", ".mcap", *UFF_SUFFIXES,
+                 *MDF_SUFFIXES, *HDF5_SUFFIXES, *MAT_SUFFIXES)
 NOT_TESTS = ("meta.json", "declared_model.json")  # names (or name endings) in test folders
 
 
@@ -63,6 +78,14 @@ def read_test(path: Path | str, *, lenient: bool = False, fs_hz: float | None = 
         from dynval.io.mcapfile import read_mcap
 
         rec = read_mcap(p, lenient=lenient)
+    elif suf in UFF_SUFFIXES:
+        rec = read_uff(p, lenient=lenient)
+    elif suf in MDF_SUFFIXES:
+        rec = read_mdf(p, lenient=lenient)
+    elif suf in HDF5_SUFFIXES:
+        rec = read_hdf5(p, lenient=lenient)
+    elif suf in MAT_SUFFIXES:
+        rec = read_mat(p, lenient=lenient)
     elif suf in (".txt", ".dat", ".asc"):
         from dynval.canlog import is_vector_asc
 
