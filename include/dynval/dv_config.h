@@ -14,7 +14,7 @@
 #define DV_BLOCK_LEN 64u
 #endif
 
-/* Largest |x| the waveform features (moments, sliding window, segmented STD, temporal moments,
+/** Largest |x| the waveform features (moments, sliding window, segmented STD, temporal moments,
  * the channel bundle, correlation) accept; a larger sample is dropped and counted like NaN/Inf
  * (DV_ENUMERIC). Bound: the fourth power of a deviation (at most 2 DV_FEAT_MAX) summed over the
  * longest sliding window (2^24 samples) must stay finite, and so must a record's fourth central

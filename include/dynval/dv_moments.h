@@ -69,6 +69,7 @@ void dv_moments_reset(dv_moments_t *s);
 
 /**
  * @brief Add one sample.
+ * @param[in,out] s instance
  * @param[in] x sample, |x| <= DV_FEAT_MAX (dv_config.h: 2^24 float, 2^200 double), units of x
  * @retval DV_OK       added
  * @retval DV_ENUMERIC @p x is NaN/Inf or |x| > DV_FEAT_MAX: dropped, counted in n_nonfinite,

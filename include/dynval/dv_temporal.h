@@ -58,11 +58,9 @@ typedef struct {
 
 /**
  * @brief Clear state.
-    dv_real_t m2;         /**< merged weighted central sum, samples^2, times wsc */
-    dv_real_t m3;         /**< merged weighted central sum, samples^3, times wsc */
-    dv_real_t m4;         /**< merged weighted central sum, samples^4, times wsc */
-    dv_real_t wsc;        /**< scale of the merged weights, a power of two (1 unless large or
-                               small weights needed it) */
+ * @param[out] s instance
+ * @param[in] dt_s sample period in seconds, 0 < dt_s <= DV_TEMPORAL_MAX_DT_S
+ * @retval DV_OK / DV_EINVAL (NULL @p s, @p dt_s NaN or out of range)
  */
 dv_status_t dv_temporal_init(dv_temporal_t *s, dv_real_t dt_s);
 
