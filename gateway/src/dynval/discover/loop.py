@@ -335,10 +335,9 @@ def _a_force_instead(s: _Session, cur: mdl.Model, res: dict[str, dict[str, np.nd
     (``held_offsets``), or None. On a free body a force offset shifts every accelerometer's
     mean alike: an offset per channel would hide one physical force."""
     amount = _probe_amount(cur, s)
-    base = {t.name: rs.predict(cur, t) for t in s.fit_t}
     best: tuple[float, str] | None = None
     for cand in fx.catalogue(cur, quiet=True):
-        reg = _probe_regression(s, cur, cand, amount, base, res)
+        reg = _probe_regression(s, cur, cand, amount, res)
         if reg is None or reg[0] <= 0.0:
             continue
         try:
@@ -352,21 +351,21 @@ def _a_force_instead(s: _Session, cur: mdl.Model, res: dict[str, dict[str, np.nd
 
 
 def _probe_regression(s: _Session, cur: mdl.Model, cand: fx.Candidate, amount: float,
-                      base: dict[str, dict[str, np.ndarray] | None],
                       res: dict[str, dict[str, np.ndarray]]) -> tuple[float, float] | None:
     """For an effect judged by probing: (share of the fitting tests' normalised residual the
     change of the predictions under ``amount`` of it explains, the least-squares multiple of
-    ``amount``); None for the effects the views judge."""
+    ``amount``); None for the effects the views judge. ``res``: the current model's residuals
+    y - p, so its predictions are y - res (not simulated again)."""
     pm = fx.by_type(cand.type).probe(cur, cand, amount)
     if pm is None:
         return None
     num = den = rr = 0.0
     for t in s.fit_t:
-        p0, p1, r = base[t.name], rs.predict(pm, t), res.get(t.name)
-        if p0 is None or p1 is None or r is None:
+        p1, r = rs.predict(pm, t), res.get(t.name)
+        if p1 is None or r is None:
             continue
         for c in s.chans:
-            d = t.counted(p1[c] - p0[c]) / s.scales[c]
+            d = t.counted(p1[c] - (t.y[c] - r[c])) / s.scales[c]
             rc = t.counted(r[c]) / s.scales[c]
             num, den, rr = num + float(d @ rc), den + float(d @ d), rr + float(rc @ rc)
     if den <= 0 or rr <= 0:
@@ -693,10 +692,9 @@ def _probe_evidence(s: _Session, cur: mdl.Model, evidence: list[tr.Evidence],
     effect explains (first order), and the amount that explains it. The predictions are the
     tests' own (the observer's in observer mode)."""
     amount = _probe_amount(cur, s)
-    base = {t.name: rs.predict(cur, t) for t in s.fit_t}
     out = []
     for e in evidence:
-        reg = _probe_regression(s, cur, e.cand, amount, base, res)
+        reg = _probe_regression(s, cur, e.cand, amount, res)
         out.append(e if reg is None else
                    tr.Evidence(e.cand, reg[0], reg[1] * amount, {"probe": amount}))
     return out
