@@ -19,6 +19,7 @@ from dynval import model as mdl
 from dynval import synth as gen
 from dynval.discover import loop
 from dynval.discover import residual as rs
+from dynval.errors import ConfigError
 from dynval.model.structure import with_appendage
 
 
@@ -71,3 +72,20 @@ def test_with_appendage_adds_the_mode_of_the_closed_form() -> None:
     ca = 2 * 0.05 * 0.2 * 2 * np.pi * 25.0
     np.testing.assert_allclose(mdl.linear(a).c, [[c0 + ca, -ca], [-ca, ca]], rtol=1e-12)
     assert mdl.from_dict(mdl.to_dict(a)).links == a.links  # the file keeps the link
+
+
+@pytest.mark.parametrize(("link", "where"), [
+    ({"between": [1, 1], "k_n_per_m": 1e3}, r"links\[0\]\.between"),
+    ({"between": [0, 2], "k_n_per_m": 1e3}, r"links\[0\]\.between"),
+    ({"between": [1, 2], "k_n_per_m": -1.0}, r"links\[0\]\.k_n_per_m.*>= 0"),
+    ({"between": [1, 2], "k_n_per_m": float("nan")}, r"links\[0\]\.k_n_per_m.*finite"),
+    ({"between": [1, 2], "k_n_per_m": 1e3, "c_n_s_per_m": "x"}, r"links\[0\]\.c_n_s_per_m"),
+    ({"between": [1, 2], "k_n_per_m": 1e3, "c_ns_per_m": 1.0}, r"did you mean 'c_n_s_per_m'"),
+])
+def test_a_bad_link_is_refused_naming_its_field(link: dict[str, object], where: str) -> None:
+    d = {"format": mdl.FORMAT, "masses_kg": [1.0, 0.2], "stiffness_n_per_m": [1e4, 0.0],
+         "damping": {"type": "modal", "zeta": [0.02, 0.02]},
+         "input": {"kind": "force", "dof": 1}, "outputs": {"a": {"kind": "acc", "dof": 1}},
+         "links": [link]}
+    with pytest.raises(ConfigError, match=where):
+        mdl.from_dict(d)
