@@ -9,7 +9,18 @@ It is taken from what the data offers, best evidence first, and the method is re
    the output one period apart (the first period, the start-up transient, left out);
 4. ``input off``: stretches where the input is off (pre-trigger, run-out) once the response
    has died away: the output there is noise (hum and offset included);
-5. ``out of band``: the declared model's residual outside the input band (where its
+5. ``cross-channel``: with three sensors or more, the residual's part coherent with the input
+   (a linear parameter error) is removed, and at each frequency the rest is split into what
+   the channels share (a missing force, whatever its law, drives every sensor through the
+   structure: a few sources) and what each channel has alone (sensor and DAQ noise, which is
+   independent per channel): a factor analysis of the residual's cross-spectral matrix, the
+   method of the three-channel self-noise test of seismometers generalised to p channels.
+   It holds in band and out of it, for any noise colour, anti-alias filter or effect that
+   spreads energy outside the input band (friction's jumps, an appendage's resonance), where
+   the out-of-band view counts that energy as noise. Noise shared by the channels (a common
+   ground loop) is counted as structure: the floor then reads low and the held-out guard
+   rejects what noise cannot explain;
+6. ``out of band``: the declared model's residual outside the input band (where its
    prediction errors are small) is noise; across the band its PSD is interpolated as a power
    law between the two sides, so 1/f noise counts at its in-band level; where the upper side
    may be rolled off by an anti-alias filter, the level below the band is used flat. On a
@@ -66,19 +77,42 @@ def estimate(tests: Sequence[Test], chans: Sequence[str],
     out: dict[str, Floor] = {}
     # the input of each residual record, by record (the residuals are keyed by record)
     by_record = {str(id(t.u)): t.u for t in tests}
+    keys = list(residuals)
+    inputs = [by_record.get(k, tests[0].u) for k in keys]
+    shared = cross_channel([residuals[k] for k in keys], inputs, chans, tests[0].fs_hz)
+    if shared is not None:  # the input sensor's noise reaches every channel through the model
+        by_test = {str(id(t.u)): t for t in tests}
+        via_input = input_noise_response([by_test[k] for k in keys if k in by_test],
+                                         [residuals[k] for k in keys if k in by_test], shared)
+        shared = {c: v + via_input.get(c, 0.0) for c, v in shared.items()}
     for c in chans:
-        keys = [k for k, r in residuals.items() if c in r]
         if stated and c in stated:
             out[c] = Floor(float(stated[c]), "stated", "given by the user")
             continue
+        mine = [k for k in keys if c in residuals[k]]
         floor = (from_repeats(tests, c) or from_periods(tests, c)
                  or from_input_off(tests, c, settle_s)
-                 or spectral([residuals[k][c] for k in keys], tests[0].fs_hz, band_hz,
-                             [by_record.get(k, tests[0].u) for k in keys]))
+                 or _cross_floor(shared, c, [residuals[k][c] for k in mine],
+                                 [by_record.get(k, tests[0].u) for k in mine], tests[0].fs_hz)
+                 or spectral([residuals[k][c] for k in mine], tests[0].fs_hz, band_hz,
+                             [by_record.get(k, tests[0].u) for k in mine]))
         out[c] = floor
         log.info("noise floor of %s: %.4g (%s%s)", c, floor.rms, floor.method,
                  f"; {floor.detail}" if floor.detail else "")
     return out
+
+
+def _cross_floor(shared: Mapping[str, float] | None, c: str, res: Sequence[np.ndarray],
+                 inputs: Sequence[np.ndarray], fs_hz: float) -> Floor | None:
+    """Method 5's floor of one channel, with the mains hum (shared by the channels, so counted
+    as structure by the factor model) added back."""
+    if shared is None or c not in shared:
+        return None
+    hum, lines = mains_hum(res, inputs, fs_hz)
+    with_hum = f"; plus mains hum at {', '.join(f'{x:g}' for x in lines)} Hz" if lines else ""
+    return Floor(math.sqrt(shared[c] + hum), "cross-channel",
+                 "the residual's part no other channel shares and the input does not explain "
+                 "(noise is independent per sensor, a missing effect drives them all)" + with_hum)
 
 
 def _corr(a: np.ndarray, b: np.ndarray) -> float:
@@ -174,6 +208,112 @@ def from_input_off(tests: Sequence[Test], c: str, settle_s: float) -> Floor | No
     v = np.concatenate(parts)
     return Floor(float(np.sqrt(np.mean(v * v))), "input off",
                  f"{v.size} samples where the input is off and the response has died away")
+
+
+CROSS_MIN_CHANNELS = 3  # a shared source and each channel's own noise are told apart from 3
+CROSS_SEG = 2048  # at most this many samples per spectral segment (half-overlapping, Hann):
+# long ones keep the slow part of 1/f noise (a third of it lies below 1.25 Hz in an 8192-sample
+# record at 640 Hz), 8 segments a record at least keep the estimate's scatter down
+
+
+def _segment_spectra(x: np.ndarray, seg: int) -> np.ndarray:
+    """Hann-windowed FFTs of half-overlapping segments of the rows of ``x`` (channels x
+    samples): (channels, segments, frequencies), scaled so that the mean of |X|^2 summed over
+    the one-sided frequencies is each row's variance."""
+    w = np.hanning(seg)
+    frames = np.lib.stride_tricks.sliding_window_view(x, seg, axis=1)[:, ::seg // 2, :]
+    frames = frames - frames.mean(axis=2, keepdims=True)
+    spec = np.fft.rfft(frames * w, axis=2) * math.sqrt(2.0 / float(np.sum(w * w)) / seg)
+    spec[:, :, 0] /= math.sqrt(2.0)
+    return spec
+
+
+def _unique_power(s: np.ndarray, q: int, iters: int = 60) -> np.ndarray:
+    """Each channel's own power at each frequency: the diagonal D with S - D of rank q and
+    positive semi-definite (principal-axis factor analysis of Hermitian matrices; S is
+    frequencies x channels x channels). D stays within [0, diag S]. It starts from each
+    channel's part the others cannot predict (1 / (S^-1)_ii, an upper bound of its own
+    power), so a channel with no shared part keeps all its power."""
+    diag = np.real(np.einsum("fii->fi", s))
+    inv = np.linalg.pinv(s, hermitian=True)
+    d = np.clip(1.0 / np.maximum(np.real(np.einsum("fii->fi", inv)), 1e-300), 0.0, diag)
+    for _ in range(iters):
+        a = s - d[:, :, None] * np.eye(s.shape[1])[None]
+        val, vec = np.linalg.eigh(a)
+        val = np.clip(val[:, -q:], 0.0, None)
+        shared = np.einsum("fiq,fq,fiq->fi", vec[:, :, -q:], val, np.conj(vec[:, :, -q:])).real
+        d = np.clip(diag - shared, 0.0, diag)
+    return d
+
+
+def shared_sources(p: int) -> int:
+    """How many shared sources a factor model of p channels can hold and still tell each
+    channel's own noise apart ((p - q)^2 >= p + q): 1 for 3-4 channels, 2 for 5-6."""
+    q = 1
+    while (p - q - 1) ** 2 >= p + q + 1:
+        q += 1
+    return q
+
+
+def cross_channel(res: Sequence[Mapping[str, np.ndarray]], inputs: Sequence[np.ndarray],
+                  chans: Sequence[str], fs_hz: float) -> dict[str, float] | None:
+    """Noise variance of each channel from the part of the residuals no other channel shares
+    and the input does not explain (the module comment, method 5); None with fewer than
+    CROSS_MIN_CHANNELS channels or records too short for 8 segments."""
+    use = [c for c in chans if all(c in r for r in res)]
+    if len(use) < CROSS_MIN_CHANNELS or not res:
+        return None
+    n = min(min(r[c].size for c in use) for r in res)
+    seg = min(CROSS_SEG, 1 << int(math.log2(max(n // 8, 2))))
+    if seg < 64:
+        return None
+    acc = None
+    for r, u in zip(res, inputs, strict=True):
+        x = np.vstack([np.asarray(r[c][:n], dtype=float) for c in use]
+                      + [np.asarray(u[:n], dtype=float)])
+        spec = _segment_spectra(x, seg)
+        part = np.einsum("isf,jsf->fij", spec, np.conj(spec))
+        acc = part if acc is None else acc + part
+    assert acc is not None
+    p = len(use)
+    s_rr, s_ru, s_uu = acc[:, :p, :p], acc[:, :p, p], np.real(acc[:, p, p])
+    keep = s_uu > 1e-12 * max(float(np.max(s_uu)), 1e-300)
+    cond = s_rr.copy()
+    cond[keep] -= (s_ru[keep, :, None] * np.conj(s_ru[keep, None, :])) / s_uu[keep, None, None]
+    segs = len(res) * ((n - seg) // (seg // 2) + 1)
+    own = _unique_power(cond[1:] / segs, shared_sources(p))  # the mean (offset) bin left out
+    return {c: float(np.sum(own[:, i])) for i, c in enumerate(use)}
+
+
+INPUT_QUIET = 1e-2  # the input's quietest band must lie this far below its loudest to be noise
+
+
+def input_noise_response(tests: Sequence[Test], res: Sequence[Mapping[str, np.ndarray]],
+                         chans: Sequence[str]) -> dict[str, float]:
+    """Variance each channel gets from the input sensor's own noise (the true model driven by
+    the measured input leaves it; a factor model counts it as structure: it reaches every
+    channel). The input noise is taken white at the level of the input's quietest band
+    (smoothed PSD minimum), where the excitation is off; it reaches a channel through the
+    model's gain, the prediction's PSD over the input's. Nothing when the input has no band
+    INPUT_QUIET below its loudest (full-band excitation: its noise cannot be told apart)."""
+    seg = 512
+    if not tests or min(t.u.size for t in tests) < 4 * seg:
+        return {}
+    fs = tests[0].fs_hz
+    s_uu = np.mean([signal.welch(t.u, fs=fs, nperseg=seg)[1] for t in tests], axis=0)[1:]
+    smooth = np.array([np.median(s_uu[max(0, i - 4):i + 5]) for i in range(s_uu.size)])
+    level = float(np.min(smooth))
+    if not level < INPUT_QUIET * float(np.max(smooth)):
+        return {}
+    out: dict[str, float] = {}
+    df = fs / seg
+    for c in chans:
+        pred = [t.y[c] - r[c] for t, r in zip(tests, res, strict=True) if c in r and c in t.y]
+        if len(pred) != len(tests):
+            continue
+        s_pp = np.mean([signal.welch(p, fs=fs, nperseg=seg)[1] for p in pred], axis=0)[1:]
+        out[c] = float(np.sum(s_pp / np.maximum(s_uu, 1e-300)) * level * df)
+    return out
 
 
 def _level(f: np.ndarray, p: np.ndarray, lo: float, hi: float) -> float | None:
