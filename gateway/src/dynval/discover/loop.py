@@ -435,11 +435,12 @@ def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
         return pool
     top = max((e.r2 for e in pool), default=0.0)
     chosen = _diverse([e for e in pool if e.r2 >= s.o.evidence_cut * top], s.o.top_k)
-    if rd.view.propagate is not None:
-        # the output view's evidence is first order: a linear change that shifts a resonance
-        # by more than its bandwidth can rank low; screen them all
-        chosen += _screen_linear(cur, [e for e in pool if e not in chosen], s.fit_t, s.chans,
-                                 s.scales, cur_table.total(s.fit_names))
+    # evidence is first order (the output view) or taken through integrated accelerations
+    # (the force view, where a DAQ's 1/f noise swamps the low frequencies): a linear change
+    # that shifts a resonance by more than its bandwidth can rank low; screen them all (one
+    # simulation per grid point)
+    chosen += _screen_linear(cur, [e for e in pool if e not in chosen], s.fit_t, s.chans,
+                             s.scales, cur_table.total(s.fit_names))
     return chosen
 
 
