@@ -349,6 +349,9 @@ def test_validate_reads_the_two_pieces_of_evidence_together() -> None:
     assert "bias the scatter hides" in vd.agreement(_verdict("FAIL", 3.0))
     assert vd.agreement(_verdict("PASS", 3.0)).endswith("the paired test agrees: PASS")
     assert "size, not a test" in vd.agreement(_verdict("INCONCLUSIVE", 3.0))
+    # 2 tests for 4 features: a singular baseline gives a negative "distance" (-2.2e15 was
+    # reported as inside the scatter)
+    assert "not usable" in vd.agreement(_verdict("INCONCLUSIVE", -2.2e15))
 
 
 def test_calibrate_nominal_check_is_marked_as_not_the_verdict() -> None:

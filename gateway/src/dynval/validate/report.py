@@ -127,6 +127,13 @@ def plot_mahalanobis(a: Artifacts) -> Any:
                     mec="black", mew=0.5, ms=12, label=f"{a.model_label} model")
     if math.isfinite(a.threshold):
         ax.axhline(a.threshold, ls="--", color="gray", lw=1, label="95 % threshold")
+    hidden = sum(int(np.sum(~(np.asarray(d) > 0))) for d in (a.d_exp, a.d_heldout_exp,
+                                                              a.d_runs, a.d_model)
+                 if d is not None)
+    if hidden:  # a log axis drops them silently; a singular baseline makes them negative
+        ax.text(0.01, 0.02, f"{hidden} distance(s) <= 0 or undefined not drawn (a singular "
+                "baseline covariance: too few tests)", transform=ax.transAxes, fontsize=8,
+                color=plot.WORST)
     ax.set_xlabel("experiment / run number")
     ax.set_ylabel("Mahalanobis distance D (eq. 39, no unit)")
     ax.grid(True, which="both", alpha=0.3)

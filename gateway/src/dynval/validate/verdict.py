@@ -79,10 +79,16 @@ def agreement(v: dict[str, Any]) -> str:
     """How the two pieces of evidence read with the verdict, so that a PASS beside a
     distance outside the scatter (or a FAIL inside it) is explained, not left to the reader."""
     mh = v["evidence"]["mahalanobis"]
+    word = v["verdict"]
+    if not (_finite(mh["median_d"]) and mh["median_d"] >= 0):
+        # a quadratic form below zero: the baseline covariance of a few tests is singular
+        return (f"the Mahalanobis distance is not usable (median D {mh['median_d']:.4g}: the "
+                "baseline covariance of these few tests is singular); "
+                + ("no verdict without the paired test" if word == "INCONCLUSIVE" else
+                   f"the verdict is the paired test's: {word}"))
     inside = bool(mh["median_d"] <= mh["threshold"])
     where = (f"the model's features lie {'inside' if inside else 'outside'} the test-to-test "
              f"scatter (median D {mh['median_d']:.4g} vs limit {mh['threshold']:.4g})")
-    word = v["verdict"]
     if word == "INCONCLUSIVE":
         return (f"{where}, but the distance is a size, not a test: no verdict without the "
                 "paired test")
