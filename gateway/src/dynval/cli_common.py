@@ -184,10 +184,10 @@ def write_study_reports(args: argparse.Namespace, res: Any, art: Any) -> None:
 
     if args.json_out:
         report.write_json(res, args.json_out)
-        log.info("wrote %s", args.json_out)
+        log.info("wrote %s (JSON report)", args.json_out)
     if args.html_out:
         report.write_html(res, art, args.html_out)
-        log.info("wrote %s", args.html_out)
+        log.info("wrote %s (HTML report)", args.html_out)
 
 
 def runner_for(args: argparse.Namespace) -> Any:

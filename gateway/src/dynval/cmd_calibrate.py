@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     write_study_reports(args, res, art)
     if args.model_out:
         mdl.save(m_cal, args.model_out)
-        log.info("wrote the calibrated model %s", args.model_out)
+        log.info("wrote %s (calibrated model)", args.model_out)
     for meth, post in res["posterior"].items():
         for n, v in post["parameters"].items():
             print(f"{meth:>6} {n:<16} {v['mean']:.6g} +/- {v['std']:.3g}  "

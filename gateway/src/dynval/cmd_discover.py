@@ -64,13 +64,20 @@ def run(args: argparse.Namespace) -> int:
         for rec in recs:  # a declared model that diverges on a test: the element and the file
             mdl.simulate_recording(m, rec)
         raise
+    units = {c.name: c.unit for rec in recs for c in rec.channels if c.unit}
+    doc = report.to_json(res, str(args.model), str(args.model_out or ""), units=units)
+    written = {what: str(path) for what, path in (
+        ("updated model", args.model_out), ("JSON report", args.json),
+        ("HTML report", args.html)) if path is not None}
     if args.model_out is not None:
         mdl.save(res.model, args.model_out)
-    doc = report.to_json(res, str(args.model), str(args.model_out or ""))
+        log.info("wrote %s (updated model)", args.model_out)
     if args.json is not None:
         report.write_json(doc, args.json)
+        log.info("wrote %s (JSON report)", args.json)
     if args.html is not None:
-        report.write_html(res, doc, args.html)
+        report.write_html(res, doc, args.html, written=written)
+        log.info("wrote %s (HTML report)", args.html)
     print(doc["verdict"])
     for e in doc["effects"]:
         ps = ", ".join(f"{k} = {v['value']:.5g} +/- {v['uncertainty'] or float('nan'):.2g} "

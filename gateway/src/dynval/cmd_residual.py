@@ -25,6 +25,7 @@ def add_parser(sub: Any) -> None:
 
 def compute(model_path: Path, recs: list[Recording],
             oversample: int | None = None) -> dict[str, Any]:
+    from dynval import labels
     from dynval import model as mdl
 
     m = mdl.load(model_path)
@@ -32,6 +33,9 @@ def compute(model_path: Path, recs: list[Recording],
     for rec in recs:
         r = mdl.residual(m, rec, oversample=oversample).summary()
         r["file"] = str(rec.source or rec.name)
+        units = labels.channel_labels(r["channels"], m, [rec])
+        for c, v in r["channels"].items():  # rmse and rms_measured are in the channel's unit
+            v["unit"] = units[c].unit
         res.append(r)
     return {"model": str(model_path), "tests": res}
 
@@ -47,9 +51,9 @@ def run(args: argparse.Namespace) -> int:
     for t in res["tests"]:
         print(f"{t['file']}: {t['n_samples']} samples at {t['fs_hz']:g} Hz")
         width = max(12, *(len(c) for c in t["channels"]))
-        print(f"  {'channel':<{width}} {'rmse':>12} {'nrmse_%':>9} {'rms_meas':>12} "
-              f"{'samples':>9}")
+        print(f"  {'channel':<{width}} {'unit':<6} {'rmse':>12} {'nrmse_%':>9} "
+              f"{'rms_meas':>12} {'samples':>9}")
         for c, v in t["channels"].items():
-            print(f"  {c:<{width}} {v['rmse']:>12.5g} {100 * v['nrmse']:>9.3f} "
+            print(f"  {c:<{width}} {v['unit']:<6} {v['rmse']:>12.5g} {100 * v['nrmse']:>9.3f} "
                   f"{v['rms_measured']:>12.5g} {v['n_used']:>9}")
     return 0

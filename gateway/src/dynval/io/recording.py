@@ -66,6 +66,12 @@ def split_unit(column: str) -> tuple[str, str]:
     return column, _UNITS[m.group("unit")]
 
 
+def base_name(column: str) -> str:
+    """'acc1_mps2' -> 'acc1': the column without a known unit suffix."""
+    m = _UNIT_SUFFIX.match(column)
+    return column if m is None else m.group("name")
+
+
 def default_role(column: str) -> str:
     """Forces and prescribed motions are inputs by default; everything else an output."""
     low = column.lower()

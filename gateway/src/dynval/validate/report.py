@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from dynval import labels as lb
+from dynval import plotting as plot
 from dynval.errors import ConfigError, InputFileError
 from dynval.validate import verdict as verdict_mod
 from dynval.validate.study import Artifacts
@@ -46,12 +48,10 @@ def write_json(result: dict[str, Any], path: Path | str) -> None:
 
 def _plt() -> Any:
     try:
-        mpl = importlib.import_module("matplotlib")
+        return plot.pyplot()
     except ImportError as exc:
         raise ConfigError("the HTML report needs matplotlib (pip install "
                           "'dynval[validate]')") from exc
-    mpl.use("Agg")
-    return importlib.import_module("matplotlib.pyplot")
 
 
 def _png(fig: Any) -> str:
@@ -61,9 +61,43 @@ def _png(fig: Any) -> str:
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
+# line colour of each overlay, by role (plotting's convention: green best, red worst)
+OVERLAY_COLOURS = {"measured": plot.MEASURED, "nominal": plot.NEUTRAL,
+                   "calibrated": plot.MODEL, "best run": plot.BEST, "worst run": plot.WORST}
+
+
+def _label(a: Artifacts, ch: str) -> lb.ChannelLabel:
+    return a.labels.get(ch) or lb.channel_labels([ch])[ch]
+
+
+def param_axis(a: Artifacts, j: int) -> str:
+    """'k3 (N/m)'; a dimensionless parameter (zeta) goes bare."""
+    u = lb.pretty_unit(a.param_units[j]) if j < len(a.param_units) else ""
+    return f"{a.param_names[j]} ({u})" if u else a.param_names[j]
+
+
+def score_axis(a: Artifacts) -> str:
+    """The y label of the per-run accuracy: an RMSE in the channel's unit (one channel), or
+    the normalised RMSE (RMSE / measured RMS, no unit) combined over several."""
+    chans = list(a.labels) or [a.overlay_channel]
+    if len(chans) == 1:
+        lab = _label(a, chans[0])
+        return f"RMSE of {lab.short} ({lab.unit_text})"
+    return "normalised RMSE (no unit)"
+
+
+def score_caption(a: Artifacts) -> str:
+    chans = list(a.labels) or [a.overlay_channel]
+    if len(chans) == 1:
+        return f"RMSE (eq. 47) of {_label(a, chans[0]).title} of each run"
+    return ("Normalised RMSE of each run: the RMS over " + ", ".join(
+        _label(a, c).short for c in chans) + " of each channel's RMSE (eq. 47) divided by its "
+        "measured RMS")
+
+
 def plot_mahalanobis(a: Artifacts) -> Any:
-    """Report Fig. 74-79 style: experiments (blue), simulation runs (black), best / worst
-    RMSE runs (red / green circles), the model (green stars), the threshold (dashed)."""
+    """Report Fig. 74-79 style: experiments (blue), simulation runs (black), lowest / highest
+    RMSE runs (green / red circles), the model (purple stars), the threshold (dashed)."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(8, 4.2))
     n_e = 0
@@ -81,47 +115,56 @@ def plot_mahalanobis(a: Artifacts) -> Any:
         idx = np.arange(off + 1, off + a.d_runs.size + 1)
         ax.semilogy(idx, a.d_runs, ".", color="black", ms=4, label="simulation runs")
         if a.best:
-            ax.semilogy(idx[a.best], a.d_runs[a.best], "o", mfc="none", mec="red", ms=9,
+            ax.semilogy(idx[a.best], a.d_runs[a.best], "o", mfc="none", mec=plot.BEST, ms=9,
                         mew=1.4, label=f"lowest {len(a.best)} RMSE")
         if a.worst:
-            ax.semilogy(idx[a.worst], a.d_runs[a.worst], "o", mfc="none", mec="green", ms=9,
+            ax.semilogy(idx[a.worst], a.d_runs[a.worst], "o", mfc="none", mec=plot.WORST, ms=9,
                         mew=1.4, label=f"highest {len(a.worst)} RMSE")
         off += a.d_runs.size
     if a.d_model is not None:
         k = a.d_model.size
-        ax.semilogy(np.arange(off + 1, off + k + 1), a.d_model, "*", color="limegreen",
-                    mec="darkgreen", ms=12, label=f"{a.model_label} model")
+        ax.semilogy(np.arange(off + 1, off + k + 1), a.d_model, "*", color=plot.MODEL,
+                    mec="black", mew=0.5, ms=12, label=f"{a.model_label} model")
     if math.isfinite(a.threshold):
         ax.axhline(a.threshold, ls="--", color="gray", lw=1, label="95 % threshold")
+    hidden = sum(int(np.sum(~(np.asarray(d) > 0))) for d in (a.d_exp, a.d_heldout_exp,
+                                                              a.d_runs, a.d_model)
+                 if d is not None)
+    if hidden:  # a log axis drops them silently; a singular baseline makes them negative
+        ax.text(0.01, 0.02, f"{hidden} distance(s) <= 0 or undefined not drawn (a singular "
+                "baseline covariance: too few tests)", transform=ax.transAxes, fontsize=8,
+                color=plot.WORST)
     ax.set_xlabel("experiment / run number")
-    ax.set_ylabel("Mahalanobis distance D (eq. 39)")
+    ax.set_ylabel("Mahalanobis distance D (eq. 39, no unit)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=4)
+    plot.untangle_ticks(fig)
     return fig
 
 
 def plot_space(a: Artifacts) -> Any:
-    """Sampled parameter space (first two parameters) with the best / worst runs and the
-    calibrated point (Fig. 71, 83, 89)."""
+    """Sampled parameter space (first two parameters) with the lowest / highest RMSE runs and
+    the calibrated point (Fig. 71, 83, 89)."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(5.2, 4.4))
     assert a.x is not None
     j1 = 1 if a.x.shape[1] > 1 else 0
     ax.plot(a.x[:, 0], a.x[:, j1], ".", color="tab:blue", ms=4, label="design")
     if a.best:
-        ax.plot(a.x[a.best, 0], a.x[a.best, j1], "o", mfc="none", mec="red", ms=8,
-                label="lowest RMSE")
+        ax.plot(a.x[a.best, 0], a.x[a.best, j1], "o", mfc="none", mec=plot.BEST, ms=8,
+                mew=1.4, label="lowest RMSE")
     if a.worst:
-        ax.plot(a.x[a.worst, 0], a.x[a.worst, j1], "o", mfc="none", mec="green", ms=8,
-                label="highest RMSE")
+        ax.plot(a.x[a.worst, 0], a.x[a.worst, j1], "o", mfc="none", mec=plot.WORST, ms=8,
+                mew=1.4, label="highest RMSE")
     if a.calibrated:
         v = list(a.calibrated.values())
-        ax.plot(v[0], v[j1] if j1 else v[0], "*", color="limegreen", mec="darkgreen", ms=16,
-                label="calibrated")
-    ax.set_xlabel(a.param_names[0])
-    ax.set_ylabel(a.param_names[j1])
+        ax.plot(v[0], v[j1] if j1 else v[0], "*", color=plot.MODEL, mec="black", mew=0.5,
+                ms=16, label="calibrated")
+    ax.set_xlabel(param_axis(a, 0))
+    ax.set_ylabel(param_axis(a, j1))
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
+    plot.untangle_ticks(fig)
     return fig
 
 
@@ -131,18 +174,21 @@ def plot_score(a: Artifacts) -> Any:
     assert a.score is not None
     i = np.arange(1, a.score.size + 1)
     ax.plot(i, a.score, ".", color="tab:blue", ms=4)
-    ax.plot(i[a.best], a.score[a.best], "o", color="red", ms=5, label="lowest")
-    ax.plot(i[a.worst], a.score[a.worst], "o", mfc="none", mec="green", ms=7, label="highest")
+    ax.plot(i[a.best], a.score[a.best], "o", color=plot.BEST, ms=6, label="lowest")
+    ax.plot(i[a.worst], a.score[a.worst], "o", mfc="none", mec=plot.WORST, mew=1.4, ms=7,
+            label="highest")
     ax.set_xlabel("run number")
-    ax.set_ylabel("RMSE (eq. 47)")
+    ax.set_ylabel(score_axis(a))
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
+    plot.untangle_ticks(fig)
     return fig
 
 
 def plot_posterior(a: Artifacts) -> Any:
     """Histograms on the diagonal, pair scatter below (Fig. 81), one colour per method."""
     plt = _plt()
+    ticker = importlib.import_module("matplotlib.ticker")
     k = len(a.param_names)
     fig, axs = plt.subplots(k, k, figsize=(2.6 * k + 0.6, 2.4 * k + 0.4), squeeze=False)
     colours = {"gp": "tab:blue", "direct": "tab:orange"}
@@ -164,33 +210,43 @@ def plot_posterior(a: Artifacts) -> Any:
                 if i == 0:
                     ax.legend(fontsize=7)
             if i == k - 1:
-                ax.set_xlabel(a.param_names[j], fontsize=8)
+                ax.set_xlabel(param_axis(a, j), fontsize=8)
             if j == 0 and i > 0:
-                ax.set_ylabel(a.param_names[i], fontsize=8)
+                ax.set_ylabel(param_axis(a, i), fontsize=8)
+            ax.xaxis.set_major_locator(ticker.MaxNLocator(nbins=4))
             ax.tick_params(labelsize=7)
     fig.suptitle("posterior (emcee): GP emulator vs direct C model", fontsize=9)
+    plot.untangle_ticks(fig)
     return fig
+
+
+def _overlay_window(a: Artifacts, n: int, seconds: float) -> tuple[int, int]:
+    w = min(n, round(seconds * a.fs_hz))
+    i0 = max(0, n // 2 - w // 2)
+    return i0, w
 
 
 def plot_overlay(a: Artifacts, seconds: float = 0.6) -> Any:
     """Measured vs simulated time histories (Fig. 73, 85), a window from the middle."""
     plt = _plt()
     ch = a.overlay_channel
+    lab = _label(a, ch)
     meas = a.overlays["measured"][ch]
-    n = meas.size
-    w = min(n, int(seconds * a.fs_hz))
-    i0 = max(0, n // 2 - w // 2)
+    i0, w = _overlay_window(a, meas.size, seconds)
     t = (np.arange(i0, i0 + w)) / a.fs_hz
     others = [k for k in a.overlays if k != "measured"]
     fig, axs = plt.subplots(len(others), 1, figsize=(8, 2.1 * len(others)), sharex=True,
                             squeeze=False)
     for ax, k in zip(axs[:, 0], others, strict=True):
-        ax.plot(t, meas[i0:i0 + w], color="tab:blue", lw=1, label="measured")
-        ax.plot(t, a.overlays[k][ch][i0:i0 + w], color="tab:red", lw=0.9, label=k)
-        ax.set_ylabel(ch, fontsize=8)
+        ax.plot(t, meas[i0:i0 + w], color=plot.MEASURED, lw=1, label="measured")
+        ax.plot(t, a.overlays[k][ch][i0:i0 + w], color=OVERLAY_COLOURS.get(k, plot.MODEL),
+                lw=0.9, label=k)
+        ax.set_ylabel(f"{lab.short} ({lab.unit_text})", fontsize=9)
         ax.legend(fontsize=7, loc="upper right")
         ax.grid(True, alpha=0.3)
+    axs[0, 0].set_title(lab.title, fontsize=9, loc="left")
     axs[-1, 0].set_xlabel("time (s)")
+    plot.untangle_ticks(fig)
     return fig
 
 
@@ -198,34 +254,46 @@ def plot_psd(a: Artifacts) -> Any:
     plt = _plt()
     sig = importlib.import_module("scipy.signal")
     ch = a.overlay_channel
+    lab = _label(a, ch)
     fig, ax = plt.subplots(figsize=(8, 3.4))
-    colours = {"measured": "black", "nominal": "tab:gray", "best run": "tab:red",
-               "worst run": "tab:green", "calibrated": "tab:red"}
     for k, d in a.overlays.items():
         f, p = sig.welch(d[ch], fs=a.fs_hz, nperseg=1024)
-        ax.semilogy(f, p, lw=1.5 if k == "measured" else 0.9, color=colours.get(k), label=k)
+        ax.semilogy(f, p, lw=1.5 if k == "measured" else 0.9,
+                    color=OVERLAY_COLOURS.get(k, plot.MODEL), label=k)
+    ax.set_title(lab.title, fontsize=9, loc="left")
     ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel(f"PSD of {ch} (unit^2/Hz)")
+    ax.set_ylabel(lab.psd_axis())
     ax.set_xlim(0, a.fs_hz / 2)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
+    plot.untangle_ticks(fig)
     return fig
 
 
 def figures(a: Artifacts) -> list[tuple[str, str]]:
     """(caption, base64 PNG) of every plot the artifacts allow."""
     out: list[tuple[str, str]] = []
-    out.append(("Mahalanobis distances: experiments, simulation runs (red/green: lowest/highest "
-                "RMSE), the model; dashed: the verdict threshold", _png(plot_mahalanobis(a))))
+    marks = " (green / red circles: the runs of lowest / highest RMSE)" if a.best else ""
+    out.append(("Mahalanobis distances of the experiments, the simulation runs" + marks
+                + f" and the {a.model_label} model; dashed: the 95 % limit of the "
+                "test-to-test scatter (the size of a discrepancy, not the verdict)",
+                _png(plot_mahalanobis(a))))
     if a.x is not None and a.param_names:
-        out.append(("Sampled parameter space with the best runs", _png(plot_space(a))))
+        out.append(("Sampled parameter space" + (marks or "")
+                    + ("; star: the calibrated point" if a.calibrated else ""),
+                    _png(plot_space(a))))
     if a.score is not None:
-        out.append(("RMSE of each run (eq. 47)", _png(plot_score(a))))
+        out.append((score_caption(a) + marks, _png(plot_score(a))))
     if a.posteriors:
         out.append(("Posterior histograms and pair plot", _png(plot_posterior(a))))
     if "measured" in a.overlays and len(a.overlays) > 1:
-        out.append(("Measured vs simulated time histories", _png(plot_overlay(a))))
-        out.append(("Power spectral densities (Welch)", _png(plot_psd(a))))
+        n = a.overlays["measured"][a.overlay_channel].size
+        i0, w = _overlay_window(a, n, 0.6)
+        test = f" of test {a.overlay_test}" if a.overlay_test else ""
+        out.append((f"Measured vs simulated time histories{test}: {w / a.fs_hz:.3g} s from "
+                    f"{i0 / a.fs_hz:.2f} s of {n / a.fs_hz:g} s, every sample drawn",
+                    _png(plot_overlay(a))))
+        out.append((f"Power spectral densities (Welch){test}", _png(plot_psd(a))))
     return out
 
 
@@ -248,7 +316,9 @@ def _summary_html(res: dict[str, Any]) -> str:
                  f"{b['threshold']:.4g} (empirical 95th percentile {b['empirical_threshold']:.4g})"
                  "</p>")
     if "verdict" in res:
-        parts.append(_verdict_html(res["verdict"], res.get("model", "")))
+        what = ("held-out check of the calibrated model" if res.get("kind") == "calibrate"
+                else "")
+        parts.append(_verdict_html(res["verdict"], res.get("model", ""), what))
     if "doe" in res:
         d = res["doe"]
         parts.append(f"<p>DOE: {d['design']} with {d['runs']} runs driven by {d['ref_test']}; "
@@ -278,20 +348,33 @@ def _summary_html(res: dict[str, Any]) -> str:
             cm = [[round(c, 3) for c in r] for r in post["correlation"]]
             parts.append(f"<p>{meth}: correlation matrix {html.escape(json.dumps(cm))}</p>")
     if "consistency" in res:
-        c = res["consistency"]
-        for k in ("calibrated", "nominal"):
-            v = c[k]["verdict"]
-            rm = {ch: float(np.mean(x)) for ch, x in c[k]["rmse"].items()}
-            parts.append(f"<p>Held-out check, {k} model: <b>{v['verdict']}</b> &mdash; "
-                         f"{html.escape(v['meaning'])}; mean RMSE "
-                         f"{html.escape(json.dumps({k2: round(v2, 5) for k2, v2 in rm.items()}))}"
-                         "</p>")
+        parts.append(_consistency_html(res))
     return "\n".join(parts)
 
 
-def _verdict_html(v: dict[str, Any], model: str) -> str:
-    """The verdict as the headline, the evidence under it with each one's role."""
-    out = [f"<h2>Verdict: {html.escape(v['verdict'])} (exit code {v['exit_code']})</h2>",
+def _consistency_html(res: dict[str, Any]) -> str:
+    """calibrate's held-out check: the calibrated model's (the verdict) and, for comparison,
+    the nominal model's, with the mean held-out RMSE in each channel's unit."""
+    c = res["consistency"]
+    labels = lb.channel_labels(res.get("rmse_channels", []), units=res.get("units"))
+    rows = []
+    for k, role in (("calibrated", "the verdict"), ("nominal", "for comparison, not the "
+                                                                "verdict")):
+        v = c[k]["verdict"]
+        rm = ", ".join(f"{labels[ch].short} {labels[ch].value(float(np.mean(x)))}"
+                       for ch, x in c[k]["rmse"].items() if ch in labels)
+        rows.append(f"<li>{k} model ({role}): <b>{html.escape(v['verdict'])}</b> &mdash; "
+                    f"{html.escape(v['meaning'])}; mean held-out RMSE {html.escape(rm)}</li>")
+    return (f"<h3>Held-out check on {len(c['held_out'])} tests</h3><ul>" + "".join(rows)
+            + "</ul>")
+
+
+def _verdict_html(v: dict[str, Any], model: str, what: str = "") -> str:
+    """The verdict as the headline (``what``: what it checks, when not the model itself), the
+    evidence under it with each one's role and how they read together."""
+    out = [f"<h2>Verdict{', ' + html.escape(what) if what else ''}: "
+           f"{html.escape(v['verdict'])} (exit code {v['exit_code']}: "
+           f"{html.escape(verdict_mod.EXIT_MEANING[v['verdict']])})</h2>",
            f"<p>{html.escape(verdict_mod.headline(v, model))}</p>"]
     if v.get("evidence"):
         out.append("<ul>" + "".join(f"<li>{html.escape(line.strip())}</li>"

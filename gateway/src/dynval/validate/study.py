@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from dynval import __version__
+from dynval import labels as lb
 from dynval import model as mdl
 from dynval.errors import ConfigError
 from dynval.io.recording import Recording
@@ -158,6 +159,18 @@ class Artifacts:
     posteriors: dict[str, np.ndarray] = field(default_factory=dict)
     calibrated: dict[str, float] = field(default_factory=dict)
     ranges: list[tuple[float, float]] = field(default_factory=list)
+    # the RMSE channels' labels and units (the score's unit) and the parameters' units
+    labels: dict[str, lb.ChannelLabel] = field(default_factory=dict)
+    param_units: list[str] = field(default_factory=list)
+    overlay_test: str = ""
+
+
+def _label(art: Artifacts, s: Setup, ranges: Sequence[doe.ParamRange]) -> dict[str, str]:
+    """Give the artifacts the channels' labels and the parameters' units; the RMSE channels'
+    units for the JSON result."""
+    art.labels = lb.channel_labels(s.rmse_channels, s.model, s.recs)
+    art.param_units = [mdl.param_unit(r.name, s.model) for r in ranges]
+    return {c: lab.unit for c, lab in art.labels.items()}
 
 
 def _sweep(s: Setup, runner: doe.Runner, ranges: Sequence[doe.ParamRange], x: np.ndarray,
@@ -192,12 +205,15 @@ def validate(m: mdl.Model, recs: Sequence[Recording], spec: str,
     ref = s.recs[ref_test] if 0 <= ref_test < len(s.recs) else None
     if ref is None:
         raise ConfigError(f"--ref-test {ref_test}: there are {len(s.recs)} tests (0-based)")
+    if ranges:
+        doe.check_params(m, ranges)
+    res["units"] = _label(art, s, ranges)
+    art.overlay_test = ref.name
     ch0 = s.rmse_channels[0]
     art.overlay_channel = ch0
     art.overlays["measured"] = {ch0: ref.channel(ch0).data}
     art.overlays["nominal"] = {ch0: preds[ref_test][ch0]}
     if ranges:
-        doe.check_params(m, ranges)
         own = runner is None
         rn = runner or doe.Runner()
         try:
@@ -286,6 +302,7 @@ def calibrate(m: mdl.Model, recs: Sequence[Recording], spec: str,
     art = Artifacts(s.fs_hz, param_names=[r.name for r in ranges],
                     ranges=[(r.lo, r.hi) for r in ranges], d_exp=base.baseline_d,
                     threshold=base.threshold, model_label="calibrated")
+    res["units"] = _label(art, s, ranges)
     posts: dict[str, cal.Posterior] = {}
     try:
         with single_thread_blas():
@@ -347,5 +364,5 @@ def calibrate(m: mdl.Model, recs: Sequence[Recording], spec: str,
         art.overlay_channel = ch0
         art.overlays = {"measured": {ch0: held[0].channel(ch0).data},
                         "calibrated": {ch0: p_cal[0][ch0]}, "nominal": {ch0: p_nom[0][ch0]}}
-        res["consistency"]["overlay_test"] = held[0].name
+        res["consistency"]["overlay_test"] = art.overlay_test = held[0].name
     return res, art, m_cal

@@ -14,6 +14,8 @@ from typing import Any
 from dynval.validate.mahalanobis import PairedTest
 
 EXIT = {"PASS": 0, "FAIL": 1, "INCONCLUSIVE": 3}  # 2: an error (bad input), as every command
+EXIT_MEANING = {"PASS": "no evidence against the model", "FAIL": "the model is rejected",
+                "INCONCLUSIVE": "no verdict could be reached"}
 
 ROLE_PAIRED = ("the verdict: do the measured features differ from the model's, driven by each "
                "test's own measured input and carrying the same sensor noise, by more than "
@@ -59,7 +61,8 @@ def _finite(x: Any) -> bool:
 
 
 def evidence_lines(v: dict[str, Any]) -> list[str]:
-    """The evidence under the verdict, one line each with its role."""
+    """The evidence under the verdict, one line each with its role, then how the two read
+    together."""
     pt = v["evidence"]["paired"]
     mh = v["evidence"]["mahalanobis"]
     pv = f"{pt['p_value']:.3g}" if _finite(pt["p_value"]) else "-"
@@ -68,4 +71,34 @@ def evidence_lines(v: dict[str, Any]) -> list[str]:
             f"the mean residual {dist}, p = {pv} - {pt['role']}",
             f"  Mahalanobis eq. 41: median D {mh['median_d']:.4g} vs {mh['threshold_kind']} "
             f"95 % limit {mh['threshold']:.4g} ({100 * mh['fraction_within']:.0f} % of tests "
-            f"within) - {mh['role']}"]
+            f"within) - {mh['role']}",
+            f"  together: {agreement(v)}"]
+
+
+def agreement(v: dict[str, Any]) -> str:
+    """How the two pieces of evidence read with the verdict, so that a PASS beside a
+    distance outside the scatter (or a FAIL inside it) is explained, not left to the reader."""
+    mh = v["evidence"]["mahalanobis"]
+    word = v["verdict"]
+    if not (_finite(mh["median_d"]) and mh["median_d"] >= 0):
+        # a quadratic form below zero: the baseline covariance of a few tests is singular
+        return (f"the Mahalanobis distance is not usable (median D {mh['median_d']:.4g}: the "
+                "baseline covariance of these few tests is singular); "
+                + ("no verdict without the paired test" if word == "INCONCLUSIVE" else
+                   f"the verdict is the paired test's: {word}"))
+    inside = bool(mh["median_d"] <= mh["threshold"])
+    where = (f"the model's features lie {'inside' if inside else 'outside'} the test-to-test "
+             f"scatter (median D {mh['median_d']:.4g} vs limit {mh['threshold']:.4g})")
+    if word == "INCONCLUSIVE":
+        return (f"{where}, but the distance is a size, not a test: no verdict without the "
+                "paired test")
+    if word == "FAIL" and inside:
+        return (f"{where}, yet the paired test rejects it: pairing each test with its own input "
+                "cancels the forces' randomness that fills the scatter, so it sees a bias the "
+                "scatter hides. The verdict is the paired test's")
+    if word == "PASS" and not inside:
+        return (f"{where}, yet the paired test finds no difference beyond the noise. The verdict "
+                "is the paired test's; with few tests or features blind to the effect it has "
+                "little power: add tests or check the features (--rank-against) before relying "
+                "on this PASS")
+    return f"{where}, and the paired test agrees: {word}"
