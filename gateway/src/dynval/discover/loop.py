@@ -406,10 +406,6 @@ def _trace(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
     cands = fx.catalogue(cur, quiet=rnd > 1)
     if view is not None:
         evidence = tr.score(view, cands)
-        second = (tr.output_view(cur, s.fit_t, s.chans, s.scales)
-                  if view.propagate is None else None)
-        if second is not None:
-            evidence = _second_opinion(evidence, tr.score(second, cands))
     else:
         s.notes.append("no evidence view for this model (it needs an accelerometer on every "
                        "DOF, or the model's output view, or a reaction output): every "
@@ -422,16 +418,6 @@ def _trace(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
     evidence.append(tr.Evidence(fx.NONE.candidates(cur)[0], noise_share, 0.0))
     evidence.sort(key=lambda e: -e.r2)
     return Round(rnd, ratio, tr.describe(evs, sps), evidence, [], None, "", view)
-
-
-def _second_opinion(first: list[tr.Evidence], second: list[tr.Evidence]) -> list[tr.Evidence]:
-    """Each candidate's stronger evidence of two views. The force view builds its bases from
-    the measured accelerations, so a sensor's own noise is in the basis and in the missing
-    force alike (errors in variables: a noisy DAQ lends a mass change or a sensor gain at that
-    DOF evidence it does not have, and buries a rarely acting effect); the output view builds
-    them from the model's simulated states, free of the sensors' noise."""
-    other = {_key(e.cand): e for e in second}
-    return [max((e, other.get(_key(e.cand), e)), key=lambda v: v.r2) for e in first]
 
 
 def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
@@ -449,17 +435,6 @@ def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
         return pool
     top = max((e.r2 for e in pool), default=0.0)
     chosen = _diverse([e for e in pool if e.r2 >= s.o.evidence_cut * top], s.o.top_k)
-    above_noise = 1.0 - next(e.r2 for e in rd.evidence if e.cand.type == "none")
-    if top < WEAK_EVIDENCE * above_noise:
-        # the view sees little of what the residual holds (its noise swamps the effect: a
-        # rarely closing contact on a shake table): fit the best-placed candidate of each type
-        msg = (f"round {rd.index}: the evidence view explains at most {top:.3f} of the "
-               f"residual's {above_noise:.2f} above the noise: the best-placed candidate of "
-               "every effect type is fitted")
-        log.info(msg)
-        s.notes.append(msg)
-        firsts = {e.cand.type: e for e in reversed(pool)}
-        chosen += [e for e in pool if firsts[e.cand.type] is e and e not in chosen]
     # evidence is first order (the output view) or taken through integrated accelerations
     # (the force view, where a DAQ's 1/f noise swamps the low frequencies): a linear change
     # that shifts a resonance by more than its bandwidth can rank low; screen them all (one
@@ -670,7 +645,6 @@ class _Judge:
 
 
 _LINEAR = ("stiffness_change", "mass_change")
-WEAK_EVIDENCE = 0.1  # the best candidate's evidence below this share of the residual above noise
 
 
 def _screen_linear(m: mdl.Model, evs: Sequence[tr.Evidence], tests: Sequence[rs.TestData],
