@@ -76,3 +76,22 @@ def test_stiffness_loss_with_the_physical_damping_fixed(story: int, loss: float,
         -loss * KS[story - 1], rel=0.05)
     ideal, _ = rs.error_table(truth, r.tests, r.chans, r.scales)
     assert r.after.total(r.held_names) < 1.3 * ideal.total(r.held_names)
+
+
+def test_best_linear_spread_over_far_parameters_is_re_adjusted_jointly_at_the_end() -> None:
+    """Friction to the ground at DOF 1 under a best-linear declared model: the linear fit
+    spread it over every story's stiffness and every mode's damping, which the candidate's
+    local re-adjustment leaves. With the effects in, all declared stiffness and damping are
+    re-adjusted jointly, kept on a held-out gain (blind cases of bench/RESULTS.blind.md:
+    after/ideal 1.57 -> 1.00 and 1.65 -> 1.00)."""
+    m0 = declared()
+    el = mdl.Friction(0, 1, 1.5, 1e-4)
+    recs = gen.generate(m0, gen.Truth(elements=(el,), label="friction"), n_tests=6, seed=7)
+    mbl = best_linear(m0, recs)
+    r = loop.discover(mbl, recs)
+    assert r.effects and r.effects[0]["type"] in ("friction", "stick_slip")
+    assert r.effects[0]["location"]["between"] == [0, 1]
+    truth = dataclasses.replace(m0, elements=(el,))
+    ideal, _ = rs.error_table(truth, r.tests, r.chans, r.scales)
+    assert r.after.total(r.held_names) < 1.1 * ideal.total(r.held_names)
+    assert any("re-adjusted jointly" in n for n in r.notes)

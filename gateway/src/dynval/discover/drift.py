@@ -36,13 +36,17 @@ R_REL = 0.01  # measurement noise, relative to each channel's RMS
 
 
 DRIFT_SHARE = 0.5  # share of a channel's residual energy below the band that means drift
+NOISE_RATIO = 1.5  # ... when the residual stands this far above the noise floor somewhere
 
 
 def low_share(res: Sequence[np.ndarray], fs_hz: float, f_hz: float) -> float:
-    """The share of the energy of residual records below f_hz (periodograms)."""
+    """The share of the energy of residual records about their means below f_hz
+    (periodograms): a constant is an offset (a sensor's, or a constant force on an
+    acceleration), not a drift, and an offset must not switch the tests to the observer,
+    which would then track it and bias its estimate."""
     low = total = 0.0
     for r in res:
-        p = np.abs(np.fft.rfft(r)) ** 2
+        p = np.abs(np.fft.rfft(r - np.mean(r))) ** 2
         f = np.fft.rfftfreq(r.size, 1.0 / fs_hz)
         low += float(np.sum(p[f < f_hz]))
         total += float(np.sum(p))
@@ -51,9 +55,11 @@ def low_share(res: Sequence[np.ndarray], fs_hz: float, f_hz: float) -> float:
 
 def drifts(m: mdl.Model, table: ErrorTable, res: dict[str, dict[str, np.ndarray]],
            chans: Sequence[str], scales: dict[str, float], band_hz: tuple[float, float],
-           fs_hz: float) -> float | None:
+           fs_hz: float, noise: dict[str, float] | None = None) -> float | None:
     """The worst open-loop NRMSE when the model is one that drifts (else None); ``res``: the
-    declared model's residuals per test and channel."""
+    declared model's residuals per test and channel; ``noise``: each channel's noise floor
+    (RMS), when known: a residual mostly below the band that stays within 1.5 x it is a DAQ's
+    1/f noise, not a drift."""
     f = mdl.natural_frequencies(m)
     if not np.any(f < RIGID_FRACTION * max(band_hz[0], 1e-3)):
         return None
@@ -65,7 +71,8 @@ def drifts(m: mdl.Model, table: ErrorTable, res: dict[str, dict[str, np.ndarray]
                 for c in chans)
     log.info("rigid-body-like mode: worst open-loop NRMSE %.3g, residual share below %.3g Hz "
              "%.2f", worst, 0.5 * band_hz[0], share)
-    return worst if worst > 1.0 or share > DRIFT_SHARE else None
+    above = noise is None or any(pooled[c] > NOISE_RATIO * noise.get(c, 0.0) for c in chans)
+    return worst if worst > 1.0 or (share > DRIFT_SHARE and above) else None
 
 
 def observer_for(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],

@@ -24,6 +24,22 @@ from dynval.discover.residual import TestData, predict
 log = logging.getLogger(__name__)
 
 MIN_REDUCTION = 0.2  # share of the start window's residual energy x0 must explain
+LATE_FACTOR = 2.0  # ... and this many times what a free motion explains later in the record
+
+
+def _late_share(a: np.ndarray, r: np.ndarray, n: int, w: int, n_ch: int) -> float:
+    """The share of the residual energy a free motion explains in a window as long as the
+    start window but beginning where that one ends: a residual with structure at the
+    modes (a missing effect's) is partly fitted by a free motion anywhere, a start-up
+    transient only at the start. 0 when the record has no room for it."""
+    if 2 * w > n:
+        return 0.0
+    head = np.concatenate([np.arange(k * n, k * n + w) for k in range(n_ch)])
+    late = head + w
+    x, *_ = np.linalg.lstsq(a[head], r[late], rcond=None)
+    e = float(r[late] @ r[late])
+    left = r[late] - a[head] @ x
+    return 1.0 - float(left @ left) / e if e > 0 else 0.0
 
 
 @dataclass
@@ -54,7 +70,7 @@ def estimate(m: mdl.Model, t: TestData, chans: Sequence[str], scales: dict[str, 
     before = float(r[head] @ r[head])
     left = r[head] - a[head] @ x0
     reduction = 1.0 - float(left @ left) / before if before > 0 else 0.0
-    if reduction < MIN_REDUCTION:
+    if reduction < MIN_REDUCTION or reduction < LATE_FACTOR * _late_share(a, r, n, w, len(chans)):
         return None
     outs = {c: basis[:, j, :] @ x0 for j, c in enumerate(m.outputs)}
     return Start(x0, outs, reduction)

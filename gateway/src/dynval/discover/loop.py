@@ -75,6 +75,7 @@ class Round:
     accepted: dict[str, Any] | None
     decision: str
     view: tr.ForceView | None = None
+    second: list[tr.Evidence] = field(default_factory=list)  # the output view's top picks
 
 
 @dataclass
@@ -235,10 +236,11 @@ def _session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> _Session:
 
 
 def _open_loop_or_observer(s: _Session, m: mdl.Model, before: rs.ErrorTable,
-                           res: dict[str, dict[str, np.ndarray]]) -> tuple[str, dict[str, float]]:
+                           res: dict[str, dict[str, np.ndarray]], noise: dict[str, float]
+                           ) -> tuple[str, dict[str, float]]:
     """Switch the tests to the observer's predictions when the model drifts (drift.py):
     ("observer", the open-loop held-out RMSE) or ("open loop", {})."""
-    worst = dr.drifts(m, before, res, s.chans, s.scales, s.band, s.tests[0].fs_hz)
+    worst = dr.drifts(m, before, res, s.chans, s.scales, s.band, s.tests[0].fs_hz, noise)
     if worst is None:
         return "open loop", {}
     open_loop = before.pooled(s.held_names, s.chans)
@@ -282,6 +284,43 @@ def _calibrate_uncertain(s: _Session, m: mdl.Model, before: rs.ErrorTable
                    "the declared values are kept (they are still re-adjusted jointly with "
                    "each candidate effect)")
     return m, before, calibration
+
+
+READJUST_GAIN = 0.02  # the joint re-adjustment must lower the held-out error by this share
+
+
+def _readjust_declared(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
+                       ) -> tuple[mdl.Model, rs.ErrorTable]:
+    """With the effects in, every declared stiffness and damping parameter re-adjusted
+    jointly: a best-linear declared model spread part of the effect over parameters far from
+    its location, which the candidate's local re-adjustment leaves. Kept when the held-out
+    error drops by READJUST_GAIN and the BIC over the fitting tests agrees; each change is
+    reported in the notes."""
+    pm = cur.parameters()
+    names = tuple(n for n in pm if (n.startswith("k") and pm[n] > 0)
+                  or n.startswith("zeta") or n in ("alpha", "beta"))
+    try:
+        cal = ft.fit(cur, fx.NONE.candidates(cur)[0], [], s.fit_t, s.chans, s.scales,
+                     s.o.max_nfev, names)
+    except ConfigError as exc:
+        log.info("re-adjusting the declared parameters failed: %s", exc)
+        return cur, cur_table
+    tab, _ = s.table(cal.model)
+    before, after = cur_table.total(s.held_names), tab.total(s.held_names)
+    n_eff = sum(t.n for t in s.fit_t for _ in s.chans) / cal.n_eff_factor
+    dbic = (_bic(cal.nsse_fit, n_eff, len(names))
+            - _bic(cur_table.total(s.fit_names), n_eff, 0))
+    if not (after < (1 - READJUST_GAIN) * before and dbic < 0):
+        log.info("re-adjusting the declared parameters jointly: held-out %.4g -> %.4g: "
+                 "not kept", before, after)
+        return cur, cur_table
+    new = cal.model.parameters()
+    changes = ", ".join(f"{n} {pm[n]:.4g} -> {new[n]:.4g} ({100 * (new[n] / pm[n] - 1):+.1f} %)"
+                        for n in names if pm[n] and abs(new[n] / pm[n] - 1) > 1e-3)
+    s.notes.append(f"with the effects in, the declared stiffness and damping re-adjusted "
+                   f"jointly (held-out error {100 * (after / before - 1):+.1f} %): {changes}")
+    log.info(s.notes[-1])
+    return cal.model, tab
 
 
 OFFSET_SHARE = 0.05  # a channel's constant residual must hold this share of its energy
@@ -373,14 +412,25 @@ def _probe_regression(s: _Session, cur: mdl.Model, cand: fx.Candidate, amount: f
     return num * num / den / rr, num / den
 
 
-def _floors(s: _Session, res: dict[str, dict[str, np.ndarray]],
+def _floors(s: _Session, m: mdl.Model, res: dict[str, dict[str, np.ndarray]],
             before: dict[str, nz.Floor]) -> dict[str, nz.Floor]:
     """The noise floor of each channel from a model's residual records (each record once: a
     test's two views share one), kept where it is lower than ``before``: an effect the model
     lacks spreads energy outside the input band too (friction's stick-slip jumps), so the
     declared model's residual overstates the floor and each accepted effect tightens it."""
     once = {str(id(t.u)): res[t.name] for t in s.evals if t.name in res}
-    new = nz.estimate(s.tests, s.chans, once, s.band, _settle_s(s.modes_hz), s.o.noise)
+
+    def respond(t: Any, e: np.ndarray) -> dict[str, np.ndarray] | None:
+        if getattr(t, "observer", None) is not None:
+            return None  # the observer corrects for it: the spectral estimate instead
+        try:
+            a, b = mdl.simulate(m, t.u + e, t.fs_hz), mdl.simulate(m, t.u, t.fs_hz)
+        except DynvalError:
+            return None
+        return {c: a[c] - b[c] for c in s.chans}
+
+    new = nz.estimate(s.tests, s.chans, once, s.band, _settle_s(s.modes_hz), s.o.noise,
+                      respond)
     out = dict(new)
     for c, f in before.items():
         if f.rms <= new[c].rms:
@@ -406,6 +456,9 @@ def _trace(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
     cands = fx.catalogue(cur, quiet=rnd > 1)
     if view is not None:
         evidence = tr.score(view, cands)
+        other = (tr.output_view(cur, s.fit_t, s.chans, s.scales)
+                 if view.propagate is None else None)
+        second = _second_opinion(evidence, tr.score(other, cands)) if other else []
     else:
         s.notes.append("no evidence view for this model (it needs an accelerometer on every "
                        "DOF, or the model's output view, or a reaction output): every "
@@ -417,7 +470,22 @@ def _trace(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
     noise_share = float(np.mean([min(1.0, 1.0 / max(r, 1e-12) ** 2) for r in ratio.values()]))
     evidence.append(tr.Evidence(fx.NONE.candidates(cur)[0], noise_share, 0.0))
     evidence.sort(key=lambda e: -e.r2)
-    return Round(rnd, ratio, tr.describe(evs, sps), evidence, [], None, "", view)
+    return Round(rnd, ratio, tr.describe(evs, sps), evidence, [], None, "", view, second)
+
+
+def _second_opinion(first: list[tr.Evidence], second: list[tr.Evidence],
+                    keep: int = 2) -> list[tr.Evidence]:
+    """The output view's ``keep`` strongest candidates (sensor effects aside), with the force
+    view's fit starts, to be fitted beside the force view's pool. The force view builds its
+    bases from the measured accelerations, so a sensor's own noise is in the basis and in the
+    missing force alike (errors in variables: a noisy DAQ lends a mass change at that DOF
+    evidence it does not have, and buries a rarely acting effect); the output view builds
+    them from the model's simulated states, free of the sensors' noise, but its first-order
+    evidence ranks less sharply on clean data, so it adds candidates, not ranks them."""
+    own = {_key(e.cand): e for e in first}
+    ranked = sorted((e for e in second if not e.cand.type.startswith("sensor")
+                     and e.cand.available and e.cand.type != "none"), key=lambda e: -e.r2)
+    return [own.get(_key(e.cand), e) for e in ranked[:keep]]
 
 
 def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
@@ -435,6 +503,9 @@ def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
         return pool
     top = max((e.r2 for e in pool), default=0.0)
     chosen = _diverse([e for e in pool if e.r2 >= s.o.evidence_cut * top], s.o.top_k)
+    chosen += [e for e in rd.second
+               if _key(e.cand) not in accepted and all(_key(e.cand) != _key(c.cand)
+                                                       for c in chosen)]
     # evidence is first order (the output view) or taken through integrated accelerations
     # (the force view, where a DAQ's 1/f noise swamps the low frequencies): a linear change
     # that shifts a resonance by more than its bandwidth can rank low; screen them all (one
@@ -508,10 +579,12 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
     before, res_before = s.table(m)
     if not res_before:
         raise ConfigError("the declared model cannot be simulated for these tests")
-    prediction, open_loop_before = _open_loop_or_observer(s, m, before, res_before)
+    open_floors = _floors(s, m, res_before, {})
+    prediction, open_loop_before = _open_loop_or_observer(
+        s, m, before, res_before, {c: f.rms for c, f in open_floors.items()})
     if prediction == "observer":
         before, res_before = s.table(m)
-    floors = _floors(s, res_before, {})
+    floors = _floors(s, m, res_before, {}) if prediction == "observer" else open_floors
     noise = {c: f.rms for c, f in floors.items()}
     cur, cur_table, calibration = (_calibrate_uncertain(s, m, before) if o.uncertain
                                    else (m, before, {}))
@@ -520,6 +593,9 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
     cur, cur_table, offsets = _sensor_offsets(s, cur, cur_table)
     if offsets is not None:
         effects.append(offsets)
+        if prediction == "open loop":  # an offset read as a slow free motion before
+            initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
+            cur_table, _ = s.table(cur)
     accepted: set[str] = set()
     timing: dict[str, float] = {}
     for rnd in range(1, o.max_effects + 2):
@@ -550,10 +626,12 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
         if prediction == "open loop":  # the new model's initial states
             initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
         cur_table, res_cur = s.table(cur)
-        floors = _floors(s, res_cur, floors)
+        floors = _floors(s, cur, res_cur, floors)
         noise = {c: f.rms for c, f in floors.items()}
         accepted.add(_key(res_b.cand))
         rd.decision = f"accepted {res_b.cand.label}"
+    if len(effects) > (offsets is not None):
+        cur, cur_table = _readjust_declared(s, cur, cur_table)
     after, res_after = s.table(cur)
     left = _ratio(after, s.fit_names + s.held_names, s.chans, noise)
     unexp = (ux.characterise(s.evals, res_after, s.chans, noise, s.modes_hz)

@@ -34,7 +34,7 @@ from __future__ import annotations
 import importlib
 import logging
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -70,10 +70,12 @@ class Floor:
 def estimate(tests: Sequence[Test], chans: Sequence[str],
              residuals: Mapping[str, Mapping[str, np.ndarray]],
              band_hz: tuple[float, float], settle_s: float,
-             stated: Mapping[str, float] | None = None) -> dict[str, Floor]:
+             stated: Mapping[str, float] | None = None,
+             respond: Respond | None = None) -> dict[str, Floor]:
     """The noise floor of every channel (see the module comment for the order).
     ``residuals``: the declared model's residual records (one per test, for method 5);
-    ``settle_s``: how long the structure rings after the input stops (method 4)."""
+    ``settle_s``: how long the structure rings after the input stops (method 4);
+    ``respond``: the model's response to an added input (input_noise_response)."""
     out: dict[str, Floor] = {}
     # the input of each residual record, by record (the residuals are keyed by record)
     by_record = {str(id(t.u)): t.u for t in tests}
@@ -83,7 +85,8 @@ def estimate(tests: Sequence[Test], chans: Sequence[str],
     if shared is not None:  # the input sensor's noise reaches every channel through the model
         by_test = {str(id(t.u)): t for t in tests}
         via_input = input_noise_response([by_test[k] for k in keys if k in by_test],
-                                         [residuals[k] for k in keys if k in by_test], shared)
+                                         [residuals[k] for k in keys if k in by_test],
+                                         list(shared), respond)
         shared = {c: v + via_input.get(c, 0.0) for c, v in shared.items()}
     for c in chans:
         if stated and c in stated:
@@ -243,7 +246,7 @@ def _unique_power(s: np.ndarray, q: int, iters: int = 60) -> np.ndarray:
         val = np.clip(val[:, -q:], 0.0, None)
         shared = np.einsum("fiq,fq,fiq->fi", vec[:, :, -q:], val, np.conj(vec[:, :, -q:])).real
         d = np.clip(diag - shared, 0.0, diag)
-    return d
+    return np.asarray(d, dtype=float)
 
 
 def shared_sources(p: int) -> int:
@@ -288,14 +291,21 @@ def cross_channel(res: Sequence[Mapping[str, np.ndarray]], inputs: Sequence[np.n
 INPUT_QUIET = 1e-2  # the input's quietest band must lie this far below its loudest to be noise
 
 
+Respond = Callable[[Test, np.ndarray], Mapping[str, np.ndarray] | None]
+
+
 def input_noise_response(tests: Sequence[Test], res: Sequence[Mapping[str, np.ndarray]],
-                         chans: Sequence[str]) -> dict[str, float]:
+                         chans: Sequence[str], respond: Respond | None = None
+                         ) -> dict[str, float]:
     """Variance each channel gets from the input sensor's own noise (the true model driven by
     the measured input leaves it; a factor model counts it as structure: it reaches every
     channel). The input noise is taken white at the level of the input's quietest band
     (smoothed PSD minimum), where the excitation is off; it reaches a channel through the
-    model's gain, the prediction's PSD over the input's. Nothing when the input has no band
-    INPUT_QUIET below its loudest (full-band excitation: its noise cannot be told apart)."""
+    model: ``respond(test, e)``, the change of the model's prediction when white noise e of
+    that level is added to the test's input (every mode resolved, a lightly damped or nearly
+    rigid one included, and the elements acting as in the test), else the prediction's PSD
+    over the input's. Nothing when the input has no band INPUT_QUIET below its loudest
+    (full-band excitation: its noise cannot be told apart)."""
     seg = 512
     if not tests or min(t.u.size for t in tests) < 4 * seg:
         return {}
@@ -305,6 +315,11 @@ def input_noise_response(tests: Sequence[Test], res: Sequence[Mapping[str, np.nd
     level = float(np.min(smooth))
     if not level < INPUT_QUIET * float(np.max(smooth)):
         return {}
+    if respond is not None:
+        e = np.random.default_rng(0).standard_normal(tests[0].u.size) * math.sqrt(level * fs / 2)
+        d = respond(tests[0], e)
+        if d is not None:
+            return {c: float(np.mean(np.square(d[c]))) for c in chans if c in d}
     out: dict[str, float] = {}
     df = fs / seg
     for c in chans:
