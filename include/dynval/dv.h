@@ -13,6 +13,8 @@
 #include "dynval/dv_segstd.h"
 #include "dynval/dv_temporal.h"
 #include "dynval/dv_corr.h"
+#include "dynval/dv_fft.h"
+#include "dynval/dv_frf.h"
 #include "dynval/dv_chan.h"
 #include "dynval/dv_codec.h"
 #include "dynval/dv_ar.h"

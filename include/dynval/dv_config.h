@@ -79,4 +79,15 @@ DV_STATIC_ASSERT(DV_MAX_LINK >= 1u && DV_MAX_LINK <= 16u, max_link_in_range);
 DV_STATIC_ASSERT(DV_MAX_OUT >= 4u && DV_MAX_OUT <= 64u, max_out_in_range);
 DV_STATIC_ASSERT(DV_MAX_SUB >= 1u && DV_MAX_SUB <= 64u, max_sub_in_range);
 
+/** Longest FRF segment (dv_frf.h). 4096 points give 6.25 Hz bins at fs = 25.6 kHz and take
+ * 7 * 4096 + 4 elements (112 kB in float) of caller storage; longer segments only trade RAM for
+ * resolution a firmware FRF rarely needs. A power of two. */
+#ifndef DV_FRF_MAX_SEG
+#define DV_FRF_MAX_SEG 4096u
+#endif
+
+DV_STATIC_ASSERT(DV_FRF_MAX_SEG >= 64u && DV_FRF_MAX_SEG <= 65536u &&
+                     (DV_FRF_MAX_SEG & (DV_FRF_MAX_SEG - 1u)) == 0u,
+                 frf_max_seg_pow2_in_range);
+
 #endif /* DV_CONFIG_H */
