@@ -10,7 +10,7 @@ Writes
   tests/data/frf_ref_<case>.csv         one row per bin k = 0..SEG/2:
                                         "Guu Gyy Re(Guy) Im(Guy) coherence", space separated
   tests/data/frf_expected.csv           case,feature,value: fs, seg_len, hop, fn, zeta, n_seg,
-                                        and the half-power points of scipy's |H1| (Hz)
+                                        and the peak and half-power points of scipy's |H1| (Hz)
 References are scipy.signal.welch / csd / coherence with window='hann', nperseg=SEG,
 noverlap=SEG-hop, detrend=False, scaling='density', one-sided (Guy = csd(u, y) = E[conj(U) Y]),
 independent of dynval. Run: python3 tests/gen/gen_frf.py
@@ -41,8 +41,8 @@ def system() -> tuple[np.ndarray, np.ndarray]:
     return b, a
 
 
-def half_power(m: np.ndarray) -> tuple[float, float]:
-    """Half-power points (in bins) around the largest |H1| bin, |H1| linearly interpolated
+def half_power(m: np.ndarray) -> tuple[float, float, float]:
+    """Peak (3-point parabola vertex) and half-power points (in bins) of the largest |H1| bin, |H1| linearly interpolated
     between bins, the threshold taken at the largest bin's 3-point parabola vertex."""
     k = int(np.argmax(m))
     a, b, c = m[k - 1], m[k], m[k + 1]
@@ -56,7 +56,7 @@ def half_power(m: np.ndarray) -> tuple[float, float]:
     while m[j + 1] > thr:
         j += 1
     f2 = j + (m[j] - thr) / (m[j] - m[j + 1])
-    return float(f1), float(f2)
+    return float(k + p), float(f1), float(f2)
 
 
 def main() -> None:
@@ -83,8 +83,8 @@ def main() -> None:
         np.savetxt(OUT / f"frf_ref_{case}.csv", np.column_stack([guu, gyy, guy.real, guy.imag, coh]),
                    fmt="%.17g")
         rows += [(case, "hop", hop), (case, "n_seg", (N - SEG) // hop + 1)]
-        f1, f2 = half_power(np.abs(guy / guu))
-        rows += [(case, "hp_f1_hz", f1 * FS / SEG), (case, "hp_f2_hz", f2 * FS / SEG)]
+        fp, f1, f2 = half_power(np.abs(guy / guu))
+        rows += [(case, "peak_hz", fp * FS / SEG), (case, "hp_f1_hz", f1 * FS / SEG), (case, "hp_f2_hz", f2 * FS / SEG)]
     with open(OUT / "frf_expected.csv", "w", encoding="ascii") as f:
         for r in rows:
             f.write(f"{r[0]},{r[1]},{r[2]!r}\n")
