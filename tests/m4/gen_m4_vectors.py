@@ -112,6 +112,14 @@ def main():
     parts.append(f64_array("want_bump05", bump))
     parts.append(f64_array("want_freq", load_col(data / "model_freq.csv")))
     parts.append(f64_array("want_kalman_gain", load_mat(data / "model_kalman_gain.csv")))
+
+    # ---- FRF: the resonance record (16-bit counts, exact in float) and scipy's spectra ----
+    re_ = expected(data / "frf_expected.csv")
+    parts.append(f32_array("frf_u", load_col(data / "frf_u.csv")))
+    parts.append(f32_array("frf_y", load_col(data / "frf_y.csv")))
+    parts.append(f64_array("want_frf_ov50", np.loadtxt(data / "frf_ref_ov50.csv", ndmin=2)))
+    for k in ["peak_hz", "hp_f1_hz", "hp_f2_hz", "n_seg"]:
+        parts.append(f"static const double want_frf_{k} = {re_[('ov50', k)]!r};\n")
     parts.append("\n#endif\n")
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("".join(parts))

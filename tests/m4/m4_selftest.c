@@ -1,6 +1,6 @@
 /* The library's golden vectors on the target: features (dv_chan and the standalone modules),
- * AR fits and the streaming AR residual, and observer steps of the report's 4-DOF model (linear,
- * with the bumper contact, with the Kalman gain). The same source is built for the Cortex-M4F
+ * AR fits and the streaming AR residual, observer steps of the report's 4-DOF model (linear,
+ * with the bumper contact, with the Kalman gain), and the streaming Welch FRF of a resonance. The same source is built for the Cortex-M4F
  * image (semihosting) and for the host twin (stdio) against the float library.
  *
  * Output, one line each:
@@ -564,6 +564,71 @@ static void observer(void)
     dump("obs.bump01_kalman.resid", rbuf, NS * 4u);
 }
 
+/* ================================ FRF ===================================================== */
+enum { FRF_SEG = 512, FRF_NB = FRF_SEG / 2 + 1 };
+static dv_real_t frf_buf[DV_FRF_BUF_LEN(FRF_SEG)];
+
+/* Streaming Welch vs scipy (test_dv_frf, float: H1 2e-5 relative, coherence 1e-5 absolute,
+ * spectra 2e-5 of max(|G|, 1e-6 max G)); peak vs scipy's H1 parabola vertex and half-power
+ * band (1e-5, 1e-3). */
+static void frf(void)
+{
+    const size_t n = sizeof frf_u / sizeof frf_u[0];
+    const dv_frf_config_t cfg = {FRF_SEG, FRF_SEG / 2u, 0u, 1024.0f};
+    dv_frf_t s;
+    check_eq("frf.init", dv_frf_init(&s, &cfg, frf_buf, DV_FRF_BUF_LEN(FRF_SEG)), DV_OK);
+    int ok = 1;
+    for (size_t i = 0; i < n; i++) {
+        ok &= dv_frf_update(&s, frf_u[i], frf_y[i]) >= DV_OK;
+    }
+    check_eq("frf.segments", ok ? (long)dv_frf_segments(&s) : -1L, (long)want_frf_n_seg);
+    double gmax = 0.0;
+    for (int k = 0; k < FRF_NB; k++) {
+        const double *r = &want_frf_ov50[5 * k];
+        gmax = r[0] > gmax ? r[0] : gmax;
+        gmax = r[1] > gmax ? r[1] : gmax;
+    }
+    static float h1[2 * FRF_NB], coh[FRF_NB];
+    acc_t ah, ac, ag;
+    acc_init(&ah);
+    acc_init(&ac);
+    acc_init(&ag);
+    for (int k = 0; k < FRF_NB; k++) {
+        const double *r = &want_frf_ov50[5 * k];
+        dv_frf_bin_t b;
+        ok &= dv_frf_get_bin(&s, (size_t)k, &b) == DV_OK;
+        const double hr = r[2] / r[0], hi = r[3] / r[0], hm = sqrt(hr * hr + hi * hi);
+        acc_add(&ah, b.h1_re, hr, 2e-5, hm);
+        acc_add(&ah, b.h1_im, hi, 2e-5, hm);
+        acc_add(&ac, b.coh, r[4], 1e-5, 1.0);
+        const double gm = sqrt(r[2] * r[2] + r[3] * r[3]);
+        acc_add(&ag, b.guu, r[0], 2e-5, 1e-6 * gmax);
+        acc_add(&ag, b.gyy, r[1], 2e-5, 1e-6 * gmax);
+        acc_add(&ag, b.guy_re, r[2], 2e-5, gm > 1e-6 * gmax ? gm : 1e-6 * gmax);
+        acc_add(&ag, b.guy_im, r[3], 2e-5, gm > 1e-6 * gmax ? gm : 1e-6 * gmax);
+        h1[2 * k] = b.h1_re;
+        h1[2 * k + 1] = b.h1_im;
+        coh[k] = b.coh;
+    }
+    report("frf.h1", ok && ah.ok, ah.n, ah.worst, 2e-5);
+    report("frf.coherence", ok && ac.ok, ac.n, ac.worst, 1e-5);
+    report("frf.spectra", ok && ag.ok, ag.n, ag.worst, 2e-5);
+    dump("frf.h1", h1, 2u * FRF_NB);
+    dump("frf.coherence", coh, FRF_NB);
+    dv_frf_peak_t pk[3];
+    size_t np = 0;
+    ok = dv_frf_get_peaks(&s, pk, 3, &np) == DV_OK && np >= 1u;
+    const double bw_ref = want_frf_hp_f2_hz - want_frf_hp_f1_hz;
+    const double ef = ok ? fabs(pk[0].f_hz - want_frf_peak_hz) / want_frf_peak_hz : 1.0;
+    const double eb = ok ? fabs(2.0 * pk[0].zeta * pk[0].f_hz - bw_ref) / bw_ref : 1.0;
+    report("frf.peak_hz", ok && ef <= 1e-5, 1u, ef, 1e-5);
+    report("frf.half_power_band", ok && eb <= 1e-3, 1u, eb, 1e-3);
+    if (ok) {
+        const float pv[3] = {pk[0].f_hz, pk[0].mag, pk[0].zeta};
+        dump("frf.peak", pv, 3u);
+    }
+}
+
 int main(void)
 {
     m4_put("INFO dynval self-test, sizeof(dv_real_t)=");
@@ -572,6 +637,7 @@ int main(void)
     features();
     ar();
     observer();
+    frf();
     m4_put(n_failed == 0u ? "RESULT PASS " : "RESULT FAIL ");
     m4_put_u(n_checks - n_failed);
     m4_put("/");
