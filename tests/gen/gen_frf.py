@@ -42,8 +42,8 @@ def system() -> tuple[np.ndarray, np.ndarray]:
 
 
 def half_power(m: np.ndarray) -> tuple[float, float, float]:
-    """Peak (3-point parabola vertex) and half-power points (in bins) of the largest |H1| bin, |H1| linearly interpolated
-    between bins, the threshold taken at the largest bin's 3-point parabola vertex."""
+    """Peak (3-point parabola vertex) and half-power points (in bins) of the largest |H1| bin,
+    |H1| linearly interpolated between bins, the threshold 1/sqrt(2) of the vertex's value."""
     k = int(np.argmax(m))
     a, b, c = m[k - 1], m[k], m[k + 1]
     p = 0.5 * (a - c) / (a - 2 * b + c)
@@ -73,21 +73,21 @@ def main() -> None:
     rows = [("all", "fs_hz", FS), ("all", "seg_len", SEG), ("all", "fn_hz", FN),
             ("all", "zeta", ZETA), ("all", "n", N)]
     for case, hop in CASES.items():
-        kw = dict(fs=FS, window="hann", nperseg=SEG, noverlap=SEG - hop, detrend=False,
-                  scaling="density", return_onesided=True)
+        kw = {"fs": FS, "window": "hann", "nperseg": SEG, "noverlap": SEG - hop,
+              "detrend": False, "scaling": "density", "return_onesided": True}
         _, guu = signal.welch(u, **kw)
         _, gyy = signal.welch(y, **kw)
         _, guy = signal.csd(u, y, **kw)
         kwc = {k: v for k, v in kw.items() if k not in ("scaling", "return_onesided")}
         _, coh = signal.coherence(u, y, **kwc)
-        np.savetxt(OUT / f"frf_ref_{case}.csv", np.column_stack([guu, gyy, guy.real, guy.imag, coh]),
-                   fmt="%.17g")
+        np.savetxt(OUT / f"frf_ref_{case}.csv",
+                   np.column_stack([guu, gyy, guy.real, guy.imag, coh]), fmt="%.17g")
         rows += [(case, "hop", hop), (case, "n_seg", (N - SEG) // hop + 1)]
         fp, f1, f2 = half_power(np.abs(guy / guu))
-        rows += [(case, "peak_hz", fp * FS / SEG), (case, "hp_f1_hz", f1 * FS / SEG), (case, "hp_f2_hz", f2 * FS / SEG)]
+        rows += [(case, "peak_hz", fp * FS / SEG), (case, "hp_f1_hz", f1 * FS / SEG),
+                 (case, "hp_f2_hz", f2 * FS / SEG)]
     with open(OUT / "frf_expected.csv", "w", encoding="ascii") as f:
-        for r in rows:
-            f.write(f"{r[0]},{r[1]},{r[2]!r}\n")
+        f.writelines(f"{r[0]},{r[1]},{r[2]!r}\n" for r in rows)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,8 @@
 /* The library's golden vectors on the target: features (dv_chan and the standalone modules),
  * AR fits and the streaming AR residual, observer steps of the report's 4-DOF model (linear,
- * with the bumper contact, with the Kalman gain), and the streaming Welch FRF of a resonance. The same source is built for the Cortex-M4F
- * image (semihosting) and for the host twin (stdio) against the float library.
+ * with the bumper contact, with the Kalman gain), and the streaming Welch FRF of a resonance.
+ * The same source is built for the Cortex-M4F image (semihosting) and for the host twin (stdio)
+ * against the float library.
  *
  * Output, one line each:
  *   CHECK <PASS|FAIL> <name> n=<values> maxerr=<max |got-want|/ref> tol=<rtol>
