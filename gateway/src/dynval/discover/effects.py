@@ -152,6 +152,12 @@ def damping_params(m: mdl.Model, band_hz: tuple[float, float]) -> list[str]:
     return names
 
 
+def story_stiffnesses(m: mdl.Model) -> list[str]:
+    """The declared story stiffnesses (a zero one, a free end, stays fixed)."""
+    p = m.parameters()
+    return [f"k{s}" for s in range(1, m.n_dof + 1) if p.get(f"k{s}", 0.0) > 0]
+
+
 def readjust_local(m: mdl.Model, dofs: Sequence[int], band_hz: tuple[float, float]
                    ) -> tuple[str, ...]:
     """Stiffness and mass at the DOFs an element touches (the story springs on either side of
@@ -330,8 +336,10 @@ class MassChange(EffectType):
 
     def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
                  ) -> tuple[str, ...]:
-        # modal damping on the changed modes is not the structure's damping: fit it jointly
-        return tuple(damping_params(m, band_hz))
+        # every story stiffness (a mass moves every mode, and a best-linear declared model
+        # moved them all to absorb it) and the damping; not the other way round (a stiffness
+        # change does not re-adjust the masses): the two would span the same models and tie
+        return tuple(dict.fromkeys([*story_stiffnesses(m), *damping_params(m, band_hz)]))
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         return [{"dof": j} for j in range(1, m.n_dof + 1)]
@@ -855,6 +863,14 @@ class Appendage(EffectType):
         f = float(cand.shape.get("f_hz", math.sqrt(p[0].lower * p[0].upper)))
         ma = float(np.clip(abs(amp), 2 * p[1].lower, 0.5 * p[1].upper))
         return [float(np.clip(f, p[0].lower * 1.01, p[0].upper * 0.99)), ma, 0.03]
+
+    def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
+                 ) -> tuple[str, ...]:
+        # as a mass change (a new mode moves every mode), with the DOF's own mass
+        j = cand.location["dof"]
+        mass = [f"m{j}"] if m.parameters().get(f"m{j}", 0.0) > 0 else []
+        return tuple(dict.fromkeys([*story_stiffnesses(m), *mass,
+                                    *damping_params(m, band_hz)]))
 
     def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
         f, ma, z = self.initial(m, cand, amp)
