@@ -4,6 +4,9 @@ missing force from -M 1 a_g. Before, the view was refused, every candidate was f
 friction joint was put in the wrong place."""
 from __future__ import annotations
 
+import dataclasses
+
+import numpy as np
 import pytest
 
 from dynval import model as mdl
@@ -46,3 +49,38 @@ def test_shake_table_friction_joint_is_found_and_fitted() -> None:
     assert [(e["type"], e["location"]["between"]) for e in r.effects] == [("friction", [1, 2])]
     assert r.effects[0]["parameters"]["force_n"]["value"] == pytest.approx(2.0, rel=0.1)
     assert r.after.total(r.held_names) < 0.05 * r.before.total(r.held_names)
+
+
+
+def five_on_a_table() -> mdl.Model:
+    """Uneven masses and stories, a light top: the kind of the blind case that failed."""
+    return mdl.Model(masses_kg=(2.8, 4.3, 5.7, 7.0, 2.75),
+                     stiffness_n_per_m=(3.46e5, 2.46e5, 4.39e5, 3.75e5, 2.25e5),
+                     damping=mdl.Damping("modal", (0.011, 0.025, 0.02, 0.039, 0.033)),
+                     input=mdl.Input("ground_acc", 0, "table_mps2"),
+                     outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, 6)},
+                     fs_hz=640.0)
+
+
+@pytest.mark.parametrize("seed", [4, 5])
+def test_rarely_closing_contact_on_a_table_is_found(seed: int) -> None:
+    """A contact that closes a few times per record on a shake table (gap 2.5 x the story's
+    RMS drift): the view's evidence is swamped by the integrated sensor noise (under 2 % of
+    the residual). When the best evidence is under a tenth of the residual above the noise,
+    the best-placed candidate of each nonlinear element type is fitted too and the held-out
+    tests judge. Measured without that: seed 4 "no effect" at 2.74 x the ideal's held-out
+    error (the blind case of bench/RESULTS.blind.md: 2.77 x); with it 1.10 x; seed 5 found
+    either way (1.11 x)."""
+    m = five_on_a_table()
+    u = gen.band_limited_force(np.random.default_rng(0), 8192, 640.0, 3.0)
+    probe = dataclasses.replace(m, outputs={f"x{j}": mdl.Output("disp", j) for j in (3, 4)})
+    y = mdl.simulate(probe, u, 640.0)
+    el = mdl.Contact(3, 4, 2.5 * float(np.std(y["x4"] - y["x3"])), 5e-5,
+                     4 * m.stiffness_n_per_m[3])
+    recs = gen.generate(m, gen.Truth(elements=(el,)), n_tests=6, seed=seed,
+                        levels_n_rms=(3.0, 1.8))
+    r = loop.discover(m, recs)
+    assert r.rounds[0].evidence[0].cand.type == "none"  # the view sees little
+    assert [(e["type"], e["location"]["between"]) for e in r.effects][:1] == [("contact", [3, 4])]
+    ideal, _ = rs.error_table(dataclasses.replace(m, elements=(el,)), r.tests, r.chans, r.scales)
+    assert r.after.total(r.held_names) < 1.3 * ideal.total(r.held_names)

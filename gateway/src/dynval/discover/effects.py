@@ -204,6 +204,9 @@ class EffectType:
     available = True
     note = ""
     simpler: tuple[str, ...] = ()  # effect types that are special cases of this one (same place)
+    # a nonlinear element: it may act at a few instants only (a rarely closing contact), where
+    # a noisy evidence view swamps it
+    nonlinear = False
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         raise NotImplementedError
@@ -528,6 +531,7 @@ _QUANTILES = (0.6, 0.75, 0.85, 0.9, 0.95, 0.98, 0.99, 0.995, 0.998)
 class Contact(EffectType):
     type = "contact"
     location_kind = "story"
+    nonlinear = True
     law = ("gap/bumper on the story drift X (report eq. 6-7): s = X - gap (pos side) or "
            "-X - gap (neg); force 0 for s <= 0, kB s^2/(2 delta) for s < delta, kB (s - delta/2) "
            "beyond; a dv_model contact element")
@@ -597,6 +601,7 @@ class _PairElement(_ElementEffect):
 
     location_kind = "pair"
     what = ""
+    nonlinear = True
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         return pairs(m.n_dof)

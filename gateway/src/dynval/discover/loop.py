@@ -509,6 +509,7 @@ def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     chosen += [e for e in rd.second
                if _key(e.cand) not in accepted and all(_key(e.cand) != _key(c.cand)
                                                        for c in chosen)]
+    chosen += _weak_evidence_fallback(s, rd, pool, chosen, top)
     # evidence is first order (the output view) or taken through integrated accelerations
     # (the force view, where a DAQ's 1/f noise swamps the low frequencies): a linear change
     # that shifts a resonance by more than its bandwidth can rank low; screen them all (one
@@ -516,6 +517,32 @@ def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     chosen += _screen_linear(cur, [e for e in pool if e not in chosen], s.fit_t, s.chans,
                              s.scales, cur_table.total(s.fit_names))
     return chosen
+
+
+WEAK_EVIDENCE = 0.1  # the best evidence under this share of the residual above the noise
+
+
+def _weak_evidence_fallback(s: _Session, rd: Round, pool: list[tr.Evidence],
+                            chosen: list[tr.Evidence], top: float) -> list[tr.Evidence]:
+    """When the view explains under WEAK_EVIDENCE of the residual above the noise (its noise
+    swamps an effect that acts at a few instants: a rarely closing contact on a shake table),
+    the best-placed candidate of each nonlinear element type, to be fitted too. The linear
+    changes are screened by simulation anyway (_screen_linear); the held-out test judges."""
+    above_noise = 1.0 - next((e.r2 for e in rd.evidence if e.cand.type == "none"), 1.0)
+    if top >= WEAK_EVIDENCE * above_noise:
+        return []
+    firsts: dict[str, tr.Evidence] = {}
+    for e in pool:  # best evidence first
+        if fx.by_type(e.cand.type).nonlinear:
+            firsts.setdefault(e.cand.type, e)
+    extra = [e for e in firsts.values() if e not in chosen]
+    if extra:
+        msg = (f"round {rd.index}: the evidence view explains at most {top:.3f} of the "
+               f"residual's {above_noise:.2f} above the noise: the best-placed candidate of "
+               f"each nonlinear element type is fitted too ({len(extra)})")
+        log.info(msg)
+        s.notes.append(msg)
+    return extra
 
 
 def _best(s: _Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model,
