@@ -152,10 +152,16 @@ def damping_params(m: mdl.Model, band_hz: tuple[float, float]) -> list[str]:
     return names
 
 
-def story_stiffnesses(m: mdl.Model) -> list[str]:
-    """The declared story stiffnesses (a zero one, a free end, stays fixed)."""
+def readjust_every_stiffness(m: mdl.Model, band_hz: tuple[float, float],
+                             mass_dof: int | None = None) -> tuple[str, ...]:
+    """Every declared story stiffness (a zero one, a free end, stays fixed), the mass at
+    ``mass_dof`` if given, and the damping: what a best-linear declared model moved to absorb
+    an added mass or mode, which moves every mode."""
     p = m.parameters()
-    return [f"k{s}" for s in range(1, m.n_dof + 1) if p.get(f"k{s}", 0.0) > 0]
+    names = [f"k{s}" for s in range(1, m.n_dof + 1) if p.get(f"k{s}", 0.0) > 0]
+    if mass_dof is not None and p.get(f"m{mass_dof}", 0.0) > 0:
+        names.append(f"m{mass_dof}")
+    return tuple(dict.fromkeys([*names, *damping_params(m, band_hz)]))
 
 
 def readjust_local(m: mdl.Model, dofs: Sequence[int], band_hz: tuple[float, float]
@@ -232,6 +238,11 @@ class EffectType:
 
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
         raise NotImplementedError
+
+    def changes(self, cand: Candidate) -> str:
+        """The one declared parameter this candidate changes, if it is only that (a linear
+        change: the loop does not offer it once an accepted effect re-adjusted it); ''."""
+        return ""
 
     def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
         """Starting points of the fit (the best fit over them is kept)."""
@@ -329,7 +340,10 @@ class StiffnessChange(EffectType):
 
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
         s = cand.location["story"]
-        return m.with_params({f"k{s}": m.stiffness_n_per_m[s - 1] + float(values[0])})
+        return m.with_params({self.changes(cand): m.stiffness_n_per_m[s - 1] + float(values[0])})
+
+    def changes(self, cand: Candidate) -> str:
+        return f"k{cand.location['story']}"
 
 
 class MassChange(EffectType):
@@ -339,10 +353,9 @@ class MassChange(EffectType):
 
     def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
                  ) -> tuple[str, ...]:
-        # every story stiffness (a mass moves every mode, and a best-linear declared model
-        # moved them all to absorb it) and the damping; not the other way round (a stiffness
-        # change does not re-adjust the masses): the two would span the same models and tie
-        return tuple(dict.fromkeys([*story_stiffnesses(m), *damping_params(m, band_hz)]))
+        # not the other way round (a stiffness change does not re-adjust the masses): the
+        # two would span the same models and tie
+        return readjust_every_stiffness(m, band_hz)
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         return [{"dof": j} for j in range(1, m.n_dof + 1)]
@@ -372,7 +385,10 @@ class MassChange(EffectType):
 
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
         j = cand.location["dof"]
-        return m.with_params({f"m{j}": m.masses_kg[j - 1] + float(values[0])})
+        return m.with_params({self.changes(cand): m.masses_kg[j - 1] + float(values[0])})
+
+    def changes(self, cand: Candidate) -> str:
+        return f"m{cand.location['dof']}"
 
 
 class DampingChange(EffectType):
@@ -872,10 +888,7 @@ class Appendage(EffectType):
     def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
                  ) -> tuple[str, ...]:
         # as a mass change (a new mode moves every mode), with the DOF's own mass
-        j = cand.location["dof"]
-        mass = [f"m{j}"] if m.parameters().get(f"m{j}", 0.0) > 0 else []
-        return tuple(dict.fromkeys([*story_stiffnesses(m), *mass,
-                                    *damping_params(m, band_hz)]))
+        return readjust_every_stiffness(m, band_hz, cand.location["dof"])
 
     def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
         f, ma, z = self.initial(m, cand, amp)

@@ -293,13 +293,14 @@ READJUST_GAIN = 0.02  # the joint re-adjustment must lower the held-out error by
 
 
 def _readjust_declared(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
-                       ) -> tuple[mdl.Model, rs.ErrorTable]:
+                       ) -> tuple[mdl.Model, rs.ErrorTable, dict[str, dict[str, np.ndarray]]
+                                  ] | None:
     """With the effects in (after each accepted one), every declared stiffness and damping
     parameter re-adjusted jointly, with the masses an effect re-adjusted: a best-linear
     declared model spread part of the effect over parameters far from its location, which
     the candidate's local re-adjustment leaves. Kept when the held-out
     error drops by READJUST_GAIN and the BIC over the fitting tests agrees; each change is
-    reported in the notes."""
+    reported in the notes; None when not kept."""
     pm = cur.parameters()
     names = tuple(n for n in pm if (n.startswith("k") and pm[n] > 0)
                   or n.startswith("zeta") or n in ("alpha", "beta")
@@ -309,8 +310,8 @@ def _readjust_declared(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
                      s.o.max_nfev, names)
     except ConfigError as exc:
         log.info("re-adjusting the declared parameters failed: %s", exc)
-        return cur, cur_table
-    tab, _ = s.table(cal.model)
+        return None
+    tab, res = s.table(cal.model)
     before, after = cur_table.total(s.held_names), tab.total(s.held_names)
     n_eff = sum(t.n for t in s.fit_t for _ in s.chans) / cal.n_eff_factor
     dbic = (_bic(cal.nsse_fit, n_eff, len(names))
@@ -318,14 +319,14 @@ def _readjust_declared(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
     if not (after < (1 - READJUST_GAIN) * before and dbic < 0):
         log.info("re-adjusting the declared parameters jointly: held-out %.4g -> %.4g: "
                  "not kept", before, after)
-        return cur, cur_table
+        return None
     new = cal.model.parameters()
     changes = ", ".join(f"{n} {pm[n]:.4g} -> {new[n]:.4g} ({100 * (new[n] / pm[n] - 1):+.1f} %)"
                         for n in names if pm[n] and abs(new[n] / pm[n] - 1) > 1e-3)
     s.notes.append(f"with the effects in, the declared stiffness and damping re-adjusted "
                    f"jointly (held-out error {100 * (after / before - 1):+.1f} %): {changes}")
     log.info(s.notes[-1])
-    return cal.model, tab
+    return cal.model, tab, res
 
 
 OFFSET_SHARE = 0.05  # a channel's constant residual must hold this share of its energy
@@ -499,8 +500,11 @@ def _second_opinion(first: list[tr.Evidence], second: list[tr.Evidence],
 def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
           accepted: set[str]) -> list[tr.Evidence]:
     """The candidates worth fitting this round."""
+    def offered(c: fx.Candidate) -> bool:  # not accepted, not a re-adjusted parameter's change
+        return _key(c) not in accepted and fx.by_type(c.type).changes(c) not in s.readjusted
+
     pool = [e for e in rd.evidence if e.cand.available and e.cand.type != "none"
-            and _key(e.cand) not in accepted and _changes(e.cand) not in s.readjusted]
+            and offered(e.cand)]
     top_e = rd.evidence[0]
     if not top_e.cand.available and top_e.r2 > 0.2:
         msg = (f"the strongest evidence ({top_e.r2:.2f}) points to '{top_e.cand.label}', an "
@@ -512,9 +516,7 @@ def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     top = max((e.r2 for e in pool), default=0.0)
     chosen = _diverse([e for e in pool if e.r2 >= s.o.evidence_cut * top], s.o.top_k)
     chosen += [e for e in rd.second
-               if _key(e.cand) not in accepted and _changes(e.cand) not in s.readjusted
-               and all(_key(e.cand) != _key(c.cand)
-                                                       for c in chosen)]
+               if offered(e.cand) and all(_key(e.cand) != _key(c.cand) for c in chosen)]
     if not accepted:  # bounded cost: only where the answer would otherwise be "no effect"
         chosen += _weak_evidence_fallback(s, rd, pool, chosen, top)
     # evidence is first order (the output view) or taken through integrated accelerations
@@ -668,9 +670,9 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
         s.readjusted.update(best["readjusted"])
         # before the next round: a best-linear model's spread over far parameters would
         # otherwise be the next round's "effect" (a 0.3 % stiffness change)
-        cur, new_table = _readjust_declared(s, cur, cur_table)
-        if new_table is not cur_table:
-            cur_table, res_cur = s.table(cur)
+        kept = _readjust_declared(s, cur, cur_table)
+        if kept is not None:
+            cur, cur_table, res_cur = kept
         floors = _floors(s, cur, res_cur, floors)
         noise = {c: f.rms for c, f in floors.items()}
         accepted.add(_key(res_b.cand))
@@ -856,15 +858,6 @@ def _probe_evidence(s: _Session, cur: mdl.Model, evidence: list[tr.Evidence],
         out.append(e if reg is None else
                    tr.Evidence(e.cand, reg[0], reg[1] * amount, {"probe": amount}))
     return out
-
-
-def _changes(c: fx.Candidate) -> str:
-    """The declared parameter a linear change candidate changes ('' for the others)."""
-    if c.type == "mass_change":
-        return f"m{c.location['dof']}"
-    if c.type == "stiffness_change":
-        return f"k{c.location['story']}"
-    return ""
 
 
 def _key(c: fx.Candidate) -> str:
