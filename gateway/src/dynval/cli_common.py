@@ -24,6 +24,17 @@ from dynval.io import Recording, collect_tests, load_channel_map, read_test
 log = logging.getLogger(__name__)
 
 
+def nonnegative_int(text: str) -> int:
+    """argparse type of counts such as --workers (a usage error otherwise)."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0: {v}")
+    return v
+
+
 def add_test_options(p: Any) -> None:
     """--fs, --channel-map, --lenient: how recorded tests are read."""
     p.add_argument("--fs", type=float, default=None, metavar="HZ",

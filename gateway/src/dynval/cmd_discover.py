@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from dynval.cli_common import add_test_options, read_tests
+from dynval.cli_common import add_test_options, nonnegative_int, read_tests
 from dynval.errors import ConfigError, InputFileError
 from dynval.io import Recording
 
@@ -41,6 +41,9 @@ def add_parser(sub: Any) -> None:
                    help="keep the declared stiffness, mass and damping fixed while testing "
                         "effects (default: re-adjust those at each candidate's location and "
                         "the modal damping, as a best-linear declared model needs)")
+    p.add_argument("--workers", type=nonnegative_int, default=0, metavar="N",
+                   help="processes for the candidate fits (default: every available core; "
+                        "the results do not depend on it)")
     add_test_options(p)
     p.set_defaults(run=run)
 
@@ -57,7 +60,8 @@ def run(args: argparse.Namespace) -> int:
     noise = _stated_noise(args.noise, m, recs) if args.noise is not None else None
     unc = tuple(x.strip() for x in args.uncertain.split(",") if x.strip())
     opts = loop.Options(max_effects=args.max_effects, min_gain=args.min_gain, noise=noise,
-                        uncertain=unc, readjust=not args.no_readjust)
+                        uncertain=unc, readjust=not args.no_readjust,
+                        workers=args.workers)
     try:
         res = loop.discover(m, recs, opts, on_progress=lambda s: log.debug("%s", s))
     except Exception:

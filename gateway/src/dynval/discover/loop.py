@@ -36,7 +36,7 @@ from dynval import model as mdl
 from dynval.discover import drift as dr
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
-from dynval.discover import initial
+from dynval.discover import initial, parallel
 from dynval.discover import noise as nz
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
@@ -63,6 +63,7 @@ class Options:
     # re-adjust the declared stiffness, mass and damping at each candidate's location (and
     # the modal damping) while it is fitted
     readjust: bool = True
+    workers: int = 0  # processes for the candidate fits of a round; 0: every available core
 
 
 @dataclass
@@ -560,9 +561,13 @@ def _best(s: _Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model,
           cur_table: rs.ErrorTable) -> dict[str, Any] | None:
     """Fit and judge the pool; the accepted fit with the lowest held-out error."""
     judge = _Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band)
+    workers = s.o.workers or parallel.available_workers()
+    # the references first (candidates share them), then the candidates: the same results
+    # as one loop, on every core
+    names = list(dict.fromkeys(judge.readjusted(_with_shape(e)) for e in pool))
+    judge.known(names, parallel.ordered_map(judge.reference, names, workers))
     best: dict[str, Any] | None = None
-    for e in pool:
-        info = judge.candidate(e)
+    for info in parallel.ordered_map(judge.candidate, pool, workers):
         if info is None:
             continue
         rd.fits.append(info)
@@ -726,6 +731,11 @@ class _Judge:
                 log.info("re-adjusting %s alone failed: %s", ", ".join(names), exc)
             self._refs[names] = ref
         return self._refs[names]
+
+    def known(self, names: Sequence[tuple[str, ...]],
+              refs: Sequence[tuple[mdl.Model, rs.ErrorTable, int]]) -> None:
+        """References computed elsewhere (reference() in worker processes)."""
+        self._refs.update(zip(names, refs, strict=True))
 
     def candidate(self, e: tr.Evidence) -> dict[str, Any] | None:
         cand = _with_shape(e)

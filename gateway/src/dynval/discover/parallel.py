@@ -1,0 +1,50 @@
+"""An ordered map over forked worker processes, for the independent fits of a discover round.
+
+Each candidate of a round is fitted and judged on its own, but needs the whole session (the
+tests' arrays, the current model, the options). Forked workers inherit it instead of having it
+pickled per task: only a task's index goes out and its result (fit values, models, error
+tables: small) comes back. The results are those of the serial loop, in the same order: each
+task runs the same code on the same inputs in another process. Where fork is not available
+(Windows, macOS' default), or with one worker, the map runs in this process."""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing as mp
+import os
+from collections.abc import Callable, Sequence
+from typing import Any, TypeVar
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+# the work of the pool being run; set before the fork, read by the workers
+_WORK: tuple[Callable[[Any], Any], Sequence[Any]] | None = None
+
+
+def available_workers() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _run(i: int) -> Any:
+    assert _WORK is not None, "a worker without work (not forked from ordered_map)"
+    fn, items = _WORK
+    return fn(items[i])
+
+
+def ordered_map(fn: Callable[[T], R], items: Sequence[T], workers: int) -> list[R]:
+    """[fn(x) for x in items], on up to ``workers`` forked processes. An exception in a task
+    is raised here, as the serial loop would raise it."""
+    global _WORK
+    n = min(workers, len(items))
+    if n <= 1 or "fork" not in mp.get_all_start_methods():
+        return [fn(x) for x in items]
+    _WORK = (fn, items)
+    try:
+        with cf.ProcessPoolExecutor(max_workers=n, mp_context=mp.get_context("fork")) as ex:
+            return list(ex.map(_run, range(len(items))))
+    finally:
+        _WORK = None

@@ -1,0 +1,50 @@
+"""discover's candidate fits on several processes (discover/parallel.py): the results are the
+serial loop's, bit for bit, in the same order, and a worker's exception reaches the caller."""
+from __future__ import annotations
+
+import os
+
+import pytest
+from test_discover_drift import carriage
+
+from dynval import model as mdl
+from dynval import synth as gen
+from dynval.discover import loop, parallel, report
+
+
+def _pid_and_square(x: int) -> tuple[int, int]:
+    return os.getpid(), x * x
+
+
+def _fails_on_three(x: int) -> int:
+    if x == 3:
+        raise ValueError("three")
+    return x
+
+
+def test_ordered_map_keeps_the_order_and_uses_other_processes() -> None:
+    out = parallel.ordered_map(_pid_and_square, list(range(12)), 2)
+    assert [sq for _, sq in out] == [x * x for x in range(12)]
+    assert {pid for pid, _ in out} - {os.getpid()}  # forked workers did the work
+
+
+def test_one_worker_runs_here() -> None:
+    out = parallel.ordered_map(_pid_and_square, [1, 2, 3], 1)
+    assert out == [(os.getpid(), 1), (os.getpid(), 4), (os.getpid(), 9)]
+
+
+def test_a_workers_exception_is_raised_to_the_caller() -> None:
+    with pytest.raises(ValueError, match="three"):
+        parallel.ordered_map(_fails_on_three, list(range(6)), 2)
+
+
+def test_discover_gives_the_same_report_on_one_and_on_two_processes() -> None:
+    truth = gen.Truth(elements=(mdl.Friction(0, 1, 1.5, 1e-3),))
+    recs = gen.generate(carriage(), truth, n_tests=4, seed=5)
+    docs = []
+    for workers in (1, 2):
+        doc = report.to_json(loop.discover(carriage(), recs, loop.Options(workers=workers)))
+        doc.pop("timing_s", None)
+        docs.append(doc)
+    assert docs[0]["effects"] and docs[0]["effects"][0]["type"] == "friction"
+    assert docs[0] == docs[1]
