@@ -8,11 +8,13 @@ import dataclasses
 import logging
 from pathlib import Path
 
+import lanl4dof
 import numpy as np
 import pytest
 
 from dynval import model as mdl
 from dynval._core import ffi, lib, ptr
+from dynval.errors import ConfigError
 from dynval.io import read_test
 
 log = logging.getLogger(__name__)
@@ -89,3 +91,18 @@ def test_cubic_hold_streaming_residual_is_aligned(clean: Path) -> None:
     assert lib.dv_obs_get(core.obs, last, ffi.NULL, len(m.outputs)) == lib.DV_OK
     np.testing.assert_allclose(np.frombuffer(ffi.buffer(last), dtype=np.float64), pred[-1],
                                rtol=1e-12, atol=1e-12)
+
+
+def test_a_prepared_input_simulates_as_the_samples_do() -> None:
+    """mdl.prepare_input interpolates once for repeated runs: the same outputs bit for bit,
+    and an input prepared for another oversampling is refused, not silently misread."""
+    m = lanl4dof.declared()
+    u = np.random.default_rng(3).standard_normal(1024)
+    fs = 640.0
+    direct = mdl.simulate(m, u, fs)
+    prepared = mdl.prepare_input(m, u)
+    assert prepared.r == mdl.oversample_factor(m) == m.oversample
+    again = mdl.simulate(m, prepared, fs)
+    assert all(np.array_equal(direct[c], again[c]) for c in direct)
+    with pytest.raises(ConfigError, match="prepared for oversample 1"):
+        mdl.simulate(m, mdl.prepare_input(m, u, oversample=1), fs)

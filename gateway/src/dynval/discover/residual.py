@@ -10,7 +10,7 @@ import importlib
 import logging
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -54,6 +54,16 @@ class TestData:
     # predict with the core's observer (one step ahead, steady-state Kalman gain) instead of
     # open loop: a model that drifts (discover/drift.py); None: open loop
     observer: Observer | None = None
+    # the input interpolated per oversampling factor, once per test (input_for)
+    _prepared: dict[int, mdl.PreparedInput] = field(default_factory=dict, init=False,
+                                                    repr=False, compare=False)
+
+    def input_for(self, m: mdl.Model) -> mdl.PreparedInput:
+        """The input as m's simulations take it (mdl.simulate), interpolated once."""
+        r = mdl.oversample_factor(m)
+        if r not in self._prepared:
+            self._prepared[r] = mdl.prepare_input(m, self.u)
+        return self._prepared[r]
 
     def counted(self, a: np.ndarray) -> np.ndarray:
         """The samples of a record-length array that count for this test (or view)."""
@@ -114,7 +124,7 @@ def channel_scales(tests: Sequence[TestData], chans: Sequence[str]) -> dict[str,
 def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     """The model's open-loop prediction, or None when the core refuses the model."""
     try:
-        p = (mdl.simulate(m, t.u, t.fs_hz) if t.observer is None else
+        p = (mdl.simulate(m, t.input_for(m), t.fs_hz) if t.observer is None else
              mdl.predict_observed(m, t.u, t.y, t.fs_hz, t.observer.q_force_n2,
                                   t.observer.r_meas))
     except ConfigError as exc:

@@ -309,7 +309,7 @@ def _simulate_states(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     for i in range(0, len(names), 16):
         probe = dataclasses.replace(m, outputs={c: want[c] for c in names[i:i + 16]})
         try:
-            out.update(mdl.simulate(probe, t.u, t.fs_hz))
+            out.update(mdl.simulate(probe, t.input_for(probe), t.fs_hz))
         except DynvalError:
             return None
     return out

@@ -39,6 +39,7 @@ from dynval.model.schema import (
 )
 from dynval.model.simulation import (
                                    Linear,
+                                   PreparedInput,
                                    _Core,
                                    damping_matrix_explicit,
                                    free_response,
@@ -46,7 +47,9 @@ from dynval.model.simulation import (
                                    linear,
                                    modes,
                                    natural_frequencies,
+                                   oversample_factor,
                                    predict_observed,
+                                   prepare_input,
                                    simulate,
                                    simulate_batch,
                                    stiffness_matrix,
@@ -57,10 +60,10 @@ ELEMENT_TYPES = tuple(REGISTRY)
 
 __all__ = ["DAMPING_TYPES", "ELEMENT_TYPES", "FORMAT", "INPUT_KINDS", "INTERPOLATIONS",
            "OUTPUT_KINDS", "REGISTRY", "SIDES", "ChannelResidual", "ConstantForce", "Contact",
-           "CubicSpring",
-           "Damping", "Element", "Friction", "Input", "Linear", "Link", "Model", "Output",
-           "ResidualResult", "StickSlip", "VVDamper", "_Core", "damping_matrix_explicit",
-           "free_response", "from_dict", "input_channel", "interpolate_input", "linear", "load",
-           "modes", "natural_frequencies", "param_unit", "predict_observed", "residual", "save",
-           "simulate", "simulate_batch", "simulate_recording", "stiffness_matrix", "to_dict",
-           "validate"]
+           "CubicSpring", "Damping", "Element", "Friction", "Input", "Linear", "Link", "Model",
+           "Output", "PreparedInput", "ResidualResult", "StickSlip", "VVDamper", "_Core",
+           "damping_matrix_explicit", "free_response", "from_dict", "input_channel",
+           "interpolate_input", "linear", "load", "modes", "natural_frequencies",
+           "oversample_factor", "param_unit", "predict_observed", "prepare_input", "residual",
+           "save", "simulate", "simulate_batch", "simulate_recording", "stiffness_matrix",
+           "to_dict", "validate"]
