@@ -25,6 +25,7 @@ import numpy as np
 
 from dynval import model as mdl
 from dynval.discover import effects as fx
+from dynval.discover import parallel
 from dynval.discover.residual import TestData, predict
 from dynval.errors import ConfigError
 
@@ -206,8 +207,8 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
 
 
 def scatter(m: mdl.Model, res: FitResult, tests: Sequence[TestData], chans: Sequence[str],
-            scales: dict[str, float], uncertain: Sequence[str] = (), max_nfev: int = 15
-            ) -> list[float]:
+            scales: dict[str, float], uncertain: Sequence[str] = (), max_nfev: int = 15,
+            workers: int = 1) -> list[float]:
     """Model-form uncertainty from the test-to-test scatter: the fit of ``res`` repeated on
     each test alone (from its joint optimum), and the standard error of their mean per
     parameter, std / sqrt(k), widened by t(0.975, k - 1) / z(0.975) so that +-2 of it is the
@@ -215,14 +216,16 @@ def scatter(m: mdl.Model, res: FitResult, tests: Sequence[TestData], chans: Sequ
     A model of the right form scatters as its noise says; a wrong form scatters more, and its
     Gauss-Newton sigma alone (which assumes the form right) would be far too small."""
     npar = len(res.values) - len(uncertain)
-    per: list[list[float]] = []
-    for t in tests:
+
+    def alone(t: TestData) -> list[float] | None:
         try:
-            one = fit(m, res.cand, res.values[:npar], [t], chans, scales, max_nfev, uncertain)
+            return fit(m, res.cand, res.values[:npar], [t], chans, scales, max_nfev,
+                       uncertain).values
         except ConfigError as exc:
             log.debug("%s on %s alone: %s", res.cand.label, t.name, exc)
-            continue
-        per.append(one.values)
+            return None
+
+    per = [v for v in parallel.ordered_map(alone, tests, workers) if v is not None]
     if len(per) < 2:
         return [math.nan] * len(res.values)
     v = np.array(per)

@@ -208,6 +208,11 @@ class _Session:
     readjusted: set[str] = field(default_factory=set)
 
     @property
+    def workers(self) -> int:
+        """Processes for independent fits (candidates, per-test refits)."""
+        return self.o.workers or parallel.available_workers()
+
+    @property
     def evals(self) -> list[rs.TestData]:
         return [*self.fit_t, *self.held_t]  # every test once, or every test's two views
 
@@ -561,7 +566,7 @@ def _best(s: _Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model,
           cur_table: rs.ErrorTable) -> dict[str, Any] | None:
     """Fit and judge the pool; the accepted fit with the lowest held-out error."""
     judge = _Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band)
-    workers = s.o.workers or parallel.available_workers()
+    workers = s.workers
     # the references first (candidates share them), then the candidates: the same results
     # as one loop, on every core
     names = list(dict.fromkeys(judge.readjusted(_with_shape(e)) for e in pool))
@@ -666,7 +671,8 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
             break
         rd.accepted = best
         res_b: ft.FitResult = best["fit"]
-        spread = ft.scatter(cur, res_b, s.fit_t, s.chans, s.scales, best["readjusted"])
+        spread = ft.scatter(cur, res_b, s.fit_t, s.chans, s.scales, best["readjusted"],
+                            workers=s.workers)
         effects.append(_effect_entry(res_b, best, cur, spread))
         cur = res_b.model
         if prediction == "open loop":  # the new model's initial states
