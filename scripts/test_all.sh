@@ -60,7 +60,7 @@ step "Python lint and types (ruff, mypy --strict)" bash -c 'cd gateway && ruff c
 # set, so a missing tool fails instead of skipping
 step "Python package (pytest)" env DV_FOXGLOVE_CHECK=1 DV_FEATURES_DUMP="$ROOT/build/f64/tests/dv_features_dump" \
     DV_AR_DUMP="$ROOT/build/f64/tests/dv_ar_dump" DV_MODEL_DUMP="$ROOT/build/f64/tests/dv_model_dump" \
-    python3 -m pytest -q -p no:cacheprovider gateway/tests tests/py
+    python3 -m pytest -q -p no:cacheprovider -n auto --dist worksteal gateway/tests tests/py
 if [ -x tests/e2e/run_e2e.sh ]; then
     step "end-to-end on a real vcan bus" tests/e2e/run_e2e.sh
 fi
