@@ -37,8 +37,10 @@ def test_features_table_and_json(tmp_path: Path, capsys: pytest.CaptureFixture[s
     ("", ":1", "empty file"),
     ("time_s,force_N\n0,1\n0.01,abc\n0.02,3\n", ":3 (column force_N)", "not a number"),
     ("time_s,force_N\n0,1\n0.01,nan\n0.02,3\n", ":3 (column force_N)", "non-finite"),
-    ("time_s,force_N\n0,1\n0.01,2\n0.005,3\n", ":4 (column time_s)", "does not increase"),
-    ("time_s,force_N\n0,1\n0.01,2\n0.02,3\n0.05,4\n0.06,5\n", ":5 (column time_s)", "irregular"),
+    ("time_s,force_N\n0,1\n0.01,2\n0.005,3\n", ":4 (column time_s)",
+     "does not increase (0.01 then 0.005)"),  # numbers as written, no numpy reprs
+    ("time_s,force_N\n0,1\n0.01,2\n0.02,3\n0.05,4\n0.06,5\n", ":5 (column time_s)",
+     "irregular sampling: step 0.03 s where the period is 0.01 s"),
     ("time_s,force_N,acc1_mps2\n0,1,2\n0.01,2,3\n0.02,3", ":4", "truncated"),
     ("1,2\n3,4\n", ":1", "header"),
 ])
