@@ -337,6 +337,17 @@ def test_validate_headline_is_the_json_verdict_and_the_exit_code(
     assert "together: " in page
 
 
+def test_verdict_exit_codes_are_not_the_error_codes() -> None:
+    """CI tells an INCONCLUSIVE study from a crash (3) and from bad input (2)."""
+    from dynval import cli
+    from dynval.validate import verdict as vd
+
+    errors = {cli.EXIT_INPUT, cli.EXIT_INTERNAL, cli.EXIT_USAGE, cli.EXIT_INTERRUPTED,
+              cli.EXIT_PIPE}
+    assert vd.EXIT == {"PASS": 0, "FAIL": 1, "INCONCLUSIVE": 4}
+    assert not errors & set(vd.EXIT.values())
+
+
 def _verdict(word: str, median_d: float) -> dict[str, Any]:
     return {"verdict": word, "evidence": {"mahalanobis": {"median_d": median_d,
                                                           "threshold": 9.5}}}
