@@ -81,11 +81,12 @@ def test_killed_log_recovers_for_the_official_reader(tmp_path: Path, kill_after_
     assert 0 < np.isfinite(rec.channels[0].data).sum() < rec.n_samples
 
 
-def test_sigterm_writes_the_footer(tmp_path: Path) -> None:
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_stop_signal_writes_the_footer(tmp_path: Path, sig: signal.Signals) -> None:
     proc, out = _start_run(tmp_path)
     log = _wait_for_log(out, proc)
     time.sleep(1.0)
-    proc.send_signal(signal.SIGTERM)
+    proc.send_signal(sig)
     assert proc.wait(timeout=30) == 130
     msgs = _official_messages(log)  # no recovery needed: the footer is there
     assert sum(topic.startswith("/dv/samples/") for topic, _ in msgs) > 100
