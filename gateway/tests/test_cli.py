@@ -213,3 +213,21 @@ def test_a_missing_core_is_one_line_and_exit_2(tmp_path: Path, cmd: str) -> None
     assert r.returncode == 2, r.stderr
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "not installed" in lines[0] and str(lib) in lines[0], r.stderr
+
+
+def test_inspect_prints_words_not_python_reprs(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 18: 'fs 639.9999999998545 Hz' and a raw status dict leaked into inspect."""
+    from dynval import bus
+    from dynval.mcap_log import McapLog
+
+    p = tmp_path / "x.mcap"
+    with McapLog(p, meta={"fs_hz": "639.9999999998545", "test": "t"}) as log:
+        # DV_STATUS: state recording | observer on, beat 7, lost 2 (u16), dup 0, late 1
+        log.on_frame(1_000, bus.ID_STATUS, bytes([0x03, 7, 2, 0, 0, 1, 0, 0]))
+    capsys.readouterr()
+    assert main(["inspect", str(p)]) == 0
+    out = capsys.readouterr().out
+    assert "fs 640 Hz," in out
+    assert "last DV_STATUS: recording, obs on (state 0x03), beat 7, lost 2, dup 0, late 1" in out
+    assert "{" not in out and "np." not in out
