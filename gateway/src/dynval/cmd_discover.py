@@ -15,10 +15,18 @@ from dynval.io import Recording
 
 log = logging.getLogger(__name__)
 
+# exit codes CI gates on (2 is bad input, 3 an internal error, as every command's)
+EXIT_EXPLAINED = 0  # no effect: the declared model explains the tests to the noise floor
+EXIT_LACKS = 1  # the declared model lacks an effect (found and fitted, or none in the library)
+
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser("discover", help="find the effect a declared model lacks, add it, "
-                       "report the error before and after")
+                       "report the error before and after",
+                       epilog=f"exit code: {EXIT_EXPLAINED} the declared model explains the "
+                       f"tests to the noise floor, {EXIT_LACKS} it lacks something (the "
+                       "effects found, or a residual no effect in the library explains), 2 bad "
+                       "input")
     p.add_argument("model", type=Path, help="declared model (dynval format or declared_model)")
     p.add_argument("tests", type=Path, nargs="+", help="measured tests (files or folders)")
     p.add_argument("--json", type=Path, default=None, metavar="OUT.json", help="JSON report")
@@ -46,6 +54,7 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Exit code: EXIT_EXPLAINED or EXIT_LACKS, the verdict's."""
     from dynval import model as mdl
     from dynval.discover import loop, report
 
@@ -100,7 +109,8 @@ def run(args: argparse.Namespace) -> int:
           f"{_g(mah.get('p_after'))}")
     log.info("discover: %d tests in %.1f s", len(recs), time.perf_counter() - t0)
     sys.stdout.flush()
-    return 0
+    explained = not doc["effects"] and doc["verdict"].startswith("no effect: ")
+    return EXIT_EXPLAINED if explained else EXIT_LACKS
 
 
 MIN_SAMPLES = 64  # the input band and the noise floor need spectra of some length
