@@ -231,3 +231,22 @@ def test_inspect_prints_words_not_python_reprs(tmp_path: Path,
     assert "fs 640 Hz," in out
     assert "last DV_STATUS: recording, obs on (state 0x03), beat 7, lost 2, dup 0, late 1" in out
     assert "{" not in out and "np." not in out
+
+
+@pytest.mark.parametrize("name", ["libdynval-f64.so.0", "libdynval-f64.dylib", "dynval-f64.dll",
+                                  "libdynval-f64.dll"])
+def test_the_core_is_looked_for_under_each_platforms_name(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str) -> None:
+    """Linux, macOS and Windows names of the shared library are found (an empty file here:
+    found, then refused by the loader, naming it)."""
+    import shutil
+
+    import dynval._core as core
+    from dynval.errors import CoreNotBuiltError
+
+    for cdef in core._LIB_DIR.glob("*_cdef.h"):  # the declarations the FFI needs
+        shutil.copy(cdef, tmp_path)
+    (tmp_path / name).write_bytes(b"")
+    monkeypatch.setattr(core, "_LIB_DIR", tmp_path)
+    with pytest.raises(CoreNotBuiltError, match=rf"{name}: cannot load"):
+        core._dlopen("dynval-f64")
