@@ -89,20 +89,22 @@ def run(args: argparse.Namespace) -> int:
         log.info("wrote %s (HTML report)", args.html)
     print(doc["verdict"])
     for e in doc["effects"]:
-        ps = ", ".join(f"{k} = {v['value']:.5g} +/- {v['uncertainty'] or float('nan'):.2g} "
-                       f"{v['unit']}" for k, v in e["parameters"].items())
+        ps = ", ".join(f"{k} = {v['value']:.5g} +/- {v['uncertainty'] or float('nan'):.2g}"
+                       f"{_unit(v['unit'])}" for k, v in e["parameters"].items())
         print(f"  {e['label']}: {ps}")
         for k, v in e.get("readjusted", {}).items():
-            print(f"    re-adjusted {k}: {v['before']:.5g} -> {v['value']:.5g} {v['unit']} "
+            print(f"    re-adjusted {k}: {v['before']:.5g} -> {v['value']:.5g}{_unit(v['unit'])} "
                   f"({100 * v['change_rel']:+.1f} %)")
     width = max(8, *(len(c) for c in res.chans))
-    print(f"  {'channel':<{width}} {'held-out rmse before':>21} {'after':>12} {'noise':>10}"
-          "  noise from")
+    uw = max(4, *(len(units.get(c, "")) for c in res.chans))
+    print(f"  {'channel':<{width}} {'unit':<{uw}} {'held-out rmse before':>21} {'after':>12} "
+          f"{'noise':>10}  noise from")
     for c in res.chans:
         b = doc["rmse_before"]["held_out"][c]
         a = doc["rmse_after"]["held_out"][c]
         how = doc["noise_method"].get(c, {}).get("method", "")
-        print(f"  {c:<{width}} {b:>21.5g} {a:>12.5g} {doc['noise_floor'][c]:>10.4g}  {how}")
+        print(f"  {c:<{width}} {units.get(c, ''):<{uw}} {b:>21.5g} {a:>12.5g} "
+              f"{doc['noise_floor'][c]:>10.4g}  {how}")
     mah = doc["mahalanobis"]
     print(f"  Mahalanobis (paired) before {_g(mah.get('before'))}, after "
           f"{_g(mah.get('after'))}; paired test p before {_g(mah.get('p_before'))}, after "
@@ -139,6 +141,11 @@ def _preflight(m: Any, rec: Recording) -> None:
     if not np.any(np.nan_to_num(u) != 0):
         raise InputFileError(where, "the input channel is zero throughout (an ambient or "
                              "free-decay test): discover needs a measured input")
+
+
+def _unit(u: str) -> str:
+    """' m/s^2' after a number; nothing for a dimensionless one (the reports' '1')."""
+    return "" if u in ("", "1") else f" {u}"
 
 
 def _g(x: Any) -> str:
