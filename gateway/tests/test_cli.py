@@ -37,8 +37,10 @@ def test_features_table_and_json(tmp_path: Path, capsys: pytest.CaptureFixture[s
     ("", ":1", "empty file"),
     ("time_s,force_N\n0,1\n0.01,abc\n0.02,3\n", ":3 (column force_N)", "not a number"),
     ("time_s,force_N\n0,1\n0.01,nan\n0.02,3\n", ":3 (column force_N)", "non-finite"),
-    ("time_s,force_N\n0,1\n0.01,2\n0.005,3\n", ":4 (column time_s)", "does not increase"),
-    ("time_s,force_N\n0,1\n0.01,2\n0.02,3\n0.05,4\n0.06,5\n", ":5 (column time_s)", "irregular"),
+    ("time_s,force_N\n0,1\n0.01,2\n0.005,3\n", ":4 (column time_s)",
+     "does not increase (0.01 then 0.005)"),  # numbers as written, no numpy reprs
+    ("time_s,force_N\n0,1\n0.01,2\n0.02,3\n0.05,4\n0.06,5\n", ":5 (column time_s)",
+     "irregular sampling: step 0.03 s where the period is 0.01 s"),
     ("time_s,force_N,acc1_mps2\n0,1,2\n0.01,2,3\n0.02,3", ":4", "truncated"),
     ("1,2\n3,4\n", ":1", "header"),
 ])
@@ -211,3 +213,40 @@ def test_a_missing_core_is_one_line_and_exit_2(tmp_path: Path, cmd: str) -> None
     assert r.returncode == 2, r.stderr
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "not installed" in lines[0] and str(lib) in lines[0], r.stderr
+
+
+def test_inspect_prints_words_not_python_reprs(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 18: 'fs 639.9999999998545 Hz' and a raw status dict leaked into inspect."""
+    from dynval import bus
+    from dynval.mcap_log import McapLog
+
+    p = tmp_path / "x.mcap"
+    with McapLog(p, meta={"fs_hz": "639.9999999998545", "test": "t"}) as log:
+        # DV_STATUS: state recording | observer on, beat 7, lost 2 (u16), dup 0, late 1
+        log.on_frame(1_000, bus.ID_STATUS, bytes([0x03, 7, 2, 0, 0, 1, 0, 0]))
+    capsys.readouterr()
+    assert main(["inspect", str(p)]) == 0
+    out = capsys.readouterr().out
+    assert "fs 640 Hz," in out
+    assert "last DV_STATUS: recording, obs on (state 0x03), beat 7, lost 2, dup 0, late 1" in out
+    assert "{" not in out and "np." not in out
+
+
+@pytest.mark.parametrize("name", ["libdynval-f64.so.0", "libdynval-f64.dylib", "dynval-f64.dll",
+                                  "libdynval-f64.dll"])
+def test_the_core_is_looked_for_under_each_platforms_name(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str) -> None:
+    """Linux, macOS and Windows names of the shared library are found (an empty file here:
+    found, then refused by the loader, naming it)."""
+    import shutil
+
+    import dynval._core as core
+    from dynval.errors import CoreNotBuiltError
+
+    for cdef in core._LIB_DIR.glob("*_cdef.h"):  # the declarations the FFI needs
+        shutil.copy(cdef, tmp_path)
+    (tmp_path / name).write_bytes(b"")
+    monkeypatch.setattr(core, "_LIB_DIR", tmp_path)
+    with pytest.raises(CoreNotBuiltError, match=rf"{name}: cannot load"):
+        core._dlopen("dynval-f64")

@@ -213,7 +213,7 @@ def test_cli_discover_shared_bumper(shared_data: Path, tmp_path: Path) -> None:
     rc = cli.main(["-q", "discover", str(folder / "declared_model.json"), str(folder),
                    "--json", str(out_json), "--html", str(out_html), "--model-out",
                    str(out_model)])
-    assert rc == 0
+    assert rc == 1  # the declared model lacks the bumper
     doc = json.loads(out_json.read_text())
     assert doc["format"] == "dynval-discover/1"
     (e,) = doc["effects"]

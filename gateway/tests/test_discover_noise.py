@@ -219,7 +219,8 @@ def test_discover_on_a_cheap_daq_keeps_a_right_model_and_reads_its_noise() -> No
         assert true / 1.6 < r.noise[c] < 1.6 * true, (c, r.noise[c], true)  # measured 0.77-0.84 x
 
 
-def test_cli_noise_in_channel_units_and_a_wrong_channel(repo: Path, tmp_path: Path) -> None:
+def test_cli_noise_in_channel_units_and_a_wrong_channel(
+        repo: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     import json
 
     from dynval import cli
@@ -228,7 +229,13 @@ def test_cli_noise_in_channel_units_and_a_wrong_channel(repo: Path, tmp_path: Pa
     out = tmp_path / "d.json"
     args = ["-q", "discover", str(folder / "declared_model.json"), str(folder),
             "--max-effects", "0", "--json", str(out)]
+    capsys.readouterr()
     assert cli.main([*args, "--noise", "acc2_mps2=0.04"]) == 0
+    table = capsys.readouterr().out
+    assert any(line.split()[:3] == ["channel", "unit", "held-out"]  # the table's units
+               for line in table.splitlines()), table
+    assert any(line.split()[:2] == ["acc2_mps2", "m/s^2"] and line.split()[4] == "0.04"
+               for line in table.splitlines()), table
     doc = json.loads(out.read_text())
     assert doc["noise_floor"]["acc2_mps2"] == 0.04
     assert doc["noise_method"]["acc2_mps2"]["method"] == "stated"

@@ -142,3 +142,30 @@ def test_the_old_layout_is_what_foxglove_refuses(tmp_path: Path) -> None:
     assert err == 'Unsupported type ["number","null"] for array item values'
     x = read_mcap(p, lenient=True).channels[0].data
     assert np.array_equal(x, [1.0, np.nan, 2.0, 1.0, np.nan, 3.0], equal_nan=True)
+
+
+def test_a_killed_log_recovered_opens_in_foxglove(tmp_path: Path) -> None:
+    """Issue 17: a log cut off by a kill (no footer, no index) is what `dynval recover` turns
+    into a file Foxglove opens, every sample that reached the disk plotted."""
+    from dynval import cli
+
+    rng = np.random.default_rng(6)
+    rec = Recording("r", 640.0, [Channel("a", rng.standard_normal(60))])
+    plan = bus.make_plan(rec)
+    p = tmp_path / "live.mcap"
+    log = McapLog(p, meta={"fs_hz": "640", "n_samples": "60"}, channel_names=["a"],
+                  max_chunk_age_s=0.0)  # every frame closes its chunk: all on disk
+    k = 0
+    for _, frames in plan.batches():
+        for cid, data in frames:
+            log.on_frame(T0 + k * 1000, cid, data)
+            k += 1
+    killed = tmp_path / "killed.mcap"
+    killed.write_bytes(p.read_bytes())  # the file as a SIGKILL leaves it: no footer
+    log.close()
+    fixed = tmp_path / "fixed.mcap"
+    assert cli.main(["-q", "recover", str(killed), "-o", str(fixed)]) == 0
+    topics = foxglove_read(fixed)["topics"]
+    assert {t: v["error"] for t, v in topics.items() if "error" in v} == {}
+    series = topics["/dv/samples/a"]["series"]["value"]
+    assert np.array_equal([s[2] for s in series], plan.values(0)[:60])

@@ -155,6 +155,26 @@ def test_damaged_formats_are_one_line(name: str, body: bytes | None, what: str, 
     assert len(errors) == 1 and name in errors[0] and what in errors[0], errors
 
 
+def test_truncated_uff_is_refused_not_a_lost_channel(tmp_path: Path,
+                                                     caplog: pytest.LogCaptureFixture) -> None:
+    """pyuff skips an unclosed last dataset: a truncated file read as one channel fewer."""
+    whole = tmp_path / "whole.uff"
+    write_uff(whole)
+    data = whole.read_bytes()
+    closing = data.rindex(b"    -1")  # the last dataset's end tag
+    cuts = {"mid_data": len(data) * 3 // 4, "in_end_tag": closing + 5, "before_end_tag": closing}
+    for name, cut in cuts.items():
+        p = tmp_path / f"{name}.uff"
+        p.write_bytes(data[:cut])
+        caplog.clear()
+        assert main(["features", str(p)]) == 2, name
+        errors = [r.getMessage() for r in caplog.records if r.levelname == "ERROR"]
+        assert len(errors) == 1 and p.name in errors[0] and "not closed" in errors[0], errors
+    p = tmp_path / "end_tag_kept.uff"  # cut after the end tag's '-1': nothing is lost
+    p.write_bytes(data[:closing + 6])
+    assert read_test(p).names == ["force", "acc1"]
+
+
 # ---- CSV dialects ------------------------------------------------------------------------------
 def test_csv_quoted_cells_and_preamble(tmp_path: Path) -> None:
     p = tmp_path / "q.csv"

@@ -24,13 +24,19 @@ SECONDS = 8.0
 MAX_LOSS_S = 1.0  # the issue's bound; the chunk timer gives 0.5 s plus a receive timeout
 
 
-def _test_csv(path: Path) -> Path:
-    n = int(FS * SECONDS)
+def _test_csv(path: Path, seconds: float = SECONDS) -> Path:
+    n = int(FS * seconds)
     t = np.arange(n) / FS
     x = np.column_stack([t, *(np.sin(2 * np.pi * (3 + k) * t) for k in range(5))])
-    np.savetxt(path, x, delimiter=",", fmt="%.7g", comments="",
+    np.savetxt(path, x, delimiter=",", fmt="%.10g", comments="",
                header="time_s,force_N,acc1_mps2,acc2_mps2,acc3_mps2,acc4_mps2")
     return path
+
+
+def _sigint_default() -> None:
+    """In the child: a shell's background job inherits SIGINT ignored, and Python then keeps
+    it ignored (no KeyboardInterrupt); the SIGINT test needs what a terminal gives."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _start_run(tmp_path: Path) -> tuple[subprocess.Popen[bytes], Path]:
@@ -39,7 +45,8 @@ def _start_run(tmp_path: Path) -> tuple[subprocess.Popen[bytes], Path]:
     env = {**os.environ, "PYTHONPATH": str(Path(dynval.__file__).parents[1])}
     proc = subprocess.Popen([sys.executable, "-m", "dynval", "-q", "run", str(test), "-o",
                              str(out), "--bus", "virtual", "--no-model"], env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            preexec_fn=_sigint_default)
     return proc, out
 
 
@@ -81,11 +88,12 @@ def test_killed_log_recovers_for_the_official_reader(tmp_path: Path, kill_after_
     assert 0 < np.isfinite(rec.channels[0].data).sum() < rec.n_samples
 
 
-def test_sigterm_writes_the_footer(tmp_path: Path) -> None:
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_stop_signal_writes_the_footer(tmp_path: Path, sig: signal.Signals) -> None:
     proc, out = _start_run(tmp_path)
     log = _wait_for_log(out, proc)
     time.sleep(1.0)
-    proc.send_signal(signal.SIGTERM)
+    proc.send_signal(sig)
     assert proc.wait(timeout=30) == 130
     msgs = _official_messages(log)  # no recovery needed: the footer is there
     assert sum(topic.startswith("/dv/samples/") for topic, _ in msgs) > 100
@@ -108,6 +116,54 @@ def test_a_burst_then_silence_reaches_the_disk(tmp_path: Path) -> None:
 
     sc = Scan()
     events = [m for m in iter_messages(p, scan_out=sc) if m.topic == "/dv/events"]
-    assert not sc.complete and sc.chunks == 1 and len(events) == 30
+    # (a loaded host may take over 0.2 s for the burst: then it spans two chunks)
+    assert not sc.complete and sc.chunks >= 1 and len(events) == 30
     log.close()
     assert json.loads(json.dumps(log.summary()))["events"]
+
+
+# `dynval run` with Plan.batches patched to write the data time it has reached (ns) to a file
+_REACHED = """
+import os, struct, sys
+import dynval.bus as b
+fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT)
+batches = b.Plan.batches
+def reporting(self):
+    for off, frames in batches(self):
+        os.pwrite(fd, struct.pack("<q", off), 0)
+        yield off, frames
+b.Plan.batches = reporting
+from dynval import cli
+sys.exit(cli.main(sys.argv[2:]))
+"""
+ASAP_MAX_LOSS_S = 1.5  # the issue's 1 s plus a margin for a loaded host (measured 0.5-0.98 s)
+
+
+def test_a_kill_at_asap_speed_loses_about_a_second(tmp_path: Path) -> None:
+    """--asap: the replay waits for the logger, so a kill loses the chunk in progress and the
+    frames in flight, not the backlog (before: up to 57 % of a test). Loss = data time the
+    replay had reached minus the last sample on disk after recovery."""
+    import struct
+
+    test = _test_csv(tmp_path / "long.csv", seconds=300.0)
+    out, reached = tmp_path / "out", tmp_path / "reached.bin"
+    env = {**os.environ, "PYTHONPATH": str(Path(dynval.__file__).parents[1])}
+    proc = subprocess.Popen([sys.executable, "-c", _REACHED, str(reached), "-q", "run",
+                             str(test), "-o", str(out), "--bus", "virtual", "--no-model",
+                             "--asap"], env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    log = _wait_for_log(out, proc)
+    time.sleep(3.0)
+    assert proc.poll() is None, "the run ended before the kill: make the test longer"
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=30)
+    reached_s = struct.unpack("<q", reached.read_bytes()[:8])[0] / 1e9
+    fixed = tmp_path / "fixed.mcap"
+    assert cli.main(["-q", "recover", str(log), "-o", str(fixed)]) == 0
+    from mcap.reader import make_reader
+
+    with open(fixed, "rb") as f:
+        last = max(m.sequence for _, ch, m in make_reader(f).iter_messages()
+                   if ch.topic.startswith("/dv/samples/"))
+    lost_s = reached_s - (last + 1) / FS
+    assert reached_s > 2.0 and 0 <= lost_s <= ASAP_MAX_LOSS_S, (reached_s, lost_s)

@@ -138,7 +138,7 @@ def discover_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str,
 
 
 def test_discover_logs_each_file_it_wrote_as_given(discover_run: dict[str, Any]) -> None:
-    assert discover_run["rc"] == 0
+    assert discover_run["rc"] == 1  # the declared model lacks the bumper
     wrote = [x for x in discover_run["log"] if x.startswith("wrote ")]
     assert wrote == ["wrote out/m.json (updated model)", "wrote out/d.json (JSON report)",
                      "wrote out/d.html (HTML report)"]
@@ -335,6 +335,17 @@ def test_validate_headline_is_the_json_verdict_and_the_exit_code(
             ("peak,std@acc3,acc4", "bundled"): "INCONCLUSIVE"}[(features, tests)]
     assert v["verdict"] == want
     assert "together: " in page
+
+
+def test_verdict_exit_codes_are_not_the_error_codes() -> None:
+    """CI tells an INCONCLUSIVE study from a crash (3) and from bad input (2)."""
+    from dynval import cli
+    from dynval.validate import verdict as vd
+
+    errors = {cli.EXIT_INPUT, cli.EXIT_INTERNAL, cli.EXIT_USAGE, cli.EXIT_INTERRUPTED,
+              cli.EXIT_PIPE}
+    assert vd.EXIT == {"PASS": 0, "FAIL": 1, "INCONCLUSIVE": 4}
+    assert not errors & set(vd.EXIT.values())
 
 
 def _verdict(word: str, median_d: float) -> dict[str, Any]:

@@ -35,7 +35,9 @@ def lib_file(name: str) -> Path:
 
 
 def _dlopen(stem: str) -> Any:
-    libs = sorted(_LIB_DIR.glob(f"lib{stem}*.so*")) + sorted(_LIB_DIR.glob(f"*{stem}*.dylib"))
+    # Linux (versioned too), macOS, Windows (MSVC: dynval-f64.dll, MinGW: libdynval-f64.dll)
+    libs = [lib for pattern in (f"lib{stem}*.so*", f"*{stem}*.dylib", f"*{stem}*.dll")
+            for lib in sorted(_LIB_DIR.glob(pattern))]
     if not libs:
         lib_file(f"lib{stem}.so")  # raises: names what is missing
     try:

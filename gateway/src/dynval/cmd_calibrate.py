@@ -44,7 +44,7 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Exit code: the held-out check of the calibrated model, 0 PASS, 1 FAIL, 3 INCONCLUSIVE
+    """Exit code: the held-out check of the calibrated model, 0 PASS, 1 FAIL, 4 INCONCLUSIVE
     (verdict.EXIT); 2 an error."""
     from dynval import model as mdl
     from dynval.validate import study

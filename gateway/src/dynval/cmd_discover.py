@@ -15,10 +15,18 @@ from dynval.io import Recording
 
 log = logging.getLogger(__name__)
 
+# exit codes CI gates on (2 is bad input, 3 an internal error, as every command's)
+EXIT_EXPLAINED = 0  # no effect: the declared model explains the tests to the noise floor
+EXIT_LACKS = 1  # the declared model lacks an effect (found and fitted, or none in the library)
+
 
 def add_parser(sub: Any) -> None:
     p = sub.add_parser("discover", help="find the effect a declared model lacks, add it, "
-                       "report the error before and after")
+                       "report the error before and after",
+                       epilog=f"exit code: {EXIT_EXPLAINED} the declared model explains the "
+                       f"tests to the noise floor, {EXIT_LACKS} it lacks something (the "
+                       "effects found, or a residual no effect in the library explains), 2 bad "
+                       "input")
     p.add_argument("model", type=Path, help="declared model (dynval format or declared_model)")
     p.add_argument("tests", type=Path, nargs="+", help="measured tests (files or folders)")
     p.add_argument("--json", type=Path, default=None, metavar="OUT.json", help="JSON report")
@@ -49,6 +57,7 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Exit code: EXIT_EXPLAINED or EXIT_LACKS, the verdict's."""
     from dynval import model as mdl
     from dynval.discover import loop, report
 
@@ -84,27 +93,30 @@ def run(args: argparse.Namespace) -> int:
         log.info("wrote %s (HTML report)", args.html)
     print(doc["verdict"])
     for e in doc["effects"]:
-        ps = ", ".join(f"{k} = {v['value']:.5g} +/- {v['uncertainty'] or float('nan'):.2g} "
-                       f"{v['unit']}" for k, v in e["parameters"].items())
+        ps = ", ".join(f"{k} = {v['value']:.5g} +/- {v['uncertainty'] or float('nan'):.2g}"
+                       f"{_unit(v['unit'])}" for k, v in e["parameters"].items())
         print(f"  {e['label']}: {ps}")
         for k, v in e.get("readjusted", {}).items():
-            print(f"    re-adjusted {k}: {v['before']:.5g} -> {v['value']:.5g} {v['unit']} "
+            print(f"    re-adjusted {k}: {v['before']:.5g} -> {v['value']:.5g}{_unit(v['unit'])} "
                   f"({100 * v['change_rel']:+.1f} %)")
     width = max(8, *(len(c) for c in res.chans))
-    print(f"  {'channel':<{width}} {'held-out rmse before':>21} {'after':>12} {'noise':>10}"
-          "  noise from")
+    uw = max(4, *(len(units.get(c, "")) for c in res.chans))
+    print(f"  {'channel':<{width}} {'unit':<{uw}} {'held-out rmse before':>21} {'after':>12} "
+          f"{'noise':>10}  noise from")
     for c in res.chans:
         b = doc["rmse_before"]["held_out"][c]
         a = doc["rmse_after"]["held_out"][c]
         how = doc["noise_method"].get(c, {}).get("method", "")
-        print(f"  {c:<{width}} {b:>21.5g} {a:>12.5g} {doc['noise_floor'][c]:>10.4g}  {how}")
+        print(f"  {c:<{width}} {units.get(c, ''):<{uw}} {b:>21.5g} {a:>12.5g} "
+              f"{doc['noise_floor'][c]:>10.4g}  {how}")
     mah = doc["mahalanobis"]
     print(f"  Mahalanobis (paired) before {_g(mah.get('before'))}, after "
           f"{_g(mah.get('after'))}; paired test p before {_g(mah.get('p_before'))}, after "
           f"{_g(mah.get('p_after'))}")
     log.info("discover: %d tests in %.1f s", len(recs), time.perf_counter() - t0)
     sys.stdout.flush()
-    return 0
+    explained = not doc["effects"] and doc["verdict"].startswith("no effect: ")
+    return EXIT_EXPLAINED if explained else EXIT_LACKS
 
 
 MIN_SAMPLES = 64  # the input band and the noise floor need spectra of some length
@@ -133,6 +145,11 @@ def _preflight(m: Any, rec: Recording) -> None:
     if not np.any(np.nan_to_num(u) != 0):
         raise InputFileError(where, "the input channel is zero throughout (an ambient or "
                              "free-decay test): discover needs a measured input")
+
+
+def _unit(u: str) -> str:
+    """' m/s^2' after a number; nothing for a dimensionless one (the reports' '1')."""
+    return "" if u in ("", "1") else f" {u}"
 
 
 def _g(x: Any) -> str:

@@ -62,6 +62,31 @@ def inspect(path: Path) -> dict[str, Any]:
     return out
 
 
+def _hz(fs: Any) -> str:
+    """The metadata's rate as a person reads it: 640 Hz, not 639.9999999998545 Hz (the rate
+    a CSV's time column gives)."""
+    try:
+        return f"{float(fs):.6g} Hz"
+    except (TypeError, ValueError):
+        return f"{fs if fs is not None else '?'} Hz"
+
+
+def status_text(st: dict[str, Any]) -> str:
+    """A DV_STATUS message in words: its state bits named, then its counters."""
+    from dynval import contract
+
+    state = st.get("state")
+    if isinstance(state, int) and not isinstance(state, bool):
+        bits = [name.replace("_", " ") for name, v in sorted(contract.named("DV_STATE_").items(),
+                                                             key=lambda kv: kv[1])
+                if state & v]
+        words = f"{', '.join(bits) or 'idle'} (state 0x{state:02x})"
+    else:
+        words = f"state {state}"
+    counters = ", ".join(f"{k} {v}" for k, v in st.items() if k != "state")
+    return f"{words}, {counters}" if counters else words
+
+
 def _event(path: Path, m: Message) -> tuple[str, int]:
     name, count = m.data.get("event"), m.data.get("count")
     if not isinstance(name, str) or isinstance(count, bool) or not isinstance(count, int):
@@ -96,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"  read error: {r['error']}")
     if md:
         print(f"  test {md.get('test', '?')} ({md.get('source', '')}, sha256 "
-              f"{md.get('source_sha256', '')[:12]}), fs {md.get('fs_hz', '?')} Hz, "
+              f"{md.get('source_sha256', '')[:12]}), fs {_hz(md.get('fs_hz'))}, "
               f"{md.get('software', '')}")
     print(f"  {'topic':<28} {'messages':>9} {'rate/s':>10} {'span s':>8} {'gaps':>5} "
           f"{'max gap ms':>10}")
@@ -105,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
               f"{t['gaps']:>5} {t['max_gap_ms']:>10.2f}")
     print(f"  events: {r['events'] or 'none'}")
     if r["last_status"]:
-        print(f"  last DV_STATUS: {r['last_status']}")
+        print(f"  last DV_STATUS: {status_text(r['last_status'])}")
     if "summary" in r:
         seq = r["summary"].get("sequence", {})
         lost = {k: v["lost"] for k, v in seq.items() if v.get("lost")}

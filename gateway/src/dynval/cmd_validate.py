@@ -33,7 +33,7 @@ def add_parser(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Exit code: 0 PASS, 1 FAIL, 3 INCONCLUSIVE (verdict.EXIT); 2 an error."""
+    """Exit code: 0 PASS, 1 FAIL, 4 INCONCLUSIVE (verdict.EXIT); 2 an error."""
     from dynval.validate import study
     from dynval.validate import verdict as vd
 

@@ -87,24 +87,24 @@ def regular_period(p: Path | str, t: np.ndarray, *, lenient: bool, warnings: lis
     if not np.isfinite(t).all():
         i = int(np.flatnonzero(~np.isfinite(t))[0])
         ln, where = locate(i)
-        raise InputFileError(p, f"non-finite time {t[i]!r}{where}", ln, column)
+        raise InputFileError(p, f"non-finite time {float(t[i])}{where}", ln, column)
     dt = np.diff(t)
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         i = int(bad[0])
         ln, where = locate(i + 1)
-        raise InputFileError(p, f"time does not increase ({t[i]!r} then {t[i + 1]!r}){where}", ln,
-                             column)
+        raise InputFileError(p, f"time does not increase ({float(t[i])!r} then "
+                             f"{float(t[i + 1])!r}){where}", ln, column)
     period = float(np.median(dt))
     if not 0 < 1.0 / period <= MAX_RATE_HZ:
         ln, where = locate(0)
-        raise InputFileError(p, f"time step {period!r} s is not a usable sample period{where}", ln,
-                             column)
+        raise InputFileError(p, f"time step {period:.9g} s is not a usable sample "
+                             f"period{where}", ln, column)
     off = np.flatnonzero(np.abs(dt - period) > TIME_JITTER * period + 1e-12)
     if off.size:
         i = int(off[0])
         ln, where = locate(i + 1)
-        msg = (f"irregular sampling: step {dt[i]!r} s where the period is {period!r} s "
+        msg = (f"irregular sampling: step {dt[i]:.9g} s where the period is {period:.9g} s "
                f"({off.size} irregular steps){where}")
         if not lenient:
             raise InputFileError(p, msg, ln, column)
@@ -177,7 +177,7 @@ def recording_from_arrays(p: Path | str, name: str, columns: Mapping[str, Any], 
         bad = ~np.isfinite(a)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            msg = f"non-finite value {a[i]!r} at sample {i} ({int(bad.sum())} in the channel)"
+            msg = f"non-finite value {float(a[i])} at sample {i} ({int(bad.sum())} in the channel)"
             if not lenient:
                 raise InputFileError(p, msg, column=col)
             a = np.where(bad, np.nan, a)

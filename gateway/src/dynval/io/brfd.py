@@ -109,7 +109,7 @@ def read_brfd(path: Path | str, *, lenient: bool = False) -> Recording:
     bad = np.flatnonzero(np.abs(step - period) > _TIME_JITTER * period)
     if bad.size:
         i = int(bad[0])
-        msg = (f"time step {step[i]!r} s where 1/fs is {period!r} s ({bad.size} irregular "
+        msg = (f"time step {step[i]:.9g} s where 1/fs is {period:.9g} s ({bad.size} irregular "
                "steps)")
         if not lenient or np.any(step <= 0):
             raise InputFileError(p, msg, i + 2, "t")

@@ -89,7 +89,7 @@ def read_dropbear(path: Path | str, *, lenient: bool = False,
     off = np.flatnonzero(np.abs(t - want) > _time_tol(want) + 1e-9)
     if off.size:
         i = int(off[0])
-        msg = (f"time {t[i]!r} s where the {fs:g} Hz clock gives {want[i]!r} s "
+        msg = (f"time {t[i]:.9g} s where the {fs:g} Hz clock gives {want[i]:.9g} s "
                f"({off.size} rows off the clock)")
         if not lenient:
             raise InputFileError(p, msg, HEADER_LINES + 1 + i, cols[-1])

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import logging
+import re
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +42,8 @@ _MAX_SAMPLES = 1 << 31  # a header claiming more is damaged (16 GiB of float64 p
 # UFF 58 record 8 "specific data type" of the ordinate: 13 excitation force is an input
 _UFF_INPUT_TYPES = {13}
 _UFF_DIRS = {1: "x", 2: "y", 3: "z", -1: "-x", -2: "-y", -3: "-z", 4: "rx", 5: "ry", 6: "rz"}
+# a dataset's start and end delimiter: a line '    -1'
+_UFF_TAG = re.compile(rb"^    -1[ \t]*\r?$", re.MULTILINE)
 
 
 def _need(p: Path, module: str, package: str) -> Any:
@@ -72,6 +75,7 @@ def read_uff(path: Path | str, *, lenient: bool = False) -> Recording:
         if not idx:
             raise InputFileError(p, "no dataset 58 (function at nodal DOF) in the universal "
                                  f"file (datasets: {sorted(set(types)) or 'none'})")
+        _check_uff_closed(p)
         out = u.read_sets(idx)
         return out if isinstance(out, list) else [out]
 
@@ -114,6 +118,19 @@ def read_uff(path: Path | str, *, lenient: bool = False) -> Recording:
         raise InputFileError(p, f"abscissa increment {ref[1]!r} s is not a sample period")
     return recording_from_arrays(p, p.stem, cols, units=units, roles=roles, fs_hz=1.0 / ref[1],
                                  t0_s=ref[0], lenient=lenient)
+
+
+def _check_uff_closed(p: Path) -> None:
+    """pyuff reads what lies between pairs of '    -1' lines and ignores an unclosed last
+    dataset: a truncated file would lose its last channels without a word."""
+    data = p.read_bytes()
+    last = None
+    for tag in _UFF_TAG.finditer(data):
+        last = tag
+    if last is not None and data[last.end():].strip():
+        line = data.count(b"\n", 0, last.end()) + 2
+        raise InputFileError(p, f"line {line}: a dataset that is not closed by a '    -1' line "
+                             "(the file is truncated or damaged)")
 
 
 # ---- MDF 4 -------------------------------------------------------------------------------------

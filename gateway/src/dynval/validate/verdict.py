@@ -13,7 +13,9 @@ from typing import Any
 
 from dynval.validate.mahalanobis import PairedTest
 
-EXIT = {"PASS": 0, "FAIL": 1, "INCONCLUSIVE": 3}  # 2: an error (bad input), as every command
+# 2 (bad input), 3 (internal error), 64 (usage), 130, 141: every command's (dynval.cli);
+# INCONCLUSIVE is 4 so that CI can tell it from a crash
+EXIT = {"PASS": 0, "FAIL": 1, "INCONCLUSIVE": 4}
 EXIT_MEANING = {"PASS": "no evidence against the model", "FAIL": "the model is rejected",
                 "INCONCLUSIVE": "no verdict could be reached"}
 
