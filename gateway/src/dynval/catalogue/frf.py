@@ -10,7 +10,7 @@ scipy.signal.coherence. Defaults are the report's EMA settings: Hanning window o
 from __future__ import annotations
 
 import importlib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -56,32 +56,53 @@ def n_averages(n: int, nperseg: int, overlap: float) -> int:
     return 1 + (n - nperseg) // step
 
 
+Record = tuple[np.ndarray, Mapping[str, np.ndarray]]  # (input, output name -> samples)
+
+
 def estimate(u: np.ndarray, y: Mapping[str, np.ndarray], fs_hz: float, *,
              nperseg: int = NPERSEG, overlap: float = OVERLAP, window: str = WINDOW) -> Frf:
     """H1, H2 and coherence of each output y[name] to the input u (Welch, mean-detrended
     segments as scipy's default)."""
-    u = np.asarray(u, dtype=np.float64)
-    if u.ndim != 1 or u.size < nperseg:
-        raise ConfigError(f"FRF: the input needs at least nperseg = {nperseg} samples, got "
-                          f"{u.size}")
+    return estimate_records([(u, y)], fs_hz, nperseg=nperseg, overlap=overlap, window=window)
+
+
+def estimate_records(recs: Sequence[Record], fs_hz: float, *, nperseg: int = NPERSEG,
+                     overlap: float = OVERLAP, window: str = WINDOW) -> Frf:
+    """H1, H2 and coherence from the spectra averaged over every segment of every record
+    (records of one test condition: the report's ten time histories per test)."""
     if not 0.0 <= overlap < 1.0:
         raise ConfigError(f"FRF: overlap {overlap!r} must be in [0, 1)")
+    if not recs:
+        raise ConfigError("FRF: no records")
+    names = tuple(recs[0][1])
     kw = {"fs": fs_hz, "window": window, "nperseg": nperseg,
           "noverlap": int(nperseg * overlap)}
-    f, suu = signal.welch(u, **kw)
-    h1, h2, coh = [], [], []
-    for name, x in y.items():
-        x = np.asarray(x, dtype=np.float64)
-        if x.shape != u.shape:
-            raise ConfigError(f"FRF: output '{name}' has {x.size} samples, the input {u.size}")
-        _, suy = signal.csd(u, x, **kw)
-        _, syy = signal.welch(x, **kw)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            h1.append(suy / suu)
-            h2.append(syy / np.conj(suy))  # S_yu = conj(S_uy)
-            coh.append(np.abs(suy) ** 2 / (suu * syy))
-    return Frf(f, np.column_stack(h1), np.column_stack(h2), np.column_stack(coh), suu,
-               tuple(y), n_averages(u.size, nperseg, overlap))
+    suu: Any = 0.0
+    suy: list[Any] = [0.0] * len(names)
+    syy: list[Any] = [0.0] * len(names)
+    n_avg = 0
+    for u, y in recs:
+        u = np.asarray(u, dtype=np.float64)
+        if u.ndim != 1 or u.size < nperseg:
+            raise ConfigError(f"FRF: the input needs at least nperseg = {nperseg} samples, "
+                              f"got {u.size}")
+        k = n_averages(u.size, nperseg, overlap)
+        f, p = signal.welch(u, **kw)
+        suu = suu + k * p
+        for j, name in enumerate(names):
+            x = np.asarray(y[name], dtype=np.float64)
+            if x.shape != u.shape:
+                raise ConfigError(f"FRF: output '{name}' has {x.size} samples, the input "
+                                  f"{u.size}")
+            suy[j] = suy[j] + k * signal.csd(u, x, **kw)[1]
+            syy[j] = syy[j] + k * signal.welch(x, **kw)[1]
+        n_avg += k
+    sy, syy_ = np.column_stack(suy) / n_avg, np.column_stack(syy) / n_avg
+    su = np.asarray(suu / n_avg)[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h1, h2 = sy / su, syy_ / np.conj(sy)  # S_yu = conj(S_uy)
+        coh = np.abs(sy) ** 2 / (su * syy_)
+    return Frf(f, h1, h2, coh, su[:, 0], names, n_avg)
 
 
 @dataclass(frozen=True)
@@ -93,6 +114,7 @@ class Comparison:
     passed: z2 <= Z2_LIMIT."""
 
     z2: float
+    z2_coh: float
     db: float
     dcoh: float
     coh_min: float
@@ -120,8 +142,12 @@ def compare(a: Frf, b: Frf, ja: int, jb: int, band_hz: tuple[float, float]) -> C
     ca, cb = a.coh[sel, ja], b.coh[sel, jb]
     var = h1_variance(ha, ca, a.n_avg) + h1_variance(hb, cb, b.n_avg)
     z2 = float(np.mean(np.abs(ha - hb) ** 2 / np.maximum(var, 1e-300)))
+    # Fisher's transform: atanh(|coherence|) has a variance of about 1 / (2 n) whatever the
+    # coherence
+    fa, fb = (np.arctanh(np.sqrt(np.clip(c, 0.0, 1.0 - 1e-12))) for c in (ca, cb))
+    z2c = float(np.mean((fa - fb) ** 2 / (0.5 / a.n_avg + 0.5 / b.n_avg)))
     db = float(np.mean(np.abs(20 * np.log10(np.abs(ha) / np.abs(hb)))))
-    return Comparison(z2, db, float(np.mean(np.abs(ca - cb))),
+    return Comparison(z2, z2c, db, float(np.mean(np.abs(ca - cb))),
                       float(min(np.mean(ca), np.mean(cb))), band_hz)
 
 

@@ -12,14 +12,17 @@ frequencies (which here would be the model's: the check would lean on what it ch
 """
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from dynval import model as mdl
-from dynval.catalogue.frf import Frf
+from dynval.catalogue.frf import Frf, estimate
 from dynval.errors import ConfigError
+
+log = logging.getLogger(__name__)
 
 MAX_ORDER = 32  # highest LSCF denominator order of the stabilisation diagram
 DF_STABLE = 0.01  # a pole is stable from one order to the next within 1 % in frequency
@@ -222,3 +225,21 @@ def compare(exp: Modes, num: Modes, band_hz: tuple[float, float]) -> ModalCompar
             ze[i] = exp.zeta[j] - num.zeta[k]
             md[i] = mm[i, j]
     return ModalComparison(num.f_hz[inb], fe, ze, md, mm)
+
+
+def record_modes(u: np.ndarray, y: dict[str, np.ndarray], fs_hz: float,
+                 band_hz: tuple[float, float], n_modes: int) -> Modes | None:
+    """EMA of one record at the report's FRF settings (the feature grammar's modal terms);
+    None (logged) when the record does not show n_modes stable modes in the band."""
+    try:
+        return ema(estimate(u, y, fs_hz), band_hz, n_modes)
+    except ConfigError as exc:
+        log.warning("modal features: %s", exc)
+        return None
+
+
+def paired_mac(exp: Modes, ref: Modes) -> np.ndarray:
+    """MAC of each reference mode with the experimental mode nearest in frequency."""
+    mm = mac(ref.shapes, exp.shapes)
+    near = [int(np.argmin(np.abs(exp.f_hz - f))) for f in ref.f_hz]
+    return np.array([mm[i, j] for i, j in enumerate(near)])
