@@ -167,17 +167,23 @@ def ema(frf: Frf, band_hz: tuple[float, float], n_modes: int | None = None, *,
 def numerical(m: mdl.Model, sensors: Sequence[str]) -> Modes:
     """The model's modes at the sensors (output names of m, motions): undamped frequencies and
     shapes from the C core's eigen-solution (dv_model_get_modes), damping ratios from the
-    complex eigenvalues of the core's M, C, K (exact for non-proportional damping too)."""
+    complex eigenvalues of the core's M, C, K (exact for non-proportional damping too; an
+    overdamped mode's from the modal projection of C)."""
     lin = mdl.linear(m)
     n = m.n_dof
     minv = np.diag(1.0 / lin.mass)
     a = np.block([[np.zeros((n, n)), np.eye(n)], [-minv @ lin.k, -minv @ lin.c]])
     lam = np.linalg.eigvals(a)
-    lam = lam[lam.imag >= 0]
+    lam = lam[lam.imag > 0]
     zeta = np.empty(n)
     for k, f in enumerate(lin.f_hz):
-        near = lam[np.argmin(np.abs(np.abs(lam) - 2 * np.pi * f))]
-        zeta[k] = -near.real / abs(near) if abs(near) > 0 else np.nan
+        w = 2 * np.pi * f
+        near = lam[np.argmin(np.abs(np.abs(lam) - w))] if lam.size else 0j
+        if abs(abs(near) - w) <= 0.1 * w:
+            zeta[k] = -near.real / abs(near)
+        else:  # overdamped (no oscillating pole): the modal projection phi' C phi / 2 w
+            p = lin.phi[:, k]
+            zeta[k] = p @ lin.c @ p / (2 * w) if w > 0 else np.nan
     rows = []
     for s in sensors:
         o = m.outputs.get(s)
