@@ -110,15 +110,16 @@ def test_linearity_holds_without_the_bumper_and_fails_with_it() -> None:
 
 def test_reciprocity_holds_without_the_bumper_and_fails_with_it() -> None:
     """H_14 (force at the base, response at the top floor) against H_41 (force at the top
-    floor, response at the base), one record each at 12 N."""
+    floor, response at the base), three records a side at 12 N (clean z2_coh about 1,
+    bumper 4.8-18 over six seeds; one record a side: bumper 2.3-7.9)."""
     out = {}
     for truth in (gen.Truth(), BUMPER):
-        a, b = gen.reciprocal(declared(), truth, 4, n_tests=1, seed=11)
+        a, b = gen.reciprocal(declared(), truth, 4, n_tests=3, levels_n_rms=(12.0,), seed=11)
         assert b[0].name == f"{truth.label}_at4_high_01"
-        out[truth.label] = F.compare(F.estimate(*_io(a[0]), 640.0),
-                                     F.estimate(*_io(b[0]), 640.0), 3, 0, BAND)
+        out[truth.label] = F.compare(F.estimate_records([_io(r) for r in a], 640.0),
+                                     F.estimate_records([_io(r) for r in b], 640.0), 3, 0, BAND)
     assert out["clean"].passed and out["clean"].z2_coh < 1.6 and out["clean"].z2 < 1.6
-    assert not out["bumper"].passed and out["bumper"].z2_coh > 2.5
+    assert not out["bumper"].passed and out["bumper"].z2_coh > 2 * F.Z2_LIMIT
 
 
 def test_reciprocal_refuses_a_ground_input() -> None:

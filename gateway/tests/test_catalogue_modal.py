@@ -139,3 +139,24 @@ def test_validate_simulates_the_modal_features() -> None:
     x = study.experiment_features(s, s.recs)
     f_mod, _, _ = study._model_on_tests(s, m, s.recs)
     np.testing.assert_allclose(f_mod, x, rtol=0.002)
+
+
+def test_plots_draw_without_overlapping_ticks() -> None:
+    pytest.importorskip("matplotlib")
+    from dynval import plotting
+    from dynval.catalogue import plots
+
+    m = declared()
+    num = M.numerical(m, ACC)
+    u, y = _io(_records(1, 3)[0])
+    fr = F.estimate(u, y, 640.0)
+    exp = M.ema(fr, BAND, 3)
+    cmp = M.compare(exp, num, BAND)
+    figs = [plots.plot_frf([("test", fr, 3, plotting.MEASURED)], BAND,
+                           F.compare(fr, fr, 3, 3, BAND)),
+            plots.plot_modes(exp, num, cmp), plots.plot_mac(cmp, exp)]
+    plt = plotting.pyplot()
+    for fig in figs:
+        assert plotting.overlapping_ticks(fig) == []
+        plt.close(fig)
+    assert "holds" in figs[0].axes[0].get_title()
