@@ -84,6 +84,9 @@ def test_bad_input_names_the_problem() -> None:
     fr = F.estimate(u, {"y": y}, 100.0)
     with pytest.raises(ConfigError, match="holds no FRF line"):
         F.compare(fr, fr, 0, 0, (60.0, 70.0))
+    silent = F.estimate(np.zeros_like(u), {"y": y}, 100.0)
+    with pytest.raises(ConfigError, match="not finite in 5-15 Hz"):
+        F.compare(fr, silent, 0, 0, (5.0, 15.0))
     other = F.estimate(u, {"y": y}, 100.0, nperseg=512)
     with pytest.raises(ConfigError, match="different frequency lines"):
         F.compare(fr, other, 0, 0, (5.0, 15.0))

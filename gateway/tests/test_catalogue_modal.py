@@ -107,6 +107,11 @@ def test_ema_refuses_what_it_cannot_fit() -> None:
         M.ema(fr, BAND, 5)
     with pytest.raises(ConfigError, match="no stable mode in 100-200 Hz"):
         M.ema(fr, (100.0, 200.0), 1)
+    with pytest.raises(ConfigError, match="holds 17 FRF lines, the fit up to order 32"):
+        M.ema(fr, (60.0, 70.0), 1)
+    zero = dataclasses.replace(fr, h1=np.zeros_like(fr.h1))
+    with pytest.raises(ConfigError, match="no stable mode"):
+        M.ema(zero, BAND, 1)
 
 
 def test_grammar_modal_and_coherence_terms() -> None:

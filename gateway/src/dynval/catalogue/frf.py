@@ -143,6 +143,9 @@ def compare(a: Frf, b: Frf, ja: int, jb: int, band_hz: tuple[float, float]) -> C
     sel = a.band(band_hz)
     ha, hb = a.h1[sel, ja], b.h1[sel, jb]
     ca, cb = a.coh[sel, ja], b.coh[sel, jb]
+    if not (np.isfinite(ha).all() and np.isfinite(hb).all()):
+        raise ConfigError(f"FRF comparison: an FRF is not finite in {band_hz[0]:g}-"
+                          f"{band_hz[1]:g} Hz (no input power there?)")
     var = h1_variance(ha, ca, a.n_avg) + h1_variance(hb, cb, b.n_avg)
     z2 = float(np.mean(np.abs(ha - hb) ** 2 / np.maximum(var, 1e-300)))
     # Fisher's transform: atanh(|coherence|) has a variance of about 1 / (2 n) whatever the

@@ -90,7 +90,10 @@ def stable_poles(w: np.ndarray, h: np.ndarray, band: tuple[float, float],
     prev: np.ndarray = np.zeros(0, complex)
     groups: list[list[complex]] = []
     for n in range(2, max_order + 1):
-        cur = _physical(_lscf_poles(blocks, ts, n), band)
+        try:
+            cur = _physical(_lscf_poles(blocks, ts, n), band)
+        except np.linalg.LinAlgError:  # a degenerate order (e.g. an FRF of zeros): no poles
+            cur = np.zeros(0, complex)
         for p in cur:
             if not any(_close(p, q) for q in prev):
                 continue
@@ -148,6 +151,10 @@ def ema(frf: Frf, band_hz: tuple[float, float], n_modes: int | None = None, *,
     h = frf.h1[sel] / (1j * w[:, None]) ** derivative
     if not np.isfinite(h).all():
         raise ConfigError("EMA: the FRF is not finite in the band (no input power there?)")
+    if w.size < max_order:
+        raise ConfigError(f"EMA: {band_hz[0]:g}-{band_hz[1]:g} Hz holds {w.size} FRF lines, "
+                          f"the fit up to order {max_order} needs {max_order} (a wider band "
+                          "or a longer window)")
     poles = stable_poles(w, h, band_hz, max_order)
     if not poles:
         raise ConfigError(f"EMA: no stable mode in {band_hz[0]:g}-{band_hz[1]:g} Hz")
