@@ -4,6 +4,8 @@ checks on independent simulations of the report's 4-DOF structure: they hold wit
 bumper and fail with it."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from lanl4dof import declared
@@ -13,6 +15,7 @@ from dynval import model as mdl
 from dynval import synth as gen
 from dynval.catalogue import frf as F
 from dynval.errors import ConfigError
+from dynval.io import read_test
 from dynval.io.recording import Recording
 
 BUMPER = gen.Truth(elements=(mdl.Contact(3, 4, 1.114e-4, 1e-4, 1.925e6),), label="bumper")
@@ -132,3 +135,23 @@ def test_reciprocal_refuses_a_ground_input() -> None:
                        outputs=dict(m.outputs), fs_hz=640.0)
     with pytest.raises(ConfigError, match="swaps a force"):
         gen.reciprocal(shaken, gen.Truth(), 4, n_tests=1)
+
+
+def test_checks_on_the_shared_data_of_another_simulator(shared_data: Path) -> None:
+    """The shared synthetic data (an RK4 simulator that is not dynval's): five high- and five
+    low-level tests. Clean: linearity holds (z2, z2_coh 1.06, 1.04); bumper: it fails (z2_coh
+    25), and on one pair of records too (4.3)."""
+    def frf(case: str, level: str, n: int) -> F.Frf:
+        recs = [read_test(shared_data / "synthetic" / case / f"test_{level}_{i:02d}.csv")
+                for i in range(1, n + 1)]
+        return F.estimate_records([_io(r) for r in recs], 640.0)
+
+    clean = F.compare(frf("lanl4dof-clean", "high", 5), frf("lanl4dof-clean", "low", 5), 3, 3,
+                      BAND)
+    assert clean.passed and clean.z2_coh < 1.5 and clean.z2 < 1.5
+    bump = F.compare(frf("lanl4dof-bumper", "high", 5), frf("lanl4dof-bumper", "low", 5), 3, 3,
+                     BAND)
+    assert not bump.passed and bump.z2_coh > 10.0
+    one = F.compare(frf("lanl4dof-bumper", "high", 1), frf("lanl4dof-bumper", "low", 1), 3, 3,
+                    BAND)
+    assert not one.passed
