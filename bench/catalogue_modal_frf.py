@@ -14,7 +14,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from dynval import model as mdl
 from dynval import synth as gen
 from dynval.catalogue import frf as F
@@ -44,9 +43,9 @@ def io(r: Recording) -> tuple[np.ndarray, dict[str, np.ndarray]]:
 
 def ema_rows(m: mdl.Model, seeds: range) -> list[str]:
     num = M.numerical(m, SENSORS)
-    out = ["| nperseg | per-record max abs f err (%) | per-record damping err, mean +- std "
+    out = [("| nperseg | per-record max abs f err (%) | per-record damping err, mean +- std "
            "(pp) | 10-record mean: max abs f err (%) | max abs damping err (pp) | min diag "
-           "MAC |", "|---|---|---|---|---|---|"]
+           "MAC |"), "|---|---|---|---|---|---|"]
     for nps in (1024, 2048, 4096):
         fe, ze, mc, fe10, ze10 = [], [], [], [], []
         for seed in seeds:
@@ -73,11 +72,56 @@ def ema_rows(m: mdl.Model, seeds: range) -> list[str]:
     return out
 
 
+def tables_13_14(m: mdl.Model) -> list[str]:
+    """The report's Tables 13-14 in kind: EMA of ten records of models L1 (zeta 1 % for every
+    mode) and L2 (zeta2 = 5 %), averaged, beside the numerical modal analysis."""
+    num = M.numerical(m, SENSORS)
+    ema: dict[str, list[M.Modes]] = {}
+    for label, zeta in (("L1", (0.01,) * 4), ("L2", (0.01, 0.05, 0.01, 0.01))):
+        recs = gen.generate(m, gen.Truth(zeta=zeta, label=label), n_tests=10, seed=77)
+        ema[label] = [M.ema(F.estimate(*io(r), r.fs_hz), BAND, 3) for r in recs]
+    out = [("| mode | f (Hz) EMA of L1 | f (Hz) EMA of L2 | f (Hz) numerical | damping (%) EMA of "
+           "L1 (assigned) | damping (%) EMA of L2 (assigned) |"), "|---|---|---|---|---|---|"]
+    for k, name in enumerate(("second", "third", "fourth")):
+        f1, f2 = (np.mean([e.f_hz[k] for e in ema[lb]]) for lb in ("L1", "L2"))
+        z1, z2 = (100 * np.mean([e.zeta[k] for e in ema[lb]]) for lb in ("L1", "L2"))
+        out.append(f"| {name} | {f1:.2f} | {f2:.2f} | {num.f_hz[k + 1]:.2f} | {z1:.2f} (1.00) | "
+                   f"{z2:.2f} ({100 * num.zeta[k + 1]:.2f}) |")
+    return out
+
+
+def shared_rows(data: Path) -> list[str]:
+    """EMA and the linearity check on the shared data (an RK4 simulator that is not dynval's)."""
+    from dynval.io import read_test
+
+    out = [("| data | max abs f err (%) | damping err mean (pp) | min diag MAC | linearity 5 v 5: "
+           "z2 / z2_coh | 1 v 1 |"), "|---|---|---|---|---|---|"]
+    num = M.numerical(mdl.load(data / "lanl4dof-clean" / "declared_model.json"), SENSORS)
+    for case in ("lanl4dof-clean", "lanl4dof-bumper"):
+        recs = {p.stem: read_test(p) for p in sorted((data / case).glob("test_*.csv"))}
+        cs = [M.compare(M.ema(F.estimate(*io(r), r.fs_hz), BAND, 3), num, BAND)
+              for r in recs.values()]
+        fe = 100 * np.abs([c.f_rel_err for c in cs]).max(0)
+        ze = 100 * np.mean([c.zeta_err for c in cs], axis=0)
+        mc = np.min([c.mac_diag for c in cs], axis=0)
+        hi = F.estimate_records([io(recs[f"test_high_{i:02d}"]) for i in range(1, 6)], 640.0)
+        lo = F.estimate_records([io(recs[f"test_low_{i:02d}"]) for i in range(1, 6)], 640.0)
+        c5 = F.compare(hi, lo, 3, 3, BAND)
+        c1 = F.compare(F.estimate(*io(recs["test_high_01"]), 640.0),
+                       F.estimate(*io(recs["test_low_01"]), 640.0), 3, 3, BAND)
+        out.append(f"| {case} | {' / '.join(f'{v:.3f}' for v in fe)} | "
+                   f"{' / '.join(f'{v:+.3f}' for v in ze)} | "
+                   f"{' / '.join(f'{v:.5f}' for v in mc)} | {c5.z2:.2f} / {c5.z2_coh:.2f} "
+                   f"({'holds' if c5.passed else 'fails'}) | {c1.z2:.2f} / {c1.z2_coh:.2f} "
+                   f"({'holds' if c1.passed else 'fails'}) |")
+    return out
+
+
 def check_rows(m: mdl.Model, seeds: range) -> list[str]:
     """Linearity (12 vs 7.2 N, acc4; 1 and 5 records a level) and reciprocity (12 N, force at
     DOF 1 / acc4 against force at DOF 4 / acc1; 1 and 3 records a side)."""
-    out = ["| check | structure | records per side | z2 (H1): median / max | z2_coh: median / "
-           "max | dB diff: median | failed (of seeds) |", "|---|---|---|---|---|---|---|"]
+    out = [("| check | structure | records per side | z2 (H1): median / max | z2_coh: median / "
+           "max | dB diff: median | failed (of seeds) |"), "|---|---|---|---|---|---|---|"]
     for truth in (gen.Truth(), BUMPER):
         res: dict[tuple[str, int], list[F.Comparison]] = {}
         for seed in seeds:
@@ -107,24 +151,31 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--data", type=Path, default=Path("../shared/data/synthetic"),
+                    help="the shared synthetic data (skipped when absent)")
     a = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     m = declared()
     t0 = time.perf_counter()
     seeds = range(a.seeds)
     lines = ["## Modal properties and FRF checks (report 5.1, 5.3.1)", "",
-             f"`PYTHONPATH=gateway/src python bench/catalogue_modal_frf.py --seeds {a.seeds}`: "
+             (f"`PYTHONPATH=gateway/src python bench/catalogue_modal_frf.py --seeds {a.seeds}`: "
              "dynval.synth's 4-DOF structure (model L2: zeta 1/5/1/1 %), band-limited random "
              "force 20-200 Hz at the base, 12 and 7.2 N RMS, 8192 samples at 640 Hz, 1 % "
-             "sensor noise; Hann window, 50 % overlap; LSCF over 20-200 Hz, 3 modes.", "",
+             "sensor noise; Hann window, 50 % overlap; LSCF over 20-200 Hz, 3 modes."), "",
              f"### EMA against the model's modes 2-4 ({a.seeds} seeds x 10 records)", "",
              *ema_rows(m, seeds), "",
-             "Damping errors are EMA minus model, in percentage points: the Hann window's "
+             ("Damping errors are EMA minus model, in percentage points: the Hann window's "
              "bias (the report's 'higher than those actually present') shrinks with the "
-             "window length.", "",
-             f"### Linearity and reciprocity checks ({a.seeds} seeds; fail: z2 or z2_coh > "
-             f"{F.Z2_LIMIT:g})", "", *check_rows(m, seeds), "",
-             f"Measured in {time.perf_counter() - t0:.0f} s."]
+             "window length."), "",
+             (f"### Linearity and reciprocity checks ({a.seeds} seeds; fail: z2 or z2_coh > "
+             f"{F.Z2_LIMIT:g})"), "", *check_rows(m, seeds), "",
+             "### The report's Tables 13-14 in kind (ten records each, seed 77)", "",
+             *tables_13_14(m), ""]
+    if (a.data / "lanl4dof-clean").is_dir():
+        lines += ["### The shared data (an RK4 simulator that is not dynval's; modes 2-4)", "",
+                  *shared_rows(a.data), ""]
+    lines += [f"Measured in {time.perf_counter() - t0:.0f} s."]
     text = "\n".join(lines) + "\n"
     if a.out:
         a.out.write_text(text)
