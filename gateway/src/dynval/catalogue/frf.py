@@ -129,8 +129,8 @@ class Comparison:
 
 
 def h1_variance(h1: np.ndarray, coh: np.ndarray, n_avg: int) -> np.ndarray:
-    """Random-error variance of the complex H1 estimate (Bendat & Piersol: the normalised
-    error of |H1| is sqrt(1 - coh) / sqrt(2 n coh) per real component)."""
+    """Random-error variance of the complex H1 estimate over n averages: twice that of |H1|,
+    whose normalised error is sqrt(1 - coh) / sqrt(2 n coh) (Bendat & Piersol)."""
     c = np.clip(coh, 1e-12, 1.0)
     return np.asarray(np.abs(h1) ** 2 * (1.0 - c) / (c * n_avg))
 
