@@ -2,7 +2,7 @@
 and reciprocity checks) on independent simulations of its 4-DOF structure (dynval.synth),
 with and without the bumper, over many seeds; written as markdown.
 
-    PYTHONPATH=gateway/src python bench/catalogue_modal_frf.py --seeds 20 \
+    PYTHONPATH=gateway/src python bench/catalogue_modal_frf.py --seeds 20 --validate-seeds 20 \
         --out bench/RESULTS.modal-frf.md
 """
 from __future__ import annotations
@@ -147,10 +147,25 @@ def check_rows(m: mdl.Model, seeds: range) -> list[str]:
     return out
 
 
+def validate_rows(m: mdl.Model, seeds: int) -> list[str]:
+    """`dynval validate`'s verdict with the modal and coherence terms (montecarlo.run: ten
+    tests a study, the truth at 64 x fs): how often the right model and the bumper (high-level
+    tests) are rejected."""
+    from dynval.validate import montecarlo as mc
+
+    specs = ["modal_f3,modal_zeta3@acc1,acc2,acc3,acc4", "coh@acc3,acc4"]
+    sc = mc.scenarios(m)
+    truths = {k: sc[k] for k in ("right model", "bumper, high-level tests only")}
+    logging.getLogger("dynval").setLevel(logging.ERROR)
+    return mc.markdown(mc.run(m, specs, truths, seeds), specs, list(truths))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--validate-seeds", type=int, default=0,
+                    help="seeds of the validate verdict's error rates (0: skip)")
     ap.add_argument("--data", type=Path, default=Path("../shared/data/synthetic"),
                     help="the shared synthetic data (skipped when absent)")
     a = ap.parse_args()
@@ -175,6 +190,9 @@ def main() -> None:
     if (a.data / "lanl4dof-clean").is_dir():
         lines += ["### The shared data (an RK4 simulator that is not dynval's; modes 2-4)", "",
                   *shared_rows(a.data), ""]
+    if a.validate_seeds:
+        lines += [(f"### `dynval validate` with these terms ({a.validate_seeds} seeds, noise "
+                  "auto, level 0.95)"), "", *validate_rows(m, a.validate_seeds), ""]
     lines += [f"Measured in {time.perf_counter() - t0:.0f} s."]
     text = "\n".join(lines) + "\n"
     if a.out:
