@@ -136,6 +136,15 @@ def test_grammar_modal_and_coherence_terms() -> None:
         fs.extract(y, 640.0)
     with pytest.raises(ConfigError, match="'modal_f0': needs N >= 1"):
         featvec.parse("modal_f0@acc1")
+    unfit = featvec.parse("coh@acc4").resolve(list(data[0])).with_input("force_N")
+    with pytest.raises(ConfigError, match="need the band of a baseline test"):
+        unfit.extract(data[0], 640.0)
+    two = featvec.parse("modal_f2,modal_mac2,modal_f3@acc1,acc2,acc3,acc4")
+    two = two.resolve(list(data[0])).with_input("force_N").fit_reference(data[0], 640.0)
+    v = two.extract(data[1], 640.0)
+    assert v.size == 7 and v[2:4].min() > 0.999
+    np.testing.assert_allclose(v[4:], num.f_hz[1:], rtol=0.002)
+    assert set(np.round(v[:2])) <= set(np.round(num.f_hz[1:]))  # the two strongest
 
 
 def test_validate_simulates_the_modal_features() -> None:

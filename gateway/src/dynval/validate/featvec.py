@@ -95,8 +95,8 @@ class FeatureSet:
     ar_ref: Mapping[tuple[str, int], _ar.ARModel] = field(default_factory=dict, compare=False)
     input_channel: str = ""  # read by the input/output features (coh, modal_*)
     band_hz: tuple[float, float] = (0.0, 0.0)
-    modal_ref: Mapping[tuple[str, ...], _modal.Modes] = field(default_factory=dict,
-                                                            compare=False)
+    modal_ref: Mapping[tuple[tuple[str, ...], int], _modal.Modes] = field(
+        default_factory=dict, compare=False)  # (channels, N) -> the first test's modes
 
     @property
     def channels(self) -> list[str]:
@@ -166,14 +166,13 @@ class FeatureSet:
         band = _meas.input_band(u, fs_hz)
         mref = {}
         for t in io:
-            n = max((int(g.group(2)) for g in map(_MODAL.match, t.names) if g), default=0)
-            if n:
+            for n in {int(g.group(2)) for g in map(_MODAL.match, t.names) if g}:
                 modes = _modal.record_modes(u, {c: data[c] for c in t.channels}, fs_hz, band, n)
                 if modes is None:
                     raise ConfigError(f"modal features @{','.join(t.channels)}: the first "
                                       f"baseline test shows fewer than {n} stable modes in "
                                       f"{band[0]:g}-{band[1]:g} Hz")
-                mref[t.channels] = modes
+                mref[(t.channels, n)] = modes
         return replace(self, ar_ref=ref, band_hz=band, modal_ref=mref)
 
     def with_input(self, channel: str) -> FeatureSet:
@@ -188,23 +187,28 @@ class FeatureSet:
         return data[self.input_channel]
 
     def _io_features(self, t: Term, name: str, data: Mapping[str, np.ndarray], fs_hz: float,
-                     cache: dict[tuple[str, ...], _modal.Modes | None]) -> list[float]:
+                     cache: dict[tuple[tuple[str, ...], int], _modal.Modes | None]
+                     ) -> list[float]:
         """Values of an input/output feature (coh per channel, modal_* per mode)."""
         u = self._input(data)
+        if not self.band_hz[1] > 0:
+            raise ConfigError(f"feature spec '{self.spec}': coh and modal_* need the band of "
+                              "a baseline test (FeatureSet.fit_reference with fs_hz)")
         if name == "coh":
             frf = _frf.estimate(u, {c: data[c] for c in t.channels}, fs_hz)
             return [float(v) for v in _frf.band_coherence(frf, self.band_hz)]
         g = _MODAL.match(name)
         assert g is not None
         kind, n = g.group(1), int(g.group(2))
-        if t.channels not in cache:
-            cache[t.channels] = _modal.record_modes(u, {c: data[c] for c in t.channels}, fs_hz,
-                                                    self.band_hz, n)
-        modes = cache[t.channels]
+        key = (t.channels, n)
+        if key not in cache:
+            cache[key] = _modal.record_modes(u, {c: data[c] for c in t.channels}, fs_hz,
+                                             self.band_hz, n)
+        modes = cache[key]
         if modes is None or modes.f_hz.size < n:
             return [float("nan")] * n
         if kind == "mac":
-            return [float(v) for v in _modal.paired_mac(modes, self.modal_ref[t.channels])]
+            return [float(v) for v in _modal.paired_mac(modes, self.modal_ref[key])]
         return [float(v) for v in (modes.f_hz if kind == "f" else modes.zeta)[:n]]
 
     def extract(self, data: Mapping[str, np.ndarray], fs_hz: float,
@@ -217,7 +221,7 @@ class FeatureSet:
             data = {**data, self.input_channel: u}
         out: list[float] = []
         cache: dict[str, tuple[_feat.Stats, _feat.Temporal | None]] = {}
-        modal: dict[tuple[str, ...], _modal.Modes | None] = {}
+        modal: dict[tuple[tuple[str, ...], int], _modal.Modes | None] = {}
         for t in self.terms:
             for name in t.names:
                 if name == "coh" or _MODAL.match(name):
