@@ -11,6 +11,8 @@ Two generators:
   first-order hold); a DAQ is imitated: a causal 8th-order Butterworth low-pass at 0.4 fs on
   every channel (force included) at the fine rate, decimation to fs, and white sensor noise of
   ``noise`` x the clean RMS of each channel.
+* ``reciprocal``: generate's tests and the same with the force at another DOF (the
+  reciprocity check's pair; generate's two levels give the linearity check's).
 * ``make_experiments``: a truth model driven by zero-phase band-limited forces through
   model.simulate, with test-to-test variation of chosen parameters and of the force level, and
   white sensor noise on every channel.
@@ -157,6 +159,23 @@ def generate(m: mdl.Model, truth: Truth, *, n_tests: int = 10,
         recs.append(Recording(name=f"{truth.label}_{tag}_{i + 1:02d}", fs_hz=fs_hz,
                               channels=chans))
     return recs
+
+
+def reciprocal(m: mdl.Model, truth: Truth, dof: int, **kw: Any
+               ) -> tuple[list[Recording], list[Recording]]:
+    """The report's reciprocity pair (its Section 5.3.1): generate's tests with the force at
+    m's input DOF, and the same number with the force moved to ``dof`` (same channels; the
+    response at the first input DOF is then the reciprocal one), from independent draws.
+    kw: generate's (levels_n_rms gives the two excitation levels of the linearity check)."""
+    if m.input.kind != "force":
+        raise ConfigError(f"reciprocity swaps a force's DOF; the model's input is a "
+                          f"{m.input.kind}")
+    seed = int(kw.pop("seed", 0))
+    moved = dataclasses.replace(m, input=dataclasses.replace(m.input, dof=dof))
+    mdl.validate(moved)
+    moved_truth = dataclasses.replace(truth, label=f"{truth.label}_at{dof}")
+    return (generate(m, truth, seed=seed, **kw),
+            generate(moved, moved_truth, seed=seed + 1_000_003, **kw))
 
 
 def make_experiments(truth: mdl.Model, n_tests: int = 20, *, fs_hz: float = 640.0,

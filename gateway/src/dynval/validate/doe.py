@@ -204,7 +204,7 @@ def _chunk_run(job: SweepJob, sets: list[dict[str, float]]
                 continue
             y = {c: ys[i, :, j] for j, c in enumerate(chans)}
             feats[i, fi] = job.features.extract(meas.add_noise(y, dict(job.noise), fi),
-                                                job.fs_hz)
+                                                job.fs_hz, u)
             if fi == 0:
                 for j, (c, ref) in enumerate(zip(job.rmse_channels, job.rmse_refs, strict=True)):
                     rmse[i, j] = rmse_eq47(y[c], ref)

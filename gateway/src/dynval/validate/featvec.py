@@ -19,9 +19,16 @@ suffix (``acc3``). ``NAME`` is one of:
   report's 64 segments, Fig. 86), by dv_moments on each segment (equal to dv_segstd);
 * ``ar_rms`` / ``ar_rms<p>``: RMS of the one-step AR(p) residual (eq. 31, default p = 30,
   Burg) under a reference AR model fitted by the C core to the first baseline test of that
-  channel (FeatureSet.fit_reference); without a reference, to the record itself.
+  channel (FeatureSet.fit_reference); without a reference, to the record itself;
+* input/output (the input channel is read too, FeatureSet.with_input; the band is where the
+  first baseline test's input holds 98 % of its power): ``coh`` the band-mean coherence of
+  the channel to the input (5.3.1, Hann 1024 / 50 %); ``modal_f<N>``, ``modal_zeta<N>``,
+  ``modal_mac<N>``: the N strongest modes of an EMA over the term's channels jointly (5.1,
+  dynval.catalogue.modal): natural frequencies (Hz), damping ratios, and the MAC of each
+  mode with the nearest mode of the first baseline test (N values each, ascending frequency).
 
-Examples: ``peak,std@acc3,acc4``; ``segstd64@acc4``; ``tm_E,tm_T@acc2 + ar_rms@acc4``.
+Examples: ``peak,std@acc3,acc4``; ``segstd64@acc4``; ``tm_E,tm_T@acc2 + ar_rms@acc4``;
+``modal_f3,modal_zeta3@acc1,acc2,acc3,acc4 + coh@acc4``.
 The vector is ordered term by term, then feature by feature, then channel by channel; labels
 read ``std@acc3_mps2`` or ``segstd64[5]@acc4_mps2``.
 """
@@ -35,7 +42,10 @@ import numpy as np
 
 from dynval import ar as _ar
 from dynval import features as _feat
+from dynval.catalogue import frf as _frf
+from dynval.catalogue import modal as _modal
 from dynval.errors import ConfigError
+from dynval.validate import measurement as _meas
 
 BASIC = ("peak", "mean", "rms", "std", "var", "skew", "kurt", "min", "max", "crest", "kfactor")
 TEMPORAL = {"tm_E": "energy", "tm_T": "central_time", "tm_D": "rms_duration",
@@ -43,20 +53,22 @@ TEMPORAL = {"tm_E": "energy", "tm_T": "central_time", "tm_D": "rms_duration",
 AR_DEFAULT_ORDER = 30
 _SEG = re.compile(r"^segstd(\d+)$")
 _AR = re.compile(r"^ar_rms(\d*)$")
+_MODAL = re.compile(r"^modal_(f|zeta|mac)(\d+)$")
 
 
 def valid_names() -> list[str]:
     """Every feature name the grammar accepts (patterns with <N>/<p>)."""
-    return [*BASIC, *TEMPORAL, "segstd<N>", "ar_rms", "ar_rms<p>"]
+    return [*BASIC, *TEMPORAL, "segstd<N>", "ar_rms", "ar_rms<p>", "coh", "modal_f<N>",
+            "modal_zeta<N>", "modal_mac<N>"]
 
 
 def _check_name(name: str) -> None:
-    if name in BASIC or name in TEMPORAL:
+    if name in BASIC or name in TEMPORAL or name == "coh":
         return
-    g = _SEG.match(name)
+    g = _SEG.match(name) or _MODAL.match(name)
     if g is not None:
-        if int(g.group(1)) < 1:
-            raise ConfigError(f"feature '{name}': segstd needs N >= 1 segments")
+        if int(g.groups()[-1]) < 1:
+            raise ConfigError(f"feature '{name}': needs N >= 1")
         return
     g = _AR.match(name)
     if g is not None:
@@ -81,6 +93,10 @@ class FeatureSet:
     terms: tuple[Term, ...]
     resolved: bool = False
     ar_ref: Mapping[tuple[str, int], _ar.ARModel] = field(default_factory=dict, compare=False)
+    input_channel: str = ""  # read by the input/output features (coh, modal_*)
+    band_hz: tuple[float, float] = (0.0, 0.0)
+    modal_ref: Mapping[tuple[tuple[str, ...], int], _modal.Modes] = field(
+        default_factory=dict, compare=False)  # (channels, N) -> the first test's modes
 
     @property
     def channels(self) -> list[str]:
@@ -115,8 +131,12 @@ class FeatureSet:
         for t in self.terms:
             for name in t.names:
                 for c in t.channels:
-                    g = _SEG.match(name)
-                    if g is not None:
+                    g = _SEG.match(name) or _MODAL.match(name)
+                    if g is not None and g.re is _MODAL:
+                        if c == t.channels[0]:  # one EMA over the term's channels
+                            out += [f"{name}[{i}]@{','.join(t.channels)}"
+                                    for i in range(int(g.group(2)))]
+                    elif g is not None:
                         out += [f"{name}[{i}]@{c}" for i in range(int(g.group(1)))]
                     else:
                         out.append(f"{name}@{c}")
@@ -132,19 +152,81 @@ class FeatureSet:
                     out += [(c, p) for c in t.channels if (c, p) not in out]
         return out
 
-    def fit_reference(self, data: Mapping[str, np.ndarray]) -> FeatureSet:
-        """Fit the AR reference models (ar_rms) to one baseline record (channel -> samples)."""
+    def fit_reference(self, data: Mapping[str, np.ndarray], fs_hz: float = 0.0
+                      ) -> FeatureSet:
+        """Fit the AR reference models (ar_rms) to one baseline record (channel -> samples),
+        and for the input/output features the band and the reference modes (modal_mac)."""
         ref = {(c, p): _ar.burg(data[c], p) for c, p in self.needs_ar()}
-        return replace(self, ar_ref=ref)
+        io = [t for t in self.terms if any(n == "coh" or _MODAL.match(n) for n in t.names)]
+        if not io:
+            return replace(self, ar_ref=ref)
+        u = self._input(data)
+        if not fs_hz > 0:
+            raise ConfigError("fit_reference: coh and modal_* need the sampling rate")
+        band = _meas.input_band(u, fs_hz)
+        mref = {}
+        for t in io:
+            for n in {int(g.group(2)) for g in map(_MODAL.match, t.names) if g}:
+                modes = _modal.record_modes(u, {c: data[c] for c in t.channels}, fs_hz, band, n)
+                if modes is None:
+                    raise ConfigError(f"modal features @{','.join(t.channels)}: the first "
+                                      f"baseline test shows fewer than {n} stable modes in "
+                                      f"{band[0]:g}-{band[1]:g} Hz")
+                mref[(t.channels, n)] = modes
+        return replace(self, ar_ref=ref, band_hz=band, modal_ref=mref)
 
-    def extract(self, data: Mapping[str, np.ndarray], fs_hz: float) -> np.ndarray:
-        """The feature vector of one record (channel -> samples), through the C core."""
+    def with_input(self, channel: str) -> FeatureSet:
+        """The input channel (the force) the input/output features read."""
+        return replace(self, input_channel=channel)
+
+    def _input(self, data: Mapping[str, np.ndarray]) -> np.ndarray:
+        if self.input_channel not in data:
+            raise ConfigError(f"feature spec '{self.spec}': coh and modal_* read the input, "
+                              f"and the record has no input channel "
+                              f"'{self.input_channel or '(none set)'}'")
+        return data[self.input_channel]
+
+    def _io_features(self, t: Term, name: str, data: Mapping[str, np.ndarray], fs_hz: float,
+                     cache: dict[tuple[tuple[str, ...], int], _modal.Modes | None]
+                     ) -> list[float]:
+        """Values of an input/output feature (coh per channel, modal_* per mode)."""
+        u = self._input(data)
+        if not self.band_hz[1] > 0:
+            raise ConfigError(f"feature spec '{self.spec}': coh and modal_* need the band of "
+                              "a baseline test (FeatureSet.fit_reference with fs_hz)")
+        if name == "coh":
+            frf = _frf.estimate(u, {c: data[c] for c in t.channels}, fs_hz)
+            return [float(v) for v in _frf.band_coherence(frf, self.band_hz)]
+        g = _MODAL.match(name)
+        assert g is not None
+        kind, n = g.group(1), int(g.group(2))
+        key = (t.channels, n)
+        if key not in cache:
+            cache[key] = _modal.record_modes(u, {c: data[c] for c in t.channels}, fs_hz,
+                                             self.band_hz, n)
+        modes = cache[key]
+        if modes is None or modes.f_hz.size < n:
+            return [float("nan")] * n
+        if kind == "mac":
+            return [float(v) for v in _modal.paired_mac(modes, self.modal_ref[key])]
+        return [float(v) for v in (modes.f_hz if kind == "f" else modes.zeta)[:n]]
+
+    def extract(self, data: Mapping[str, np.ndarray], fs_hz: float,
+                u: np.ndarray | None = None) -> np.ndarray:
+        """The feature vector of one record (channel -> samples), through the C core; u: the
+        input, when data (a simulation's outputs) lacks it."""
         if not self.resolved:
             raise ConfigError("FeatureSet.extract before resolve()")
+        if u is not None and self.input_channel:
+            data = {**data, self.input_channel: u}
         out: list[float] = []
         cache: dict[str, tuple[_feat.Stats, _feat.Temporal | None]] = {}
+        modal: dict[tuple[tuple[str, ...], int], _modal.Modes | None] = {}
         for t in self.terms:
             for name in t.names:
+                if name == "coh" or _MODAL.match(name):
+                    out += self._io_features(t, name, data, fs_hz, modal)
+                    continue
                 for c in t.channels:
                     x = data[c]
                     if name in BASIC or name in TEMPORAL:

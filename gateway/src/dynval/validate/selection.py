@@ -51,8 +51,9 @@ class Ranked:
 def _features_of(s: Setup, m: mdl.Model) -> np.ndarray:
     out = []
     for k, r in enumerate(s.recs):
-        y = meas.simulate(m, r.channel(s.input_channel).data, s.fs_hz)
-        out.append(s.features.extract(meas.add_noise(y, s.noise, k), s.fs_hz))
+        u = r.channel(s.input_channel).data
+        y = meas.simulate(m, u, s.fs_hz)
+        out.append(s.features.extract(meas.add_noise(y, s.noise, k), s.fs_hz, u))
     return np.array(out)
 
 

@@ -82,8 +82,8 @@ def setup(m: mdl.Model, recs: Sequence[Recording], spec: str,
         recs = [dataclasses.replace(r, channels=[dataclasses.replace(c, data=c.data[:n])
                                                  for c in r.channels]) for r in recs]
     avail = [c for c in recs[0].names if c in m.outputs]
-    fset = parse(spec).resolve(avail).fit_reference(_data(recs[0]))
     inp = mdl.input_channel(m, recs[0])
+    fset = parse(spec).resolve(avail).with_input(inp).fit_reference(_data(recs[0]), fs)
     rc = list(rmse_channels) if rmse_channels else fset.channels
     rc = parse("rms@" + ",".join(rc)).resolve(avail).channels
     nz = meas.noise_levels(noise, m, recs, fset.channels, inp)
@@ -100,8 +100,9 @@ def _model_on_tests(s: Setup, m: mdl.Model, recs: Sequence[Recording], first: in
     channel of model m driven by each test's force."""
     feats, rmse, preds = [], [], []
     for k, r in enumerate(recs):
-        y = meas.simulate(m, r.channel(s.input_channel).data, s.fs_hz)
-        feats.append(s.features.extract(meas.add_noise(y, s.noise, first + k), s.fs_hz))
+        u = r.channel(s.input_channel).data
+        y = meas.simulate(m, u, s.fs_hz)
+        feats.append(s.features.extract(meas.add_noise(y, s.noise, first + k), s.fs_hz, u))
         rmse.append([doe.rmse_eq47(y[c], r.channel(c).data) for c in s.rmse_channels])
         preds.append(y)
     return np.array(feats), np.array(rmse), preds
