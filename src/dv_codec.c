@@ -222,11 +222,11 @@ dv_real_t dv_codec_sample_value(int16_t raw, float lsb)
     return (dv_real_t)raw * (dv_real_t)lsb;
 }
 
-void dv_codec_sample_values(const int16_t *raw, size_t n, float lsb, dv_real_t *out)
+void dv_codec_sample_values(const int16_t *raw, const float *lsb, size_t n, dv_real_t *out)
 {
-    DV_ASSERT(n == 0u || (raw != NULL && out != NULL));
+    DV_ASSERT(n == 0u || (raw != NULL && lsb != NULL && out != NULL));
     for (size_t i = 0; i < n; i++) {
-        out[i] = dv_codec_sample_value(raw[i], lsb);
+        out[i] = dv_codec_sample_value(raw[i], lsb[i]);
     }
 }
 
@@ -311,11 +311,25 @@ dv_seq_verdict_t dv_seq_update(dv_seq_t *s, uint8_t seq)
     return DV_SEQ_LATE;
 }
 
-void dv_seq_update_n(dv_seq_t *s, const uint8_t *seq, size_t n, uint8_t *verdict)
+void dv_seq_track_n(dv_seq_t *s, int64_t *last, const uint8_t *chan, const uint8_t *seq,
+                    size_t n, uint8_t *verdict, int64_t *frame_no)
 {
-    DV_ASSERT(s != NULL && (n == 0u || (seq != NULL && verdict != NULL)));
+    DV_ASSERT(s != NULL && last != NULL &&
+              (n == 0u || (chan != NULL && seq != NULL && verdict != NULL && frame_no != NULL)));
     for (size_t i = 0; i < n; i++) {
-        verdict[i] = (uint8_t)dv_seq_update(s, seq[i]);
+        const uint8_t c = chan[i];
+        const dv_seq_verdict_t v = dv_seq_update(&s[c], seq[i]);
+        const int64_t prev = last[c];
+        int64_t k;
+        if (v == DV_SEQ_OK || v == DV_SEQ_GAP) {
+            k = prev < 0 ? (int64_t)seq[i]
+                         : prev + (int64_t)(((uint32_t)seq[i] - (uint32_t)prev) & 0xFFu);
+            last[c] = k;
+        } else {
+            k = prev - (int64_t)(((uint32_t)prev - (uint32_t)seq[i]) & 0xFFu);
+        }
+        verdict[i] = (uint8_t)v;
+        frame_no[i] = k;
     }
 }
 

@@ -82,8 +82,7 @@ def test_foxglove_parses_every_schema_and_plots_each_sample_on_the_test_clock(
         assert t["messageEncoding"] == "protobuf" and t["schemaEncoding"] == "protobuf"
         defs = t["datatypes"]["dynval.Sample"]["definitions"]
         fields = {d["name"]: d["type"] for d in defs if not d.get("isConstant")}
-        assert fields == {"channel": "uint32", "index": "uint64", "t_s": "float64",
-                          "value": "float64", "raw": "int32", "seq": "uint32",
+        assert fields == {"channel": "uint32", "index": "uint64", "value": "float64",
                           "verdict": "int32"}
         verdicts = {d["name"]: d["value"] for d in defs if d.get("isConstant")}
         assert verdicts == {"ok": 0, "gap": 1, "dup": 2, "late": 3, "stale": 4}

@@ -209,13 +209,14 @@ dv_status_t dv_codec_encode(const dv_msg_t *m, dv_can_frame_t *f);
 dv_real_t dv_codec_sample_value(int16_t raw, float lsb);
 
 /**
- * @brief dv_codec_sample_value() of @p n raw samples of one channel.
+ * @brief dv_codec_sample_value() of @p n raw samples, each with its own lsb (a block of
+ *        frames of several channels).
  * @param[in]  raw @p n counts
+ * @param[in]  lsb @p n units per count
  * @param[in]  n   number of samples
- * @param[in]  lsb units per count
  * @param[out] out @p n values (NaN for missing samples)
  */
-void dv_codec_sample_values(const int16_t *raw, size_t n, float lsb, dv_real_t *out);
+void dv_codec_sample_values(const int16_t *raw, const float *lsb, size_t n, dv_real_t *out);
 
 /**
  * @brief Counts for a value in channel units, rounded to nearest (ties away from zero) and
@@ -281,13 +282,21 @@ void dv_seq_reset(dv_seq_t *s);
 dv_seq_verdict_t dv_seq_update(dv_seq_t *s, uint8_t seq);
 
 /**
- * @brief dv_seq_update() of @p n counters of one channel, in the order received.
- * @param[in,out] s      instance
- * @param[in]     seq    @p n frame counters
- * @param[in]     n      number of frames
- * @param[out]    verdict @p n verdicts (dv_seq_verdict_t values)
+ * @brief Sequence tracking of a block of frames of several channels, in the order received:
+ *        dv_seq_update() of each frame on its channel's tracker, and the frame's number since
+ *        DV_CTRL START (the 8-bit counter unwrapped: frame k carries k mod 256). An accepted
+ *        frame (OK, GAP) is numbered forward from the channel's last accepted one (the first
+ *        one by its counter); a discarded one (DUP, LATE, STALE) behind it.
+ * @param[in,out] s        trackers, indexed by channel number (at least max(chan) + 1)
+ * @param[in,out] last     per channel: number of its last accepted frame, -1 before the first
+ * @param[in]     chan     @p n channel numbers
+ * @param[in]     seq      @p n frame counters
+ * @param[in]     n        number of frames
+ * @param[out]    verdict  @p n verdicts (dv_seq_verdict_t values)
+ * @param[out]    frame_no @p n frame numbers
  */
-void dv_seq_update_n(dv_seq_t *s, const uint8_t *seq, size_t n, uint8_t *verdict);
+void dv_seq_track_n(dv_seq_t *s, int64_t *last, const uint8_t *chan, const uint8_t *seq,
+                    size_t n, uint8_t *verdict, int64_t *frame_no);
 
 /**
  * @brief Read the counters.

@@ -194,12 +194,14 @@ def decode_block(ids: np.ndarray, dlc: np.ndarray, data: np.ndarray) -> tuple[np
     return status, msgs
 
 
-def sample_values(raw: np.ndarray, lsb: float) -> np.ndarray:
-    """dv_codec_sample_values: raw * lsb of int16 counts, NaN for missing."""
+def sample_values(raw: np.ndarray, lsb: np.ndarray) -> np.ndarray:
+    """dv_codec_sample_values: raw * lsb of int16 counts, each with its lsb; NaN for missing."""
     r = np.ascontiguousarray(raw, dtype=np.int16)
+    q = np.ascontiguousarray(lsb, dtype=np.float32)
     out = np.empty(r.size, np.float64)
     ffi = _core.ffi
-    _core.lib.dv_codec_sample_values(ffi.from_buffer("int16_t[]", r), r.size, lsb,
+    _core.lib.dv_codec_sample_values(ffi.from_buffer("int16_t[]", r),
+                                     ffi.from_buffer("float[]", q), r.size,
                                      ffi.from_buffer("double[]", out, require_writable=True))
     return out
 
@@ -259,17 +261,47 @@ class SeqTracker:
     def update(self, seq: int) -> str:
         return SEQ_VERDICTS[int(_core.lib.dv_seq_update(self._s, seq & 0xFF))]
 
-    def update_n(self, seq: np.ndarray) -> np.ndarray:
-        """Verdicts (SEQ_VERDICTS indices) of a block of counters, in order."""
-        s = np.ascontiguousarray(seq, dtype=np.uint8)
-        out = np.empty(s.size, np.uint8)
-        ffi = _core.ffi
-        _core.lib.dv_seq_update_n(self._s, ffi.from_buffer("uint8_t[]", s), s.size,
-                                  ffi.from_buffer("uint8_t[]", out, require_writable=True))
-        return out
-
     def counts(self) -> dict[str, int]:
         _core.lib.dv_seq_get(self._s, self._c)
+        c = self._c
+        return {"ok": c.ok, "lost": c.lost, "dup": c.dup, "late": c.late, "stale": c.stale}
+
+
+class SeqBank:
+    """dv_seq_t of every channel number a frame can carry, and the number of each channel's
+    last accepted frame: sequence tracking of blocks of frames (dv_seq_track_n)."""
+
+    N = 256  # DV_SAMPLES.channel is a byte
+
+    def __init__(self) -> None:
+        self._s = _core.ffi.new("dv_seq_t[]", self.N)
+        self._c = _core.ffi.new("dv_seq_counts_t *")
+        self.last = np.empty(self.N, np.int64)
+        self.reset()
+
+    def reset(self) -> None:
+        for i in range(self.N):
+            _core.lib.dv_seq_init(self._s + i)
+        self.last[:] = -1
+
+    def track(self, chan: np.ndarray, seq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(verdicts, frame numbers since START) of frames of channels chan with counters
+        seq, in the order received."""
+        c = np.ascontiguousarray(chan, dtype=np.uint8)
+        s = np.ascontiguousarray(seq, dtype=np.uint8)
+        verdict = np.empty(c.size, np.uint8)
+        k = np.empty(c.size, np.int64)
+        ffi = _core.ffi
+        _core.lib.dv_seq_track_n(self._s, ffi.from_buffer("int64_t[]", self.last,
+                                                          require_writable=True),
+                                 ffi.from_buffer("uint8_t[]", c), ffi.from_buffer("uint8_t[]", s),
+                                 c.size, ffi.from_buffer("uint8_t[]", verdict,
+                                                         require_writable=True),
+                                 ffi.from_buffer("int64_t[]", k, require_writable=True))
+        return verdict, k
+
+    def counts(self, ch: int) -> dict[str, int]:
+        _core.lib.dv_seq_get(self._s + ch, self._c)
         c = self._c
         return {"ok": c.ok, "lost": c.lost, "dup": c.dup, "late": c.late, "stale": c.stale}
 

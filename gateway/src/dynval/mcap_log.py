@@ -12,12 +12,13 @@ arrays (mcap_writer); the low-rate ones (status, control, events, log) stay JSON
 Schema. AsyncLog runs all of it in a writer thread behind a bounded queue, so the bus reader
 never waits for the file.
 
-For Foxglove's plot panel every sample is its own message: {channel, index, t_s, value, raw,
-seq, verdict}, value NaN for a missing sample. Times come from the test's own clock: from
-DV_CTRL START on, a sample's log_time and publish_time are the START frame's receive time +
-index / fs, so a replay faster than real time (--asap) keeps the test's time base; the other
-messages are logged at the time of the latest sample received (after STOP: that plus the
-wall time since), with their receive time as publish_time. Files of the previous layouts (JSON
+For Foxglove's plot panel every sample is its own message: {channel, index, value, verdict},
+value NaN for a missing sample (its raw counts and frame counter are on /can/raw). Times come
+from the test's own clock: from DV_CTRL START on, a sample's log_time and publish_time are
+the START frame's receive time + index / fs, so a replay faster than real time (--asap) keeps
+the test's time base; the other messages are logged at the time of the latest sample
+received (after STOP: that plus the wall time since), with their receive time as
+publish_time. Files of the previous layouts (JSON
 samples, one or three per message) are still read (io.mcapfile).
 
 Written incrementally: chunks of at most chunk_size bytes (or max_chunk_age_s of wall time),
@@ -184,8 +185,10 @@ class McapLog:
         self._chan: dict[str, int] = {}
         self.names = list(channel_names or [])
         self.lsb: dict[int, float] = {}
-        self.seq: dict[int, bus.SeqTracker] = {}
-        self._frame_no: dict[int, int] = {}
+        self._lsb = np.full(bus.SeqBank.N, bus.DEFAULT_LSB, np.float32)  # by channel number
+        self._seq = bus.SeqBank()
+        self._seen: set[int] = set()  # channels with sample frames since START
+        self._sample_cid = np.zeros(bus.SeqBank.N, np.uint16)  # MCAP channel of each
         self.counts: Counter[str] = Counter()
         self.events: Counter[str] = Counter()
         self.last_status: dict[str, int] | None = None
@@ -262,14 +265,17 @@ class McapLog:
         self.counts[topic] += 1
 
     def _block(self, topic: str, msg: str, n: int, log: np.ndarray, pub: np.ndarray,
-               seq: np.ndarray | int = 0, bytes_len: int = 8) -> np.ndarray:
-        """A block of n binary messages on topic (times and sequence set, tags written); the
-        caller fills the payload and hands it to self._w.add_block."""
-        cid = self._channel(topic, full_name(msg))
-        b = self._w.new_block(cid, record_dtype(payload_fields(msg, bytes_len)), n)
+               seq: np.ndarray | int = 0, bytes_len: int = 8,
+               cid: np.ndarray | None = None) -> np.ndarray:
+        """A block of n binary messages on topic (or on the channels cid, one per message),
+        times and sequence set, tags written; the caller fills the payload and hands it to
+        self._w.add_block."""
+        if cid is None:
+            self.counts[topic] += n
+        b = self._w.new_block(self._channel(topic, full_name(msg)) if cid is None else cid,
+                              record_dtype(payload_fields(msg, bytes_len)), n)
         fill_tags(b, msg, bytes_len)
         b["_log"], b["_pub"], b["_seq"] = log, pub, seq
-        self.counts[topic] += n
         return b
 
     def text(self, t_ns: int, level: str, message: str) -> None:
@@ -390,11 +396,12 @@ class McapLog:
                              for n in rec.dtype.names if n != "kind"}
         if kind == "chcfg":
             self.lsb[d["channel"]] = d["lsb"]
+            self._lsb[d["channel"]] = d["lsb"]
             self.fs_hz = d["fs_hz"]
         elif d["cmd"] == bus.CTRL_START:
-            self.seq.clear()
+            self._seq.reset()
+            self._seen.clear()
             self.frames_logged = self._frames_flushed = 0
-            self._frame_no.clear()
             self.t0_ns, self._stopped = t_ns, None
         elif d["cmd"] == bus.CTRL_STOP and self.t0_ns is not None:
             self._stopped = (t_ns, self.clock_ns(t_ns))
@@ -422,71 +429,66 @@ class McapLog:
         data_ns = new_frames * bus.SAMPLES_PER_FRAME * 1e9 / self.fs_hz if self.fs_hz else 0
         if now - self._last_flush > self.max_age_ns or data_ns > self.max_age_ns:
             self._w.flush()
+            self._w.sync()  # on disk now, not only queued: what a kill can lose is bounded
             self._last_flush = now
             self._frames_flushed = self.frames_logged
 
     def _samples(self, f: _Frames, sel: np.ndarray) -> np.ndarray:
-        """Log the DV_SAMPLES frames f[sel], per channel; returns for every frame of f the
-        sample frames logged up to and including it (frames_logged as it grows)."""
-        grown = np.zeros(f.n, np.int64)
+        """Log the DV_SAMPLES frames f[sel] of every channel at once: sequence verdicts and
+        frame numbers since START (dv_seq_track_n), events, one message per sample. Returns
+        for every frame of f the sample frames logged up to and including it (frames_logged
+        as it grows)."""
         if sel.size == 0:
             return np.full(f.n, self.frames_logged, np.int64)
         s = f.msgs[sel].view(bus.msg_dtype("samples"))
-        chans = s["channel"]
-        for ch in np.unique(chans).tolist():
-            mine = np.flatnonzero(chans == ch)
-            k, accepted = self._channel_samples(f, int(ch), sel[mine], s[mine])
-            grown[sel[mine][accepted]] = k[accepted] + 1
+        ch = s["channel"]
+        last = self._seq.last.copy()
+        verdict, k = self._seq.track(ch, s["seq"])
+        accepted = verdict <= 1  # ok, gap
+        chans, counts = np.unique(ch, return_counts=True)
+        for c, n in zip(chans.tolist(), counts.tolist(), strict=True):
+            self._seen.add(c)
+            topic = T_SAMPLES + self.channel_name(c)
+            if not self._sample_cid[c]:
+                self._sample_cid[c] = self._channel(topic, full_name("Sample"))
+            self.counts[topic] += n * bus.SAMPLES_PER_FRAME
+        for j in np.flatnonzero(verdict != 0).tolist():
+            self._seq_event(f, sel, ch, k, accepted, last, j, int(verdict[j]))
+        per = bus.SAMPLES_PER_FRAME
+        idx = (np.maximum(k, 0)[:, None] * per + np.arange(per)).ravel()
+        if self.t0_ns is not None and self.fs_hz:
+            ts = self.t0_ns + np.rint(idx * 1e9 / self.fs_hz).astype(np.int64)
+        else:
+            ts = np.repeat(f.t[sel], per)
+        b = self._block("", "Sample", idx.size, ts, ts, idx & 0xFFFFFFFF,
+                        cid=np.repeat(self._sample_cid[ch], per))
+        b["channel"], b["index"] = np.repeat(ch, per), idx
+        b["value"] = bus.sample_values(s["raw"].ravel(), np.repeat(self._lsb[ch], per))
+        b["verdict"] = np.repeat(verdict, per)
+        self._w.add_block(b)
+        grown = np.zeros(f.n, np.int64)
+        grown[sel[accepted]] = k[accepted] + 1
         logged = np.maximum.accumulate(np.maximum(grown, self.frames_logged))
         self.frames_logged = int(logged[-1])
         return logged
 
-    def _channel_samples(self, f: _Frames, ch: int, where: np.ndarray,
-                         s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """One channel's frames of a block: sequence verdicts (dv_seq), frame numbers since
-        START, events, and one message per sample. Returns (frame numbers, accepted)."""
-        tr = self.seq.get(ch)
-        if tr is None:
-            tr = self.seq[ch] = bus.SeqTracker()
-        seq = s["seq"].astype(np.int64)
-        verdict = tr.update_n(seq)
-        prev0 = self._frame_no.get(ch)
-        k = frame_numbers(seq, verdict, prev0)
-        accepted = verdict <= 1  # ok, gap
-        if accepted.any():
-            self._frame_no[ch] = int(k[accepted][-1])
-        for j in np.flatnonzero(verdict != 0).tolist():
-            v = bus.SEQ_VERDICTS[int(verdict[j])]
-            t = int(f.t[where[j]])
-            if v == "gap":
-                before = k[:j][accepted[:j]]
-                prev = int(before[-1]) if before.size else int(prev0 if prev0 is not None
-                                                                 else k[j] - 1)
-                lost = int(k[j]) - prev - 1
-                self.event(t, "seq_gap", channel=ch, count=lost,
-                           detail=f"{lost} frame(s) missing before seq {int(seq[j])}")
-            else:
-                self.event(t, f"seq_{v}", channel=ch, detail=f"seq {int(seq[j])}")
-        per = bus.SAMPLES_PER_FRAME
-        idx = (np.maximum(k, 0)[:, None] * per + np.arange(per)).ravel()
-        n = idx.size
-        if self.t0_ns is not None and self.fs_hz:
-            ts = self.t0_ns + np.rint(idx * 1e9 / self.fs_hz).astype(np.int64)
-            t_s = idx / self.fs_hz
-        else:
-            ts, t_s = np.repeat(f.t[where], per), np.full(n, np.nan)
-        b = self._block(T_SAMPLES + self.channel_name(ch), "Sample", n, ts, ts,
-                        idx & 0xFFFFFFFF)
-        b["channel"], b["index"], b["t_s"] = ch, idx, t_s
-        raw = s["raw"].ravel()
-        b["value"] = bus.sample_values(raw, self.lsb.get(ch, bus.DEFAULT_LSB))
-        b["raw"], b["seq"], b["verdict"] = raw, np.repeat(seq, per), np.repeat(verdict, per)
-        self._w.add_block(b)
-        return k, accepted
+    def _seq_event(self, f: _Frames, sel: np.ndarray, ch: np.ndarray, k: np.ndarray,
+                   accepted: np.ndarray, last: np.ndarray, j: int, verdict: int) -> None:
+        """The event of the j-th sample frame of a block, discarded or after a gap."""
+        c, seq, t = int(ch[j]), int(k[j]) & 0xFF, int(f.t[sel[j]])
+        v = bus.SEQ_VERDICTS[verdict]
+        if v != "gap":
+            self.event(t, f"seq_{v}", channel=c, detail=f"seq {seq}")
+            return
+        before = np.flatnonzero(accepted[:j] & (ch[:j] == c))
+        prev = int(k[before[-1]]) if before.size else int(last[c])
+        lost = int(k[j]) - prev - 1
+        self.event(t, "seq_gap", channel=c, count=lost,
+                   detail=f"{lost} frame(s) missing before seq {seq}")
 
     # -- end ---------------------------------------------------------------------------------
     def summary(self) -> dict[str, Any]:
-        seq = {self.channel_name(c): t.counts() for c, t in sorted(self.seq.items())}
+        seq = {self.channel_name(c): self._seq.counts(c) for c in sorted(self._seen)}
         return {"messages": dict(self.counts), "events": dict(self.events), "sequence": seq,
                 "last_status": self.last_status,
                 "duration_s": ((self.t_last - self.t_first) / 1e9) if self.t_first else 0.0}
@@ -530,27 +532,6 @@ class _Frames:
                        self.status[a:b], self.msgs[a:b], self.kind[a:b])
 
 
-def frame_numbers(seq: np.ndarray, verdict: np.ndarray, prev: int | None) -> np.ndarray:
-    """Unwrapped frame numbers since START of one channel's frames (8-bit counters seq, their
-    dv_seq verdicts; prev: the number of the last accepted frame before, None at START, when
-    the first frame is number 0). An accepted (ok, gap) frame counts forward from the accepted
-    one before it; a discarded one (dup, late, stale) lies behind the last accepted."""
-    n = seq.size
-    acc = verdict <= 1
-    k = np.zeros(n, np.int64)
-    sa = seq[acc]
-    if sa.size:
-        steps = np.empty(sa.size, np.int64)
-        steps[0] = 0 if prev is None else (int(sa[0]) - prev) & 0xFF
-        steps[1:] = (sa[1:] - sa[:-1]) & 0xFF
-        k[acc] = (0 if prev is None else prev) + np.cumsum(steps)
-    last = np.maximum.accumulate(np.where(acc, np.arange(n), -1))
-    base = np.where(last >= 0, k[np.maximum(last, 0)], -1 if prev is None else prev)
-    behind = ~acc
-    k[behind] = base[behind] - ((base[behind] - seq[behind]) & 0xFF)
-    return k
-
-
 def frame_arrays(t_ns: Any, ids: Any, datas: Any) -> tuple[np.ndarray, np.ndarray,
                                                            np.ndarray, np.ndarray]:
     """on_frames' arrays of received frames: times (ns), ids (EFF_FLAG for extended ones),
@@ -581,71 +562,72 @@ class AsyncLog:
 
     def __init__(self, out: McapLog) -> None:
         self.out = out
-        self.q: queue.Queue[tuple[list[float], list[int], list[bytes]] | None] = \
-            queue.Queue(self.MAX_BLOCKS)
+        self.q: queue.Queue[list[Any] | None] = queue.Queue(self.MAX_BLOCKS)
         self.dropped = 0
         self._unreported = 0
         self.error: BaseException | None = None
-        self.errors_seen: list[tuple[int, int]] = []  # error frames: (t_ns, id)
-        self._new_block()
+        self._block: list[Any] = []
+        self._since = time.monotonic()
         self.thread = threading.Thread(target=self._run, name="dv-log-writer", daemon=True)
         self.thread.start()
 
-    def _new_block(self) -> None:
-        self._t: list[float] = []
-        self._ids: list[int] = []
-        self._data: list[bytes] = []
-        self._since = time.monotonic()
-
     def put(self, m: Any) -> None:
-        """A python-can Message received (error frames become error_frame events)."""
+        """A python-can Message received: appended to the block in progress (all the reader
+        does per frame; the writer thread reads the messages' fields)."""
         if self.error is not None:
             raise self.error
-        ts = m.timestamp or time.time()
-        if m.is_error_frame:
-            self.errors_seen.append((int(ts * 1e9), m.arbitration_id))
-            return
-        self._t.append(ts)
-        self._ids.append(m.arbitration_id | bus.EFF_FLAG if m.is_extended_id
-                         else m.arbitration_id)
-        self._data.append(bytes(m.data))
-        if len(self._t) >= self.BLOCK_FRAMES or time.monotonic() - self._since > self.BLOCK_S:
+        self._block.append(m)
+        if len(self._block) >= self.BLOCK_FRAMES or (
+                len(self._block) & 63 == 0 and time.monotonic() - self._since > self.BLOCK_S):
             self.hand_off()
 
     def hand_off(self) -> None:
         """Queue the block in progress (the reader calls it when idle too)."""
-        if self._t:
+        if self._block:
             try:
-                self.q.put_nowait((self._t, self._ids, self._data))
+                self.q.put_nowait(self._block)
             except queue.Full:
-                self.dropped += len(self._t)
-                self._unreported += len(self._t)
+                self.dropped += len(self._block)
+                self._unreported += len(self._block)
                 log.warning("the MCAP writer is behind: %d frames dropped so far",
                             self.dropped)
-        self._new_block()
+        self._block = []
+        self._since = time.monotonic()
 
     def _run(self) -> None:
         try:
             while True:
                 try:
-                    item = self.q.get(timeout=0.05)
+                    block = self.q.get(timeout=0.05)
                 except queue.Empty:
                     self._report()
                     self.out.tick()
                     continue
-                if item is None:
+                if block is None:
                     break
-                t, ids, datas = item
-                tn = (np.asarray(t) * 1e9).astype(np.int64)
-                self.out.on_frames(*frame_arrays(tn, ids, datas))
+                self._log(block)
                 self._report()
         except BaseException as exc:  # noqa: BLE001 - raised in the reader by put()/close()
             self.error = exc
 
+    def _log(self, block: list[Any]) -> None:
+        """A block of python-can Messages into the log; error frames become events."""
+        errors = [m for m in block if m.is_error_frame]
+        if errors:
+            block = [m for m in block if not m.is_error_frame]
+        if block:
+            now = time.time()
+            t = np.array([m.timestamp or now for m in block]) * 1e9
+            eff = bus.EFF_FLAG
+            ids = [m.arbitration_id | eff if m.is_extended_id else m.arbitration_id
+                   for m in block]
+            self.out.on_frames(*frame_arrays(t.astype(np.int64), ids,
+                                             [m.data for m in block]))
+        for m in errors:
+            self.out.event(int((m.timestamp or time.time()) * 1e9), "error_frame",
+                           can_id=m.arbitration_id)
+
     def _report(self) -> None:
-        while self.errors_seen:
-            t, cid = self.errors_seen.pop(0)
-            self.out.event(t, "error_frame", can_id=cid)
         if self._unreported:
             n, self._unreported = self._unreported, 0
             self.out.event(time.time_ns(), "logger_overflow", count=n,

@@ -24,11 +24,14 @@ _KINDS: dict[str, tuple[str, int, int]] = {
     "fixed32": ("<u4", 5, 7), "sfixed32": ("<i4", 5, 15), "fixed64": ("<u8", 1, 6),
     "double": ("<f8", 1, 1), "bool": ("u1", 0, 8), "enum": ("u1", 0, 14), "bytes": ("", 2, 12)}
 
-#: message name -> [(field, number, kind)], numbers in order from 1 (one-byte tags)
+#: message name -> [(field, number, kind)], numbers in order from 1 (one-byte tags).
+#: Sample: one sample, index since START (its log time is the test's clock at index / fs),
+#: value = raw * lsb in the channel's unit (NaN: missing), the frame's sequence verdict (its
+#: raw counts and counter are in the frame on /can/raw). CanFrame: a frame as received.
+#: Feature, Residual: DV_FEATURE, DV_RESID; value the binary32 as double, bits its bits.
 MESSAGES: dict[str, list[tuple[str, int, str]]] = {
-    "Sample": [("channel", 1, "fixed32"), ("index", 2, "fixed64"), ("t_s", 3, "double"),
-               ("value", 4, "double"), ("raw", 5, "sfixed32"), ("seq", 6, "fixed32"),
-               ("verdict", 7, "enum")],
+    "Sample": [("channel", 1, "fixed32"), ("index", 2, "fixed64"), ("value", 3, "double"),
+               ("verdict", 4, "enum")],
     "CanFrame": [("id", 1, "fixed32"), ("extended", 2, "bool"), ("dlc", 3, "fixed32"),
                  ("data", 4, "bytes")],
     "Feature": [("channel", 1, "fixed32"), ("feat_id", 2, "fixed32"), ("index", 3, "fixed32"),
@@ -36,15 +39,6 @@ MESSAGES: dict[str, list[tuple[str, int, str]]] = {
     "Residual": [("channel", 1, "fixed32"), ("flags", 2, "fixed32"), ("step", 3, "fixed32"),
                  ("value", 4, "double"), ("bits", 5, "fixed32")],
 }
-DOCS = {
-    "Sample": "one sample: index since START, t_s = index / fs (the test's clock), value = "
-              "raw * lsb in the channel's unit (NaN: missing), the frame's seq and verdict",
-    "CanFrame": "a CAN frame as received",
-    "Feature": "DV_FEATURE: value (binary32 as double, bits its IEEE-754 bits)",
-    "Residual": "DV_RESID: observer residual, channel units",
-}
-
-
 def full_name(msg: str) -> str:
     return f"{PACKAGE}.{msg}"
 
@@ -72,17 +66,17 @@ def descriptor_set() -> bytes:
 
 
 @cache
-def payload_fields(msg: str, bytes_len: int = 8) -> list[tuple[str, Any]]:
+def payload_fields(msg: str, bytes_len: int = 8) -> tuple[tuple[Any, ...], ...]:
     """The packed numpy fields of a message's fixed layout: per field a tag byte ("_t<n>"),
     for bytes a length byte ("_n<n>"), then the value under the field's name."""
-    out: list[tuple[str, Any]] = []
+    out: list[tuple[Any, ...]] = []
     for fname, num, kind in MESSAGES[msg]:
         out.append((f"_t{num}", "u1"))
         if kind == "bytes":
             out += [(f"_n{num}", "u1"), (fname, ("u1", (bytes_len,)))]
         else:
             out.append((fname, _KINDS[kind][0]))
-    return out
+    return tuple(out)
 
 
 def fill_tags(block: np.ndarray, msg: str, bytes_len: int = 8) -> None:

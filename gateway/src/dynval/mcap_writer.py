@@ -8,12 +8,19 @@ Footer) is serialised by the `mcap` package's own record classes. The file is wh
 Writer makes: compressed chunks with CRCs, a MessageIndex per channel after each chunk (the
 indexed readers of mcap and Foxglove need them), the summary with chunk and metadata indexes.
 Schema and Channel records go straight to the file (before the chunk that first uses them),
-so a file cut after any chunk still reads sequentially."""
+so a file cut after any chunk still reads sequentially.
+
+Compression and every write run in an I/O thread behind a small bounded queue (zstandard, lz4
+and file writes release the GIL), in file order; its error (a full disk) is raised by the next
+call."""
 from __future__ import annotations
 
+import queue
 import struct
+import threading
 import zlib
 from collections import defaultdict
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -39,12 +46,14 @@ HEADER_FIELDS: list[tuple[str, str]] = [("_op", "u1"), ("_len", "<u8"), ("_chan"
                                         ("_seq", "<u4"), ("_log", "<u8"), ("_pub", "<u8")]
 HEADER_BYTES = 31
 _MSG_HEAD = struct.Struct("<BQHIQQ")
-_INDEX_ROW = np.dtype([("t", "<u8"), ("off", "<u8")])
+_INDEX_ROW = np.dtype([("c", "<u2"), ("t", "<u8"), ("off", "<u8")])
+_INDEX_PAIR = np.dtype([("t", "<u8"), ("off", "<u8")])
 
 
-def record_dtype(payload: list[tuple[str, Any]]) -> np.dtype:
+@cache
+def record_dtype(payload: tuple[tuple[Any, ...], ...]) -> np.dtype:
     """The dtype of one Message record with this packed payload layout."""
-    return np.dtype(HEADER_FIELDS + payload)
+    return np.dtype(HEADER_FIELDS + list(payload))
 
 
 def _compressor(kind: str) -> Any:
@@ -63,6 +72,8 @@ class BlockWriter:
     """Write an MCAP file to a stream (anything with write() and tell()). chunk_size bounds a
     chunk's uncompressed bytes; flush() finishes the chunk in progress; finish() the file."""
 
+    QUEUE = 4  # chunks (and records) waiting for the I/O thread
+
     def __init__(self, stream: Any, *, chunk_size: int, compression: str = "zstd",
                  profile: str = "", library: str = "") -> None:
         self._s = stream
@@ -71,30 +82,68 @@ class BlockWriter:
         self._compress = _compressor(compression)
         self._pieces: list[bytes] = []
         self._size = 0
-        self._index: dict[int, list[np.ndarray]] = defaultdict(list)
-        self._t0 = self._t1 = -1
+        self._index: list[np.ndarray] = []  # per block: (channel, log time, offset) rows
         self._schemas: list[Schema] = []
         self._channels: list[Channel] = []
-        self._chunk_idx: list[ChunkIndex] = []
+        self._chunk_idx: list[ChunkIndex] = []  # the I/O thread's, like _meta_idx and _span
         self._meta_idx: list[MetadataIndex] = []
-        self._counts: dict[int, int] = defaultdict(int)
+        self._counts: dict[int, int] = defaultdict(int)  # the I/O thread's, per chunk
         self._n = 0
-        self._span = [0, 0]
+        self._span = [-1, 0]
+        self._jobs: queue.Queue[Any] = queue.Queue(self.QUEUE)
+        self._error: BaseException | None = None
+        self._io = threading.Thread(target=self._io_loop, name="dv-mcap-io", daemon=True)
+        self._io.start()
         self._write_raw(MAGIC)
         self._write(Header(profile, library))
 
-    # -- records outside chunks -----------------------------------------------------------------
-    def _write_raw(self, b: bytes) -> int:
-        off = int(self._s.tell())
-        self._s.write(b)
-        return off
+    # -- the I/O thread -------------------------------------------------------------------------
+    def _io_loop(self) -> None:
+        while True:
+            job = self._jobs.get()
+            if job is None:
+                self._jobs.task_done()
+                return
+            if self._error is None:
+                try:
+                    job()
+                except BaseException as exc:  # noqa: BLE001 - raised by the next _submit
+                    self._error = exc
+            self._jobs.task_done()
 
-    def _write(self, *records: Any) -> tuple[int, int]:
+    def _submit(self, job: Any) -> None:
+        if self._error is not None:
+            raise self._error
+        self._jobs.put(job)
+
+    def sync(self) -> None:
+        """Wait until everything submitted is written (handed to the OS)."""
+        self._jobs.join()
+        if self._error is not None:
+            raise self._error
+
+    def _drain(self) -> None:
+        """Wait for the I/O thread to finish every job; raise its error."""
+        if self._io.is_alive():
+            self._jobs.put(None)
+            self._io.join()
+        if self._error is not None:
+            raise self._error
+
+    # -- records outside chunks -----------------------------------------------------------------
+    def _write_raw(self, b: bytes) -> None:
+        self._submit(lambda: self._s.write(b))
+
+    @staticmethod
+    def _bytes(*records: Any) -> bytes:
         rb = RecordBuilder()
         for r in records:
             r.write(rb)
         data: bytes = rb.end()  # type: ignore[no-untyped-call]
-        return self._write_raw(data), len(data)
+        return data
+
+    def _write(self, *records: Any) -> None:
+        self._write_raw(self._bytes(*records))
 
     def register_schema(self, name: str, encoding: str, data: bytes) -> int:
         sc = Schema(id=len(self._schemas) + 1, name=name, encoding=encoding, data=data)
@@ -111,23 +160,25 @@ class BlockWriter:
         return ch.id
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
-        off, n = self._write(Metadata(name=name, metadata=data))
-        self._meta_idx.append(MetadataIndex(offset=off, length=n, name=name))
+        b = self._bytes(Metadata(name=name, metadata=data))
+
+        def job() -> None:
+            self._meta_idx.append(MetadataIndex(offset=int(self._s.tell()), length=len(b),
+                                                name=name))
+            self._s.write(b)
+
+        self._submit(job)
 
     # -- messages ---------------------------------------------------------------------------------
-    def _note(self, cid: int, log: np.ndarray, offsets: np.ndarray) -> None:
+    def _note(self, cid: Any, log: np.ndarray, offsets: np.ndarray) -> None:
         rows = np.empty(log.size, _INDEX_ROW)
-        rows["t"], rows["off"] = log, offsets
-        self._index[cid].append(rows)
-        lo, hi = int(log.min()), int(log.max())
-        self._t0 = lo if self._t0 < 0 else min(self._t0, lo)
-        self._t1 = max(self._t1, hi)
-        self._counts[cid] += log.size
+        rows["c"], rows["t"], rows["off"] = cid, log, offsets
+        self._index.append(rows)
         self._n += log.size
 
-    def new_block(self, cid: int, dtype: np.dtype, n: int) -> np.ndarray:
-        """n Message records of channel cid (_op, _len, _chan set; _seq, _log, _pub and the
-        payload for the caller)."""
+    def new_block(self, cid: int | np.ndarray, dtype: np.dtype, n: int) -> np.ndarray:
+        """n Message records of channel cid (a number, or one per record) with _op, _len,
+        _chan set; _seq, _log, _pub and the payload for the caller."""
         a = np.empty(n, dtype)
         a["_op"] = Opcode.MESSAGE
         a["_len"] = dtype.itemsize - 9
@@ -135,11 +186,11 @@ class BlockWriter:
         return a
 
     def add_block(self, block: np.ndarray) -> None:
-        """Append a new_block() array, all of one channel, to the chunk in progress."""
+        """Append a new_block() array to the chunk in progress."""
         if block.size == 0:
             return
         offsets = self._size + np.arange(block.size, dtype=np.uint64) * block.itemsize
-        self._note(int(block["_chan"][0]), block["_log"], offsets)
+        self._note(block["_chan"], block["_log"], offsets)
         b = block.tobytes()
         self._pieces.append(b)
         self._size += len(b)
@@ -159,15 +210,22 @@ class BlockWriter:
 
     # -- chunks -----------------------------------------------------------------------------------
     def flush(self) -> None:
-        """Finish the chunk in progress (if it holds messages): Chunk, then its MessageIndex
-        records, written at once."""
+        """Finish the chunk in progress (if it holds messages): the I/O thread compresses it
+        and writes the Chunk and its MessageIndex records at once."""
         if not self._pieces:
             return
-        data = b"".join(self._pieces)
+        pieces, index = self._pieces, self._index
+        self._submit(lambda: self._write_chunk(pieces, index))
+        self._pieces = []
+        self._index = []
+        self._size = 0
+
+    def _write_chunk(self, pieces: list[bytes], index: list[np.ndarray]) -> None:
+        data = b"".join(pieces)
         packed = self._compress(data) if self._compress is not None else data
-        t0, t1 = self._t0, self._t1
-        if not self._chunk_idx or t0 < self._span[0]:
-            self._span[0] = t0
+        rows = np.concatenate(index)
+        t0, t1 = int(rows["t"].min()), int(rows["t"].max())
+        self._span[0] = t0 if self._span[0] < 0 else min(self._span[0], t0)
         self._span[1] = max(self._span[1], t1)
         rb = RecordBuilder()
         Chunk(compression=self._kind, data=packed, message_start_time=t0,
@@ -175,12 +233,16 @@ class BlockWriter:
               uncompressed_size=len(data)).write(rb)
         chunk_len = rb.count
         offsets: dict[int, int] = {}
-        for cid, parts in self._index.items():
-            rows = np.concatenate(parts)
+        rows = rows[np.argsort(rows["c"], kind="stable")]  # per channel, in file order
+        chans, starts, counts = np.unique(rows["c"], return_index=True, return_counts=True)
+        for cid, a, n in zip(chans.tolist(), starts.tolist(), counts.tolist(), strict=True):
+            pairs = np.empty(n, _INDEX_PAIR)
+            pairs["t"], pairs["off"] = rows["t"][a:a + n], rows["off"][a:a + n]
             offsets[cid] = rb.count
-            rb.write(struct.pack("<BQHI", Opcode.MESSAGE_INDEX, 2 + 4 + rows.nbytes, cid,
-                                 rows.nbytes))
-            rb.write(rows.tobytes())
+            rb.write(struct.pack("<BQHI", Opcode.MESSAGE_INDEX, 2 + 4 + pairs.nbytes, cid,
+                                 pairs.nbytes))
+            rb.write(pairs.tobytes())
+            self._counts[cid] += n
         out: bytes = rb.end()  # type: ignore[no-untyped-call]
         start = int(self._s.tell())
         self._chunk_idx.append(ChunkIndex(
@@ -190,16 +252,13 @@ class BlockWriter:
             message_index_length=len(out) - chunk_len, compression=self._kind,
             compressed_size=len(packed), uncompressed_size=len(data)))
         self._s.write(out)
-        self._pieces.clear()
-        self._index.clear()
-        self._size = 0
-        self._t0 = self._t1 = -1
 
     def finish(self) -> None:
         """The last chunk, DataEnd, the summary (schemas, channels, statistics, chunk and
         metadata indexes, summary offsets) and the footer."""
         self.flush()
         self._write(DataEnd(data_section_crc=0))
+        self._drain()
         start = int(self._s.tell())
         rb = RecordBuilder()
         groups = []
@@ -207,8 +266,7 @@ class BlockWriter:
             message_count=self._n, schema_count=len(self._schemas),
             channel_count=len(self._channels), attachment_count=0,
             metadata_count=len(self._meta_idx), chunk_count=len(self._chunk_idx),
-            message_start_time=self._span[0] if self._n else 0,
-            message_end_time=self._span[1] if self._n else 0,
+            message_start_time=max(self._span[0], 0), message_end_time=self._span[1],
             channel_message_counts=dict(self._counts))
         for op, recs in ((Opcode.SCHEMA, self._schemas), (Opcode.CHANNEL, self._channels),
                          (Opcode.STATISTICS, [stats]), (Opcode.CHUNK_INDEX, self._chunk_idx),
@@ -224,7 +282,7 @@ class BlockWriter:
         summary: bytes = rb.end()  # type: ignore[no-untyped-call]
         crc = zlib.crc32(summary)
         crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 20, start, offsets_start), crc)
-        self._write_raw(summary)
-        self._write(Footer(summary_start=start, summary_offset_start=offsets_start,
-                           summary_crc=crc))
-        self._write_raw(MAGIC)
+        self._s.write(summary)
+        self._s.write(self._bytes(Footer(summary_start=start, summary_offset_start=offsets_start,
+                                         summary_crc=crc)))
+        self._s.write(MAGIC)
