@@ -568,6 +568,7 @@ class AsyncLog:
         self.error: BaseException | None = None
         self._block: list[Any] = []
         self._since = time.monotonic()
+        self._warned = 0.0
         self.thread = threading.Thread(target=self._run, name="dv-log-writer", daemon=True)
         self.thread.start()
 
@@ -589,8 +590,10 @@ class AsyncLog:
             except queue.Full:
                 self.dropped += len(self._block)
                 self._unreported += len(self._block)
-                log.warning("the MCAP writer is behind: %d frames dropped so far",
-                            self.dropped)
+                if time.monotonic() - self._warned > 1.0:  # at most once a second
+                    self._warned = time.monotonic()
+                    log.warning("the MCAP writer is behind the bus: %d frames dropped so far",
+                                self.dropped)
         self._block = []
         self._since = time.monotonic()
 
