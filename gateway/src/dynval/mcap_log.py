@@ -33,6 +33,8 @@ import queue
 import threading
 import time
 from collections import Counter
+from functools import cache
+from operator import attrgetter
 from pathlib import Path
 from typing import IO, Any
 
@@ -275,8 +277,7 @@ class McapLog:
         if cid is None:
             self.counts[topic] += n
         b = self._w.new_block(self._channel(topic, full_name(msg)) if cid is None else cid,
-                              record_dtype(payload_fields(msg, bytes_len)), n)
-        fill_tags(b, msg, bytes_len)
+                              _template(msg, bytes_len), n)
         b["_log"], b["_pub"], b["_seq"] = log, pub, seq
         return b
 
@@ -517,6 +518,14 @@ class McapLog:
 
 
 PENDING_FRAMES = 256  # on_frame's frames per block
+
+
+@cache
+def _template(msg: str, bytes_len: int) -> np.ndarray:
+    """A Message record of msg's fixed layout with its constant bytes (header, tags)."""
+    t = BlockWriter.template(record_dtype(payload_fields(msg, bytes_len)))
+    fill_tags(t, msg, bytes_len)
+    return t
 STATUS_FIELDS = ("state", "beat", "lost", "dup", "late", "bad_dlc", "unknown")
 
 
@@ -551,6 +560,11 @@ def frame_arrays(t_ns: Any, ids: Any, datas: Any) -> tuple[np.ndarray, np.ndarra
 
 
 # ---- the logger beside a bus reader ------------------------------------------------------------
+_IS_ERROR, _TIMESTAMP = attrgetter("is_error_frame"), attrgetter("timestamp")
+_ID, _EXTENDED, _DATA = attrgetter("arbitration_id"), attrgetter("is_extended_id"), \
+    attrgetter("data")
+
+
 class AsyncLog:
     """McapLog in a writer thread, fed by a bus reader that never waits for the file: the
     reader's put() appends a frame to a block; full blocks (BLOCK_FRAMES, or BLOCK_S old) go
@@ -616,18 +630,21 @@ class AsyncLog:
             self.error = exc
 
     def _log(self, block: list[Any]) -> None:
-        """A block of python-can Messages into the log; error frames become events."""
-        errors = [m for m in block if m.is_error_frame]
+        """A block of python-can Messages into the log (each field read in one C-level pass);
+        error frames become events."""
+        n = len(block)
+        err = np.fromiter(map(_IS_ERROR, block), bool, n)
+        errors = [block[i] for i in np.flatnonzero(err).tolist()]
         if errors:
             block = [m for m in block if not m.is_error_frame]
-        if block:
-            now = time.time()
-            t = np.array([m.timestamp or now for m in block]) * 1e9
-            eff = bus.EFF_FLAG
-            ids = [m.arbitration_id | eff if m.is_extended_id else m.arbitration_id
-                   for m in block]
-            self.out.on_frames(*frame_arrays(t.astype(np.int64), ids,
-                                             [m.data for m in block]))
+            n = len(block)
+        if n:
+            t = np.fromiter(map(_TIMESTAMP, block), np.float64, n)
+            t[t == 0] = time.time()  # an interface without timestamps: the receive time
+            ids = np.fromiter(map(_ID, block), np.uint32, n)
+            ids[np.fromiter(map(_EXTENDED, block), bool, n)] |= np.uint32(bus.EFF_FLAG)
+            self.out.on_frames(*frame_arrays((t * 1e9).astype(np.int64), ids,
+                                             list(map(_DATA, block))))
         for m in errors:
             self.out.event(int((m.timestamp or time.time()) * 1e9), "error_frame",
                            can_id=m.arbitration_id)

@@ -46,8 +46,6 @@ HEADER_FIELDS: list[tuple[str, str]] = [("_op", "u1"), ("_len", "<u8"), ("_chan"
                                         ("_seq", "<u4"), ("_log", "<u8"), ("_pub", "<u8")]
 HEADER_BYTES = 31
 _MSG_HEAD = struct.Struct("<BQHIQQ")
-_INDEX_ROW = np.dtype([("c", "<u2"), ("t", "<u8"), ("off", "<u8")])
-_INDEX_PAIR = np.dtype([("t", "<u8"), ("off", "<u8")])
 
 
 @cache
@@ -82,7 +80,7 @@ class BlockWriter:
         self._compress = _compressor(compression)
         self._pieces: list[bytes] = []
         self._size = 0
-        self._index: list[np.ndarray] = []  # per block: (channel, log time, offset) rows
+        self._index: list[tuple[Any, np.ndarray, np.ndarray]] = []  # (channel, log, offset)
         self._schemas: list[Schema] = []
         self._channels: list[Channel] = []
         self._chunk_idx: list[ChunkIndex] = []  # the I/O thread's, like _meta_idx and _span
@@ -171,17 +169,22 @@ class BlockWriter:
 
     # -- messages ---------------------------------------------------------------------------------
     def _note(self, cid: Any, log: np.ndarray, offsets: np.ndarray) -> None:
-        rows = np.empty(log.size, _INDEX_ROW)
-        rows["c"], rows["t"], rows["off"] = cid, log, offsets
-        self._index.append(rows)
+        self._index.append((cid, log, offsets))  # views of a block: the I/O thread gathers
         self._n += log.size
 
-    def new_block(self, cid: int | np.ndarray, dtype: np.dtype, n: int) -> np.ndarray:
-        """n Message records of channel cid (a number, or one per record) with _op, _len,
-        _chan set; _seq, _log, _pub and the payload for the caller."""
-        a = np.empty(n, dtype)
-        a["_op"] = Opcode.MESSAGE
-        a["_len"] = dtype.itemsize - 9
+    @staticmethod
+    def template(dtype: np.dtype) -> np.ndarray:
+        """One Message record of this layout with its constant header fields (_op, _len)."""
+        t = np.zeros(1, dtype)
+        t["_op"] = Opcode.MESSAGE
+        t["_len"] = dtype.itemsize - 9
+        return t
+
+    def new_block(self, cid: int | np.ndarray, template: np.ndarray, n: int) -> np.ndarray:
+        """n copies of a template() record (with the payload's constant bytes written) on
+        channel cid (a number, or one per record); _seq, _log, _pub and the payload for the
+        caller."""
+        a = np.repeat(template, n)
         a["_chan"] = cid
         return a
 
@@ -220,11 +223,16 @@ class BlockWriter:
         self._index = []
         self._size = 0
 
-    def _write_chunk(self, pieces: list[bytes], index: list[np.ndarray]) -> None:
+    def _write_chunk(self, pieces: list[bytes],
+                     index: list[tuple[Any, np.ndarray, np.ndarray]]) -> None:
         data = b"".join(pieces)
         packed = self._compress(data) if self._compress is not None else data
-        rows = np.concatenate(index)
-        t0, t1 = int(rows["t"].min()), int(rows["t"].max())
+        n = [log.size for _, log, _ in index]
+        chan = np.concatenate([np.broadcast_to(np.asarray(c, np.uint16), (k,))
+                               for (c, _, _), k in zip(index, n, strict=True)])
+        log = np.concatenate([lg for _, lg, _ in index])
+        off = np.concatenate([o for _, _, o in index])
+        t0, t1 = int(log.min()), int(log.max())
         self._span[0] = t0 if self._span[0] < 0 else min(self._span[0], t0)
         self._span[1] = max(self._span[1], t1)
         rb = RecordBuilder()
@@ -233,16 +241,17 @@ class BlockWriter:
               uncompressed_size=len(data)).write(rb)
         chunk_len = rb.count
         offsets: dict[int, int] = {}
-        rows = rows[np.argsort(rows["c"], kind="stable")]  # per channel, in file order
-        chans, starts, counts = np.unique(rows["c"], return_index=True, return_counts=True)
-        for cid, a, n in zip(chans.tolist(), starts.tolist(), counts.tolist(), strict=True):
-            pairs = np.empty(n, _INDEX_PAIR)
-            pairs["t"], pairs["off"] = rows["t"][a:a + n], rows["off"][a:a + n]
+        order = np.argsort(chan, kind="stable")  # per channel, in file order
+        chans, starts, counts = np.unique(chan[order], return_index=True, return_counts=True)
+        for cid, a, k in zip(chans.tolist(), starts.tolist(), counts.tolist(), strict=True):
+            pairs = np.empty((k, 2), "<u8")
+            sel = order[a:a + k]
+            pairs[:, 0], pairs[:, 1] = log[sel], off[sel]
             offsets[cid] = rb.count
             rb.write(struct.pack("<BQHI", Opcode.MESSAGE_INDEX, 2 + 4 + pairs.nbytes, cid,
                                  pairs.nbytes))
             rb.write(pairs.tobytes())
-            self._counts[cid] += n
+            self._counts[cid] += k
         out: bytes = rb.end()  # type: ignore[no-untyped-call]
         start = int(self._s.tell())
         self._chunk_idx.append(ChunkIndex(
