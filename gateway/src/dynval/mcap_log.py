@@ -430,11 +430,16 @@ class McapLog:
         now = time.monotonic_ns()
         new_frames = self.frames_logged - self._frames_flushed
         data_ns = new_frames * bus.SAMPLES_PER_FRAME * 1e9 / self.fs_hz if self.fs_hz else 0
-        if now - self._last_flush > self.max_age_ns or data_ns > self.max_age_ns:
+        if now - self._last_flush > self.max_age_ns:
             self._w.flush()
             self._w.sync()  # on disk now, not only queued: what a kill can lose is bounded
-            self._last_flush = now
-            self._frames_flushed = self.frames_logged
+        elif data_ns > self.max_age_ns / 2:  # faster than real time: write behind by at
+            self._w.flush()  # most one chunk (half the age), the next one built meanwhile
+            self._w.sync(pending=1)
+        else:
+            return
+        self._last_flush = now
+        self._frames_flushed = self.frames_logged
 
     def _samples(self, f: _Frames, sel: np.ndarray) -> np.ndarray:
         """Log the DV_SAMPLES frames f[sel] of every channel at once: sequence verdicts and

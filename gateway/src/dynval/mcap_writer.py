@@ -89,6 +89,8 @@ class BlockWriter:
         self._n = 0
         self._span = [-1, 0]
         self._jobs: queue.Queue[Any] = queue.Queue(self.QUEUE)
+        self._done = threading.Condition()
+        self._submitted = self._finished = 0
         self._error: BaseException | None = None
         self._io = threading.Thread(target=self._io_loop, name="dv-mcap-io", daemon=True)
         self._io.start()
@@ -100,23 +102,28 @@ class BlockWriter:
         while True:
             job = self._jobs.get()
             if job is None:
-                self._jobs.task_done()
                 return
             if self._error is None:
                 try:
                     job()
                 except BaseException as exc:  # noqa: BLE001 - raised by the next _submit
                     self._error = exc
-            self._jobs.task_done()
+            with self._done:
+                self._finished += 1
+                self._done.notify_all()
 
     def _submit(self, job: Any) -> None:
         if self._error is not None:
             raise self._error
+        self._submitted += 1
         self._jobs.put(job)
 
-    def sync(self) -> None:
-        """Wait until everything submitted is written (handed to the OS)."""
-        self._jobs.join()
+    def sync(self, pending: int = 0) -> None:
+        """Wait until at most `pending` of the jobs submitted (chunks, records) are not yet
+        written (handed to the OS)."""
+        with self._done:
+            while self._submitted - self._finished > pending and self._io.is_alive():
+                self._done.wait(0.1)
         if self._error is not None:
             raise self._error
 
