@@ -1,8 +1,8 @@
 """The MCAP dynval writes, read by Foxglove's own code (gateway/tests/foxglove/check_mcap.mjs:
-@mcap/core's indexed reader and the open-source Foxglove Studio's JSON-schema parser): every
-schema parses, every sample is a plot point at its time on the test's clock, the events are
-foxglove.Log messages with the Foxglove SDK's schema; the previous layout's ["number", "null"]
-is what that parser refuses.
+@mcap/core's indexed reader and the open-source Foxglove Studio's parseChannel, with its
+JSON-schema and protobuf parsers): every schema parses, every sample is a plot point at its
+time on the test's clock (a missing one a NaN gap), the events are foxglove.Log messages with
+the Foxglove SDK's schema; the first layout's ["number", "null"] is what that parser refuses.
 
 Needs node with gateway/tests/foxglove's packages (scripts/setup.sh installs both); skipped
 without them unless DV_FOXGLOVE_CHECK=1 (scripts/test_all.sh), where that is a failure."""
