@@ -87,7 +87,7 @@ def logging_lines(hours: float, reps: int) -> list[str]:
           "(Python and numpy calls per block of 2048 frames), about 5 us per frame finishing "
           "chunks (lz4, joining the records, CRC, message indexes, writing). The I/O thread "
           "runs beside the writer thread (compression and writes release the GIL) only when "
-          "a core is free; this host had a load average of 8 to 12 on 2 cores during these "
+          "a core is free; this host had a load average of 5 to 12 on 2 cores during these "
           "measurements (2026-11-27). Not reached "
           "here: 5x would need the records and message indexes built in compiled code (one "
           "call per block) or fewer messages per frame (Foxglove plots need one message per "
