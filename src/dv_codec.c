@@ -137,6 +137,19 @@ dv_status_t dv_codec_decode(const dv_can_frame_t *f, dv_msg_t *out)
     return DV_OK;
 }
 
+size_t dv_codec_decode_n(const dv_can_frame_t *f, size_t n, dv_msg_t *out, dv_status_t *status)
+{
+    if (f == NULL || out == NULL || status == NULL) {
+        return 0u;
+    }
+    size_t ok = 0u;
+    for (size_t i = 0; i < n; i++) {
+        status[i] = dv_codec_decode(&f[i], &out[i]);
+        ok += status[i] == DV_OK;
+    }
+    return ok;
+}
+
 dv_status_t dv_codec_encode(const dv_msg_t *m, dv_can_frame_t *f)
 {
     if (m == NULL || f == NULL) {
@@ -207,6 +220,14 @@ dv_real_t dv_codec_sample_value(int16_t raw, float lsb)
         return (dv_real_t)NAN;
     }
     return (dv_real_t)raw * (dv_real_t)lsb;
+}
+
+void dv_codec_sample_values(const int16_t *raw, const float *lsb, size_t n, dv_real_t *out)
+{
+    DV_ASSERT(n == 0u || (raw != NULL && lsb != NULL && out != NULL));
+    for (size_t i = 0; i < n; i++) {
+        out[i] = dv_codec_sample_value(raw[i], lsb[i]);
+    }
 }
 
 int16_t dv_codec_sample_raw(dv_real_t x, float lsb)
@@ -288,6 +309,28 @@ dv_seq_verdict_t dv_seq_update(dv_seq_t *s, uint8_t seq)
     }
     s->n_late++;
     return DV_SEQ_LATE;
+}
+
+void dv_seq_track_n(dv_seq_t *s, int64_t *last, const uint8_t *chan, const uint8_t *seq,
+                    size_t n, uint8_t *verdict, int64_t *frame_no)
+{
+    DV_ASSERT(s != NULL && last != NULL &&
+              (n == 0u || (chan != NULL && seq != NULL && verdict != NULL && frame_no != NULL)));
+    for (size_t i = 0; i < n; i++) {
+        const uint8_t c = chan[i];
+        const dv_seq_verdict_t v = dv_seq_update(&s[c], seq[i]);
+        const int64_t prev = last[c];
+        int64_t k;
+        if (v == DV_SEQ_OK || v == DV_SEQ_GAP) {
+            k = prev < 0 ? (int64_t)seq[i]
+                         : prev + (int64_t)(((uint32_t)seq[i] - (uint32_t)prev) & 0xFFu);
+            last[c] = k;
+        } else {
+            k = prev - (int64_t)(((uint32_t)prev - (uint32_t)seq[i]) & 0xFFu);
+        }
+        verdict[i] = (uint8_t)v;
+        frame_no[i] = k;
+    }
 }
 
 dv_status_t dv_seq_get(const dv_seq_t *s, dv_seq_counts_t *out)

@@ -653,7 +653,7 @@ def test_run_with_a_full_disk_is_one_line(monkeypatch: pytest.MonkeyPatch,
     def full(self: Any, *_: object) -> None:
         raise mcap_log.LogError(f"{self.path}: cannot write the log: No space left on device")
 
-    monkeypatch.setattr(mcap_log.McapLog, "on_frame", full)
+    monkeypatch.setattr(mcap_log.McapLog, "on_frames", full)
     t0 = time.monotonic()
     out = run_cli(["run", str(seeds["csv"]), "-o", str(tmp_path / "o"), "--bus", "virtual",
                    "--asap", "--no-model"], caplog, capsys)

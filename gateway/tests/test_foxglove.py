@@ -1,8 +1,8 @@
 """The MCAP dynval writes, read by Foxglove's own code (gateway/tests/foxglove/check_mcap.mjs:
-@mcap/core's indexed reader and the open-source Foxglove Studio's JSON-schema parser): every
-schema parses, every sample is a plot point at its time on the test's clock, the events are
-foxglove.Log messages with the Foxglove SDK's schema; the previous layout's ["number", "null"]
-is what that parser refuses.
+@mcap/core's indexed reader and the open-source Foxglove Studio's parseChannel, with its
+JSON-schema and protobuf parsers): every schema parses, every sample is a plot point at its
+time on the test's clock (a missing one a NaN gap), the events are foxglove.Log messages with
+the Foxglove SDK's schema; the first layout's ["number", "null"] is what that parser refuses.
 
 Needs node with gateway/tests/foxglove's packages (scripts/setup.sh installs both); skipped
 without them unless DV_FOXGLOVE_CHECK=1 (scripts/test_all.sh), where that is a failure."""
@@ -79,22 +79,30 @@ def test_foxglove_parses_every_schema_and_plots_each_sample_on_the_test_clock(
             "/dv/control", "/dv/events", "/dv/log"} <= set(topics)
     for c, name in enumerate(("a", "b")):
         t = topics[f"/dv/samples/{name}"]
-        fields = {d["name"]: d["type"] for d in t["datatypes"]["dynval.Sample"]["definitions"]}
-        assert fields["value"] == "float64" and fields["t_s"] == "float64"
+        assert t["messageEncoding"] == "protobuf" and t["schemaEncoding"] == "protobuf"
+        defs = t["datatypes"]["dynval.Sample"]["definitions"]
+        fields = {d["name"]: d["type"] for d in defs if not d.get("isConstant")}
+        assert fields == {"channel": "uint32", "index": "uint64", "value": "float64",
+                          "verdict": "int32"}
+        verdicts = {d["name"]: d["value"] for d in defs if d.get("isConstant")}
+        assert verdicts == {"ok": 0, "gap": 1, "dup": 2, "late": 3, "stale": 4}
         want = plan.values(c)
-        idx = np.flatnonzero(~np.isnan(want))
         series = t["series"]["value"]  # what a plot of /dv/samples/<name>.value draws
-        assert len(series) == idx.size == (30 if name == "a" else 31)
+        assert len(series) == t["count"] == plan.raw[c].size  # one message per sample
         log_ns = [int(s[0]) for s in series]
-        assert log_ns == [T_START + round(i * 1e9 / 640) for i in idx]  # 1.5625 ms apart
+        assert log_ns == [T_START + round(i * 1e9 / 640) for i in range(len(series))]
         assert [int(s[1]) for s in series] == log_ns  # publish time too
-        assert np.array_equal([s[2] for s in series], want[idx])  # the values, exactly
-        assert t["count"] == plan.raw[c].size  # one message per sample, 2 padding at the end
+        got = np.array([np.nan if s[2] is None else s[2] for s in series])
+        # the values exactly; a missing sample (and the 2 padding ones) is NaN: a plot gap
+        assert np.array_equal(got[: want.size], want, equal_nan=True)
+        assert np.isnan(got[want.size:]).all() and np.isnan(got).sum() == (3 if c == 0 else 2)
     # the feature and residual frames arrived after 8 sample frames per channel: logged at
     # the test time of sample 23, published at their receive time
     f = topics["/dv/features"]["series"]["value"]
     assert f == [[str(T_START + round(23 * 1e9 / 640)), str(T0 + 20 * 1000), 1.0]]
     assert topics["/dv/residuals"]["series"]["value"][0][2] == 2.0
+    assert topics["/can/raw"]["count"] == plan.n_frames + 2
+    assert topics["/can/raw"]["first"]["id"] == bus.ID_CTRL
     # the dynval reader sees the same samples
     r = read_mcap(p)
     assert np.array_equal(r.channels[0].data, plan.values(0), equal_nan=True)

@@ -2,6 +2,7 @@
 killed with SIGKILL mid-record: the file reads up to its last complete chunk."""
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -32,17 +33,23 @@ def test_mcap_channels_schemas_and_metadata(tmp_path):
         topics = {c.topic: r.get_summary().schemas[c.schema_id].encoding  # type: ignore
                   for c in r.get_summary().channels.values()}  # type: ignore
         md = {m.name: m.metadata for m in r.iter_metadata()}
-    assert topics["/can/raw"] == "jsonschema" and "/dv/samples/a" in topics
+    assert topics["/can/raw"] == "protobuf" and topics["/dv/samples/a"] == "protobuf"
+    assert topics["/dv/status"] == "jsonschema" and topics["/dv/events"] == "jsonschema"
     assert {"/dv/features", "/dv/residuals", "/dv/status", "/dv/events", "/dv/log"} <= set(topics)
     assert md["dynval"]["test"] == "t" and md["dynval"]["software"].startswith("dynval")
     s = [m.data for m in iter_messages(p, prefix="/dv/samples/")]
-    # one message per sample, the missing one without a value (no START yet: no t_s)
-    assert s == [{"channel": 1, "index": 0, "value": 1.0, "raw": 2, "seq": 0, "verdict": "ok"},
-                 {"channel": 1, "index": 1, "value": -2.0, "raw": -4, "seq": 0,
-                  "verdict": "ok"},
-                 {"channel": 1, "index": 2, "raw": -32768, "seq": 0, "verdict": "ok"}]
+    # one message per sample, the missing one with a NaN value; raw 2 at lsb 0.5 (the
+    # DV_CHCFG frame) is 1.0
+    nan = float("nan")
+    want = [{"channel": 1, "index": 0, "value": 1.0, "verdict": "ok"},
+            {"channel": 1, "index": 1, "value": -2.0, "verdict": "ok"},
+            {"channel": 1, "index": 2, "value": nan, "verdict": "ok"}]
+    assert json.dumps(s) == json.dumps(want)  # NaN == NaN as text
     f = [m.data for m in iter_messages(p, topics={"/dv/features"})]
-    assert f[0]["feature"] == "rec_rms" and f[0]["value"] == 1.0 and f[0]["name"] == "a"
+    assert f == [{"channel": 1, "feat_id": 0x12, "index": 0, "value": 1.0,
+                  "bits": 0x3F800000, "name": "a", "feature": "rec_rms"}]
+    raw = [m.data for m in iter_messages(p, topics={"/can/raw"})]
+    assert raw[2] == {"id": 0x300, "extended": False, "dlc": 8, "data": "120100000000803f"}
 
 
 def test_truncated_file_reads_to_the_last_complete_chunk(tmp_path):
@@ -51,14 +58,14 @@ def test_truncated_file_reads_to_the_last_complete_chunk(tmp_path):
     for k in range(3000):
         lg.on_frame(k, *bus.encode_samples(0, k, (k, k, k)))
     lg.close()
-    full = [m.data["seq"] for m in iter_messages(p, prefix="/dv/samples/")]
+    full = [m.data["index"] for m in iter_messages(p, prefix="/dv/samples/")]
     assert len(full) == 3 * 3000
     data = p.read_bytes()
     for cut in (len(data) // 2, len(data) - 100, 200):
         q = tmp_path / f"cut{cut}.mcap"
         q.write_bytes(data[:cut])
         sc = Scan()
-        got = [m.data["seq"] for m in iter_messages(q, prefix="/dv/samples/", scan_out=sc)]
+        got = [m.data["index"] for m in iter_messages(q, prefix="/dv/samples/", scan_out=sc)]
         assert not sc.complete and sc.truncated_bytes > 0
         assert got == full[: len(got)]  # a prefix, nothing garbled
         if cut > 1000:

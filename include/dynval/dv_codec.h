@@ -179,6 +179,17 @@ typedef struct {
 dv_status_t dv_codec_decode(const dv_can_frame_t *f, dv_msg_t *out);
 
 /**
+ * @brief Decode a block of frames: dv_codec_decode() of each, for callers that handle frames
+ *        in arrays (a logger at bus rate) rather than one call per frame.
+ * @param[in]  f      @p n frames
+ * @param[in]  n      number of frames
+ * @param[out] out    @p n messages; out[i] is valid where status[i] is DV_OK (else untouched)
+ * @param[out] status @p n statuses, as dv_codec_decode() returns them
+ * @return the number of frames decoded DV_OK (0 when an argument is NULL)
+ */
+size_t dv_codec_decode_n(const dv_can_frame_t *f, size_t n, dv_msg_t *out, dv_status_t *status);
+
+/**
  * @brief Encode a message (all bytes of the frame are written; reserved bytes are 0).
  * @param[in]  m   message; m->kind selects the layout
  * @param[out] f   frame with id, dlc 8 and data
@@ -196,6 +207,16 @@ dv_status_t dv_codec_encode(const dv_msg_t *m, dv_can_frame_t *f);
  * @return raw * lsb, or a quiet NaN when raw is DV_CODEC_RAW_MISSING
  */
 dv_real_t dv_codec_sample_value(int16_t raw, float lsb);
+
+/**
+ * @brief dv_codec_sample_value() of @p n raw samples, each with its own lsb (a block of
+ *        frames of several channels).
+ * @param[in]  raw @p n counts
+ * @param[in]  lsb @p n units per count
+ * @param[in]  n   number of samples
+ * @param[out] out @p n values (NaN for missing samples)
+ */
+void dv_codec_sample_values(const int16_t *raw, const float *lsb, size_t n, dv_real_t *out);
 
 /**
  * @brief Counts for a value in channel units, rounded to nearest (ties away from zero) and
@@ -259,6 +280,23 @@ void dv_seq_reset(dv_seq_t *s);
  * @return the verdict (only OK and GAP frames should be used)
  */
 dv_seq_verdict_t dv_seq_update(dv_seq_t *s, uint8_t seq);
+
+/**
+ * @brief Sequence tracking of a block of frames of several channels, in the order received:
+ *        dv_seq_update() of each frame on its channel's tracker, and the frame's number since
+ *        DV_CTRL START (the 8-bit counter unwrapped: frame k carries k mod 256). An accepted
+ *        frame (OK, GAP) is numbered forward from the channel's last accepted one (the first
+ *        one by its counter); a discarded one (DUP, LATE, STALE) behind it.
+ * @param[in,out] s        trackers, indexed by channel number (at least max(chan) + 1)
+ * @param[in,out] last     per channel: number of its last accepted frame, -1 before the first
+ * @param[in]     chan     @p n channel numbers
+ * @param[in]     seq      @p n frame counters
+ * @param[in]     n        number of frames
+ * @param[out]    verdict  @p n verdicts (dv_seq_verdict_t values)
+ * @param[out]    frame_no @p n frame numbers
+ */
+void dv_seq_track_n(dv_seq_t *s, int64_t *last, const uint8_t *chan, const uint8_t *seq,
+                    size_t n, uint8_t *verdict, int64_t *frame_no);
 
 /**
  * @brief Read the counters.

@@ -281,10 +281,82 @@ static void test_codec_seq_counts_match_injection(void **state)
     counts(&s, sent, drops, dups, swaps, 0);
 }
 
+// The block functions are the single-frame ones applied in order: a mixed block (samples,
+// feature, an unknown id, a short frame, a bad DV_CHCFG) decodes to the same messages and
+// statuses; untouched outputs stay untouched; sequence verdicts over a block with a gap, a
+// duplicate and a late frame equal frame-by-frame ones, and so do the tracker's counters;
+// frame numbers unwrap the counter per channel.
+static void test_codec_block_functions_equal_single_calls(void **state)
+{
+    (void)state;
+    const uint8_t smp[8] = {0x01, 0x07, 0x10, 0x00, 0xF0, 0xFF, 0x00, 0x80};
+    const uint8_t fea[8] = {0x12, 0x01, 0x05, 0x00, 0x00, 0x00, 0x80, 0x3F};
+    const uint8_t cfg_bad[8] = {0x00, 0x01, 0x00, 0x0A, 0x00, 0x00, 0x00, 0x00}; /* lsb 0 */
+    dv_can_frame_t f[5] = {frame(0x200, 8, smp), frame(0x300, 8, fea), frame(0x123, 8, smp),
+                           frame(0x200, 6, smp), frame(0x101, 8, cfg_bad)};
+    dv_msg_t out[5];
+    dv_status_t st[5];
+    memset(out, 0xAB, sizeof out);
+    assert_int_equal(dv_codec_decode_n(f, 5, out, st), 2);
+    const dv_status_t want[5] = {DV_OK, DV_OK, DV_ERANGE, DV_ESIZE, DV_ENUMERIC};
+    for (size_t i = 0; i < 5; i++) {
+        dv_msg_t one;
+        memset(&one, 0xAB, sizeof one);
+        assert_int_equal(st[i], want[i]);
+        assert_int_equal(dv_codec_decode(&f[i], &one), want[i]);
+        assert_memory_equal(&out[i], &one, sizeof one);
+    }
+    assert_int_equal(out[0].u.samples.raw[0], 16);
+    assert_int_equal(out[0].u.samples.raw[1], -16);
+    assert_int_equal(out[0].u.samples.raw[2], DV_CODEC_RAW_MISSING);
+    assert_true(out[1].u.feature.value == 1.0f);
+    assert_int_equal(dv_codec_decode_n(NULL, 5, out, st), 0);
+
+    const int16_t raw[4] = {3, -32768, -4, 32767};
+    const float lsb[4] = {0.25f, 0.25f, 0.5f, 0.25f};
+    dv_real_t v[4];
+    dv_codec_sample_values(raw, lsb, 4, v);
+    assert_true(v[0] == 0.75 && isnan(v[1]) && v[2] == -2.0 && v[3] == 8191.75);
+
+    /* channel 1: a gap (252 lost), a duplicate, the late 252, the counter wrapping past 255;
+       channel 0 interleaved, in order from 7 */
+    const uint8_t chan[10] = {1, 1, 0, 1, 1, 0, 1, 1, 1, 1};
+    const uint8_t seq[10] = {250, 251, 7, 253, 253, 8, 252, 254, 255, 0};
+    const uint8_t want_v[10] = {DV_SEQ_OK, DV_SEQ_OK, DV_SEQ_OK, DV_SEQ_GAP, DV_SEQ_DUP,
+                                DV_SEQ_OK, DV_SEQ_LATE, DV_SEQ_OK, DV_SEQ_OK, DV_SEQ_OK};
+    const int64_t want_k[10] = {250, 251, 7, 253, 253, 8, 252, 254, 255, 256};
+    uint8_t verdict[10];
+    int64_t k[10];
+    int64_t last[2] = {-1, -1};
+    dv_seq_t a[2], b;
+    dv_seq_init(&a[0]);
+    dv_seq_init(&a[1]);
+    dv_seq_init(&b);
+    dv_seq_track_n(a, last, chan, seq, 10, verdict, k);
+    for (size_t i = 0; i < 10; i++) {
+        assert_int_equal(verdict[i], want_v[i]);
+        assert_int_equal(k[i], want_k[i]);
+        if (chan[i] == 1) {
+            assert_int_equal(dv_seq_update(&b, seq[i]), want_v[i]);
+        }
+    }
+    assert_int_equal(last[0], 8);
+    assert_int_equal(last[1], 256);
+    dv_seq_counts_t ca, cb;
+    dv_seq_get(&a[1], &ca);
+    dv_seq_get(&b, &cb);
+    assert_memory_equal(&ca, &cb, sizeof ca);
+    assert_int_equal(ca.ok, 6);
+    assert_int_equal(ca.lost, 0);
+    assert_int_equal(ca.dup, 1);
+    assert_int_equal(ca.late, 1);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_codec_samples_layout),
+        cmocka_unit_test(test_codec_block_functions_equal_single_calls),
         cmocka_unit_test(test_codec_feature_float_layout),
         cmocka_unit_test(test_codec_ctrl_chcfg_status_layout),
         cmocka_unit_test(test_codec_bad_frames_are_rejected_untouched),

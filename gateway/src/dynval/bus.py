@@ -142,6 +142,70 @@ def decode(can_id: int, data: bytes, extended: bool = False) -> Decoded | int:
                              "lsb": float(c.lsb)})
 
 
+_NP = {"uint8_t": "u1", "int16_t": "<i2", "uint16_t": "<u2", "uint32_t": "<u4",
+       "float": "<f4"}
+
+
+@cache
+def frame_dtype() -> np.dtype:
+    """numpy's view of dv_can_frame_t (offsets from the C declaration)."""
+    names, formats, offsets = _struct_fields("dv_can_frame_t", 0)
+    return np.dtype({"names": names, "formats": formats, "offsets": offsets,
+                     "itemsize": _core.ffi.sizeof("dv_can_frame_t")})
+
+
+@cache
+def msg_dtype(member: str) -> np.dtype:
+    """numpy's view of a dv_msg_t whose union holds `member` (samples, feature, resid, status,
+    ctrl, chcfg): "kind" and that member's fields, at the C offsets."""
+    ffi = _core.ffi
+    names, formats, offsets = _struct_fields(f"dv_msg_{member}_t", ffi.offsetof("dv_msg_t", "u"))
+    return np.dtype({"names": ["kind", *names], "formats": ["<i4", *formats],
+                     "offsets": [ffi.offsetof("dv_msg_t", "kind"), *offsets],
+                     "itemsize": ffi.sizeof("dv_msg_t")})
+
+
+def _struct_fields(ctype: str, base: int) -> tuple[list[str], list[Any], list[int]]:
+    names: list[str] = []
+    formats: list[Any] = []
+    offsets: list[int] = []
+    for name, f in _core.ffi.typeof(ctype).fields:
+        t = f.type
+        formats.append((_NP[t.item.cname], (t.length,)) if t.kind == "array" else _NP[t.cname])
+        names.append(name)
+        offsets.append(base + f.offset)
+    return names, formats, offsets
+
+
+def decode_block(ids: np.ndarray, dlc: np.ndarray, data: np.ndarray) -> tuple[np.ndarray,
+                                                                                np.ndarray]:
+    """dv_codec_decode_n over n frames (ids with EFF_FLAG for extended ones, dlc, data n x 8
+    bytes): (status, messages as raw dv_msg_t records; view them with msg_dtype)."""
+    n = ids.size
+    frames = np.zeros(n, frame_dtype())
+    frames["id"], frames["dlc"], frames["data"] = ids, dlc, data
+    msgs = np.zeros(n, np.dtype((np.void, _core.ffi.sizeof("dv_msg_t"))))
+    status = np.empty(n, np.int32)
+    ffi = _core.ffi
+    _core.lib.dv_codec_decode_n(ffi.from_buffer("dv_can_frame_t[]", frames), n,
+                                ffi.from_buffer("dv_msg_t[]", msgs, require_writable=True),
+                                ffi.from_buffer("dv_status_t[]", status,
+                                                require_writable=True))
+    return status, msgs
+
+
+def sample_values(raw: np.ndarray, lsb: np.ndarray) -> np.ndarray:
+    """dv_codec_sample_values: raw * lsb of int16 counts, each with its lsb; NaN for missing."""
+    r = np.ascontiguousarray(raw, dtype=np.int16)
+    q = np.ascontiguousarray(lsb, dtype=np.float32)
+    out = np.empty(r.size, np.float64)
+    ffi = _core.ffi
+    _core.lib.dv_codec_sample_values(ffi.from_buffer("int16_t[]", r),
+                                     ffi.from_buffer("float[]", q), r.size,
+                                     ffi.from_buffer("double[]", out, require_writable=True))
+    return out
+
+
 def sample_value(raw: int, lsb: float) -> float:
     """raw * lsb in channel units, NaN for a missing sample (dv_codec_sample_value)."""
     return float(_core.lib.dv_codec_sample_value(raw, lsb))
@@ -199,6 +263,45 @@ class SeqTracker:
 
     def counts(self) -> dict[str, int]:
         _core.lib.dv_seq_get(self._s, self._c)
+        c = self._c
+        return {"ok": c.ok, "lost": c.lost, "dup": c.dup, "late": c.late, "stale": c.stale}
+
+
+class SeqBank:
+    """dv_seq_t of every channel number a frame can carry, and the number of each channel's
+    last accepted frame: sequence tracking of blocks of frames (dv_seq_track_n)."""
+
+    N = 256  # DV_SAMPLES.channel is a byte
+
+    def __init__(self) -> None:
+        self._s = _core.ffi.new("dv_seq_t[]", self.N)
+        self._c = _core.ffi.new("dv_seq_counts_t *")
+        self.last = np.empty(self.N, np.int64)
+        self.reset()
+
+    def reset(self) -> None:
+        for i in range(self.N):
+            _core.lib.dv_seq_init(self._s + i)
+        self.last[:] = -1
+
+    def track(self, chan: np.ndarray, seq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(verdicts, frame numbers since START) of frames of channels chan with counters
+        seq, in the order received."""
+        c = np.ascontiguousarray(chan, dtype=np.uint8)
+        s = np.ascontiguousarray(seq, dtype=np.uint8)
+        verdict = np.empty(c.size, np.uint8)
+        k = np.empty(c.size, np.int64)
+        ffi = _core.ffi
+        _core.lib.dv_seq_track_n(self._s, ffi.from_buffer("int64_t[]", self.last,
+                                                          require_writable=True),
+                                 ffi.from_buffer("uint8_t[]", c), ffi.from_buffer("uint8_t[]", s),
+                                 c.size, ffi.from_buffer("uint8_t[]", verdict,
+                                                         require_writable=True),
+                                 ffi.from_buffer("int64_t[]", k, require_writable=True))
+        return verdict, k
+
+    def counts(self, ch: int) -> dict[str, int]:
+        _core.lib.dv_seq_get(self._s + ch, self._c)
         c = self._c
         return {"ok": c.ok, "lost": c.lost, "dup": c.dup, "late": c.late, "stale": c.stale}
 

@@ -32,7 +32,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
     p.add_argument("--idle-timeout", type=float, default=None,
                    help="stop after S seconds without a frame")
-    p.add_argument("--chunk-kb", type=int, default=512, help="MCAP chunk size (%(default)s)")
+    p.add_argument("--chunk-kb", type=int, default=4096,
+                   help="MCAP chunk size, KiB uncompressed (%(default)s; a chunk is also closed "
+                   "every 0.5 s)")
     add_test_options(p)  # of --test
     p.set_defaults(run=run)
 

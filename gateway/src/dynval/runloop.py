@@ -29,7 +29,7 @@ from dynval.bus import ReplayResult
 from dynval.contract import IR_COUNTERS, const, named
 from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
-from dynval.mcap_log import McapLog, log_bus
+from dynval.mcap_log import AsyncLog, McapLog, log_bus
 from dynval.topics import T_FEATURES, T_RESID
 
 log = logging.getLogger(__name__)
@@ -442,26 +442,33 @@ class _LoggerState:
         self.last_rx = time.monotonic()
         self.error: Exception | None = None  # what stopped the logger thread (a full disk)
         self.stalled = False  # the logger fell behind without progress (see _hold)
+        self.dropped = 0  # frames the writer could not take (counted in the log's events)
 
 
 def _logger_loop(rx: Any, logger: McapLog, stop: threading.Event, st: _LoggerState) -> None:
-    """Log frames until stop; an error (a write to a full disk) ends the loop and is handed to
+    """Read frames until stop and hand them to the writer thread (AsyncLog: the reader never
+    waits for the file). An error (a write to a full disk) ends the loop and is handed to
     run_test through st.error, which raises it in the main thread (no waiting for a status
     that will not be logged, no traceback from a dying thread)."""
+    w: AsyncLog | None = None
     try:
+        w = AsyncLog(logger)
         while not stop.is_set():
             m = rx.recv(timeout=0.05)
             if m is None:
-                logger.tick()
+                w.hand_off()
                 continue
             st.last_rx = time.monotonic()
-            t_ns = int(m.timestamp * 1e9) if m.timestamp else time.time_ns()
-            logger.on_frame(t_ns, m.arbitration_id, bytes(m.data), m.is_extended_id)
+            w.put(m)
             if st.armed and m.arbitration_id == bus.ID_STATUS and not m.is_extended_id:
                 st.status.set()
+        w.close()
+        st.dropped = w.dropped
     except Exception as exc:  # noqa: BLE001 - re-raised in the main thread by run_test
         st.error = exc
         st.status.set()
+        if w is not None and w.thread.is_alive():
+            w.close_quietly()
 
 
 def recording_meta(rec: Recording, plan: bus.Plan | None = None) -> dict[str, Any]:

@@ -10,3 +10,6 @@ T_CONTROL = "/dv/control"  # DV_CTRL and DV_CHCFG, decoded
 T_EVENTS = "/dv/events"  # counted anomalies: refused frames, sequence gaps
 T_SAMPLES = "/dv/samples/"  # + channel name: DV_SAMPLES, decoded and scaled, one per sample
 T_LOG = "/dv/log"  # foxglove.Log: run control and anomalies as text, for a log panel
+#: channel metadata of the protobuf topics: the channel names by number (a JSON list), which
+#: features and residuals carry as a number only
+CHANNEL_NAMES_KEY = "dynval.channel_names"

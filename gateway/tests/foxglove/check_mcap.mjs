@@ -3,10 +3,11 @@
 //
 // - the file through @mcap/core's McapIndexedReader (Foxglove's MCAP reader: summary, chunk
 //   indexes, CRCs) with @mcap/support's decompression handlers (zstd, lz4 as WebAssembly);
-// - every "json"/"jsonschema" channel's schema through the open-source Foxglove Studio's own
-//   parseJsonSchema (loaded verbatim from @foxglove/studio-base, see fetch_studio_parser.sh),
-//   and each message deserialized as Studio's parseChannel does for JSON:
-//   postprocessValue(JSON.parse(data));
+// - every channel through the open-source Foxglove Studio's own parseChannel (loaded verbatim
+//   from @foxglove/studio-base, see fetch_studio_parser.sh, with the modules it uses for JSON
+//   and protobuf: parseJsonSchema, protobufDefinitionsToDatatypes; protobufjs and its
+//   descriptor extension from npm, as Studio bundles them): its datatypes, and each message
+//   deserialized by the function it returns;
 // - for every topic: the datatypes, or the parser's error; the messages' count and first one;
 //   the (log time, field) series of numeric top-level fields a plot panel would draw;
 // - @foxglove/schemas' own foxglove.Log JSON schema, to compare with the one the file holds.
@@ -23,20 +24,39 @@ const base64 = require("@protobufjs/base64");
 const foxgloveJsonSchemas = require("@foxglove/schemas/jsonschema");
 const here = path.dirname(fileURLToPath(import.meta.url));
 
-const MARK = ";// CONCATENATED MODULE: ../mcap-support/src/parseJsonSchema.ts";
+const MODULES = ["parseJsonSchema", "protobufDefinitionsToDatatypes", "parseChannel"];
 
-async function studioParseJsonSchema() {
+function moduleBody(text, name, file) {
+  const mark = `;// CONCATENATED MODULE: ../mcap-support/src/${name}.ts`;
+  const start = text.indexOf(mark);
+  if (start < 0) {
+    throw new Error(`${file}: no ${name} module`);
+  }
+  const rest = text.slice(start + mark.length);
+  const end = rest.search(/\n(\/\/ EXTERNAL MODULE|;\/\/ CONCATENATED MODULE)/);
+  return end < 0 ? rest : rest.slice(0, end);
+}
+
+async function studioParseChannel() {
   const file = path.join(here, "node_modules", ".foxglove-studio", "mcap-support.js");
   const text = await readFile(file, "utf8");
-  const start = text.indexOf(MARK);
-  if (start < 0) {
-    throw new Error(`${file}: no parseJsonSchema module`);
-  }
-  const rest = text.slice(start + MARK.length);
-  const end = rest.search(/\n(\/\/ EXTERNAL MODULE|;\/\/ CONCATENATED MODULE)/);
-  const body = end < 0 ? rest : rest.slice(0, end);
-  // the module's only import is @protobufjs/base64 (bound as `base64` by webpack)
-  return new Function("base64", `${body}\nreturn parseJsonSchema;`)(base64);
+  const body = MODULES.map((m) => moduleBody(text, m, file)).join("\n");
+  // the bindings webpack gives these modules; ROS and flatbuffer readers are not needed here
+  const unused = (what) => () => {
+    throw new Error(`${what} is not loaded by check_mcap`);
+  };
+  const protobufjs = require("protobufjs");
+  const descriptor = require("protobufjs/ext/descriptor");
+  return new Function(
+    "base64",
+    "protobufjs_default",
+    "descriptor",
+    "dist",
+    "esm",
+    "rosmsg2_serialization_dist",
+    "parseFlatbufferSchema",
+    `${body}\nreturn parseChannel;`,
+  )(base64, () => protobufjs, descriptor, { parse: unused("rosmsg") }, {}, {}, unused("flatbuffers"));
 }
 
 function jsonable(v) {
@@ -47,7 +67,7 @@ function jsonable(v) {
 
 async function main() {
   const file = process.argv[2];
-  const parseJsonSchema = await studioParseJsonSchema();
+  const parseChannel = await studioParseChannel();
   const buf = await readFile(file);
   const readable = {
     size: async () => BigInt(buf.byteLength),
@@ -59,7 +79,6 @@ async function main() {
   });
   const topics = {};
   const decoders = new Map();
-  const textDecoder = new TextDecoder();
   for (const ch of reader.channelsById.values()) {
     const schema = reader.schemasById.get(ch.schemaId);
     const t = (topics[ch.topic] = {
@@ -70,15 +89,12 @@ async function main() {
       series: {},
     });
     try {
-      if (ch.messageEncoding !== "json" || schema?.encoding !== "jsonschema") {
-        throw new Error(`not json/jsonschema: ${ch.messageEncoding}/${schema?.encoding}`);
-      }
-      const { datatypes, postprocessValue } = parseJsonSchema(
-        JSON.parse(textDecoder.decode(schema.data)),
-        schema.name,
-      );
+      const { datatypes, deserialize } = parseChannel({
+        messageEncoding: ch.messageEncoding,
+        schema: schema == undefined ? undefined : { name: schema.name, encoding: schema.encoding, data: schema.data },
+      });
       t.datatypes = jsonable(datatypes);
-      decoders.set(ch.id, (data) => postprocessValue(JSON.parse(textDecoder.decode(data))));
+      decoders.set(ch.id, deserialize);
     } catch (err) {
       t.error = String(err.message ?? err);
     }

@@ -23,7 +23,7 @@ import numpy as np
 from dynval.errors import InputFileError
 from dynval.io.jsonfile import parse_json
 from dynval.io.recording import MAX_RATE_HZ, Channel, Recording, file_sha256
-from dynval.topics import T_CONTROL, T_SAMPLES
+from dynval.topics import CHANNEL_NAMES_KEY, T_CONTROL, T_SAMPLES
 
 log = logging.getLogger(__name__)
 
@@ -179,25 +179,79 @@ def iter_records(path: Path | str, *, scan_out: Scan | None = None) -> Iterator[
 
 def iter_messages(path: Path | str, *, topics: set[str] | None = None,
                   prefix: str | None = None, scan_out: Scan | None = None) -> Iterator[Message]:
-    """Messages in file order (decoded JSON) of iter_records, all or those on `topics` or
-    under `prefix`; a payload that is not a JSON object is an InputFileError naming the
-    record."""
+    """Messages in file order (decoded: JSON, or protobuf as dicts of every field) of
+    iter_records, all or those on `topics` or under `prefix`; a payload that does not decode
+    is an InputFileError naming the record."""
     from mcap.records import Channel as McapChannel
     from mcap.records import Message as McapMessage
+    from mcap.records import Schema as McapSchema
 
     p = Path(path)
-    chans: dict[int, str] = {}
+    schemas: dict[int, Any] = {}
+    chans: dict[int, tuple[str, Any]] = {}
     n = 0
     for r in iter_records(p, scan_out=scan_out):
-        if isinstance(r, McapChannel):
-            chans[r.id] = r.topic
+        if isinstance(r, McapSchema):
+            schemas[r.id] = r
+        elif isinstance(r, McapChannel):
+            chans[r.id] = (r.topic, _decoder(p, r, schemas.get(r.schema_id)))
         elif isinstance(r, McapMessage):
             n += 1
-            t = chans.get(r.channel_id, "?")
+            t, dec = chans.get(r.channel_id, ("?", None))
             if (topics is None and prefix is None) or (topics is not None and t in topics) or (
                     prefix is not None and t.startswith(prefix)):
-                yield Message(t, r.log_time, _payload(p, r.data, t, n), r.sequence,
-                              r.publish_time)
+                d = dec(r.data, n) if dec is not None else _payload(p, r.data, t, n)
+                yield Message(t, r.log_time, d, r.sequence, r.publish_time)
+
+
+def _decoder(p: Path, ch: Any, schema: Any) -> Any:
+    """The payload decoder of a protobuf channel (None: JSON). dynval's features and
+    residuals also get the channel's name (channel metadata) and the feature's name."""
+    if ch.message_encoding != "protobuf":
+        return None
+    from google.protobuf.message import DecodeError
+
+    from dynval.mcap_schema import ProtobufDecoder
+
+    if schema is None or schema.encoding != "protobuf":
+        raise InputFileError(p, f"channel {ch.topic}: protobuf messages without a protobuf "
+                             "schema")
+    try:
+        dec = ProtobufDecoder(schema.name, bytes(schema.data))
+    except Exception as exc:  # noqa: BLE001 - the protobuf library's many refusals
+        raise InputFileError(p, f"channel {ch.topic}: its protobuf schema {schema.name!r} "
+                             f"does not load: {exc}") from None
+    names = _channel_names(p, ch)
+    named = schema.name in ("dynval.Feature", "dynval.Residual")
+
+    def decode(data: bytes, k: int) -> dict[str, Any]:
+        try:
+            d = dec(data)
+        except (DecodeError, ValueError) as exc:
+            raise InputFileError(p, f"message {k} on {ch.topic}: not a {schema.name} "
+                                 f"({exc})", None, f"record {k}") from None
+        if named:
+            c = d.get("channel", -1)
+            d["name"] = names[c] if isinstance(c, int) and 0 <= c < len(names) else f"ch{c}"
+        if schema.name == "dynval.Feature":
+            from dynval.bus import FEATURE_NAMES
+
+            fid = d.get("feat_id")
+            d["feature"] = FEATURE_NAMES.get(fid, "?") if isinstance(fid, int) else "?"
+        return d
+
+    return decode
+
+
+def _channel_names(p: Path, ch: Any) -> list[str]:
+    text = ch.metadata.get(CHANNEL_NAMES_KEY)
+    if text is None:
+        return []
+    names = parse_json(p, text)
+    if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
+        raise InputFileError(p, f"channel {ch.topic}: '{CHANNEL_NAMES_KEY}' is not a list of "
+                             "names")
+    return names
 
 
 MAX_CHANNELS = 256  # DV_CHCFG's channel field is a byte
