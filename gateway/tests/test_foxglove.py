@@ -162,12 +162,13 @@ def test_a_killed_log_recovered_opens_in_foxglove(tmp_path: Path) -> None:
     plan = bus.make_plan(rec)
     p = tmp_path / "live.mcap"
     log = McapLog(p, meta={"fs_hz": "640", "n_samples": "60"}, channel_names=["a"],
-                  max_chunk_age_s=0.0)  # every frame closes its chunk: all on disk
+                  max_chunk_age_s=0.0)  # every tick closes its chunk
     k = 0
     for _, frames in plan.batches():
         for cid, data in frames:
             log.on_frame(T0 + k * 1000, cid, data)
             k += 1
+    log.tick()  # the writer thread has put every frame on disk
     killed = tmp_path / "killed.mcap"
     killed.write_bytes(p.read_bytes())  # the file as a SIGKILL leaves it: no footer
     log.close()
