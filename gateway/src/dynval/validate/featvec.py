@@ -19,7 +19,11 @@ suffix (``acc3``). ``NAME`` is one of:
   report's 64 segments, Fig. 86), by dv_moments on each segment (equal to dv_segstd);
 * ``ar_rms`` / ``ar_rms<p>``: RMS of the one-step AR(p) residual (eq. 31, default p = 30,
   Burg) under a reference AR model fitted by the C core to the first baseline test of that
-  channel (FeatureSet.fit_reference); without a reference, to the record itself.
+  channel (FeatureSet.fit_reference); without a reference, to the record itself;
+* the waveform and spectral catalogue (dynval.catalogue.signal_terms: ``ks ad d10 decay
+  decay_y0 acf_corr harm_n thd srs_peak srs_rms cep_env holder_drops holder_min``); ``ks``,
+  ``ad``, ``acf_corr``, ``srs_*`` and ``cep_env`` compare the record with the first baseline
+  test of that channel (FeatureSet.fit_reference).
 
 Examples: ``peak,std@acc3,acc4``; ``segstd64@acc4``; ``tm_E,tm_T@acc2 + ar_rms@acc4``.
 The vector is ordered term by term, then feature by feature, then channel by channel; labels
@@ -35,6 +39,7 @@ import numpy as np
 
 from dynval import ar as _ar
 from dynval import features as _feat
+from dynval.catalogue import signal_terms as _cat
 from dynval.errors import ConfigError
 
 BASIC = ("peak", "mean", "rms", "std", "var", "skew", "kurt", "min", "max", "crest", "kfactor")
@@ -47,11 +52,11 @@ _AR = re.compile(r"^ar_rms(\d*)$")
 
 def valid_names() -> list[str]:
     """Every feature name the grammar accepts (patterns with <N>/<p>)."""
-    return [*BASIC, *TEMPORAL, "segstd<N>", "ar_rms", "ar_rms<p>"]
+    return [*BASIC, *TEMPORAL, "segstd<N>", "ar_rms", "ar_rms<p>", *_cat.TERMS]
 
 
 def _check_name(name: str) -> None:
-    if name in BASIC or name in TEMPORAL:
+    if name in BASIC or name in TEMPORAL or name in _cat.TERMS:
         return
     g = _SEG.match(name)
     if g is not None:
@@ -81,6 +86,7 @@ class FeatureSet:
     terms: tuple[Term, ...]
     resolved: bool = False
     ar_ref: Mapping[tuple[str, int], _ar.ARModel] = field(default_factory=dict, compare=False)
+    ref_data: Mapping[str, np.ndarray] = field(default_factory=dict, compare=False)
 
     @property
     def channels(self) -> list[str]:
@@ -133,9 +139,12 @@ class FeatureSet:
         return out
 
     def fit_reference(self, data: Mapping[str, np.ndarray]) -> FeatureSet:
-        """Fit the AR reference models (ar_rms) to one baseline record (channel -> samples)."""
+        """Fit the AR reference models (ar_rms) to one baseline record (channel -> samples) and
+        keep its channels the catalogue's comparing names read."""
         ref = {(c, p): _ar.burg(data[c], p) for c, p in self.needs_ar()}
-        return replace(self, ar_ref=ref)
+        keep = {c: data[c] for t in self.terms for n in t.names for c in t.channels
+                if n in _cat.TERMS and _cat.TERMS[n].ref}
+        return replace(self, ar_ref=ref, ref_data=keep)
 
     def extract(self, data: Mapping[str, np.ndarray], fs_hz: float) -> np.ndarray:
         """The feature vector of one record (channel -> samples), through the C core."""
@@ -147,6 +156,12 @@ class FeatureSet:
             for name in t.names:
                 for c in t.channels:
                     x = data[c]
+                    if name in _cat.TERMS:
+                        if _cat.TERMS[name].ref and c not in self.ref_data:
+                            raise ConfigError(f"feature '{name}@{c}' compares with a reference "
+                                              "record: FeatureSet.fit_reference first")
+                        out.append(_cat.TERMS[name].value(x, fs_hz, self.ref_data.get(c, x)))
+                        continue
                     if name in BASIC or name in TEMPORAL:
                         if c not in cache:
                             cache[c] = (_feat.moments(x), None)
