@@ -37,7 +37,7 @@ def pdf_distance(a: np.ndarray, b: np.ndarray, method: str = "ks") -> float:
     p-values scipy attaches assume independent samples, which a time history is not: only the
     statistic is used."""
     if method == "ks":
-        return float(stats.ks_2samp(a, b).statistic)
+        return float(stats.ks_2samp(a, b, method="asymp").statistic)
     if method == "ad":
         with warnings.catch_warnings():  # the p-value's table capping: not used
             warnings.simplefilter("ignore")
