@@ -16,6 +16,7 @@ from dynval.errors import ConfigError
 from dynval.validate import montecarlo as mc
 from dynval.validate.featvec import parse
 
+pytest.importorskip("pywt")
 N = 2048
 T = np.arange(N) - 1000.0
 

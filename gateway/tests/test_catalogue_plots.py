@@ -9,6 +9,7 @@ from dynval import plotting as plot
 from dynval.catalogue import plots
 
 pytest.importorskip("matplotlib")
+pytest.importorskip("pywt")
 
 
 def test_each_catalogue_figure_draws_without_overlapping_ticks() -> None:
