@@ -90,9 +90,9 @@ def test_bumper_makes_harmonics_and_a_cepstral_difference(shared_data: Path) -> 
     """54 Hz at 7 N RMS (the bumper closes every cycle): harmonic peaks appear with the
     bumper (measured 7 and 7 on acc4, THD -29 dB) and not without it (0, THD -55 dB); the
     71 Hz linear test has none either.
-    The liftered envelope of a bumper record lies lower than a clean one's (the bumper
-    detunes mode 3 away from 54 Hz; measured -1.08 dB) by more than two clean records'
-    differ (0.24 dB)."""
+    At the clean reference's envelope peaks, a bumper record's liftered envelope lies lower
+    (the bumper detunes mode 3 away from 54 Hz; measured -1.74 dB) by more than two clean
+    records' differ (-0.19 dB)."""
     m = mdl.load(shared_data / "synthetic" / "lanl4dof-clean" / "declared_model.json")
     bump = synth.Truth(elements=(mc.BUMPER,))
     xb = _sine_tests(m, bump, 54.0, 1)
@@ -105,7 +105,7 @@ def test_bumper_makes_harmonics_and_a_cepstral_difference(shared_data: Path) -> 
                for x in _sine_tests(m, synth.Truth(), 71.0, 2))
     d_bc = sp.cepstral_distance(xb[1], xc[0], FS)
     d_cc = sp.cepstral_distance(xc[1], xc[0], FS)
-    assert d_bc < -0.5 and abs(d_cc) < 0.4 and d_bc < d_cc - 1.0
+    assert d_bc < -1.0 and abs(d_cc) < 0.4 and d_bc < d_cc - 1.0
     fset = parse("harm_n,thd,cep_env@acc4").resolve(list(m.outputs))
     fset = fset.fit_reference({"acc4_mps2": xc[0]})
     v = fset.extract({"acc4_mps2": xb[1]}, FS)

@@ -55,7 +55,7 @@ TERMS: dict[str, SignalTerm] = {
     "srs_peak": SignalTerm(_srs(1), True, "dB distance of the peak response spectra (5.3.3)"),
     "srs_rms": SignalTerm(_srs(2), True, "dB distance of the RMS response spectra (5.3.3)"),
     "cep_env": SignalTerm(lambda x, fs, r: spectral.cepstral_distance(x, r, fs), True,
-                          "mean dB of the liftered log spectrum above the reference's (5.3.4)"),
+                          "liftered log spectrum above the reference's at its peaks, dB (5.3.4)"),
     "holder_drops": SignalTerm(_holder_drops, False,
                                "number of drop-offs of the Holder exponent (5.3.5)"),
     "holder_min": SignalTerm(_holder_min, False, "lowest Holder exponent (5.3.5)"),

@@ -19,6 +19,7 @@ signal: Any = importlib.import_module("scipy.signal")
 HARMONIC_DB = 20.0  # a harmonic counts when its PSD stands this far above the local floor
 SRS_ZETA = 0.02  # the report's SDOF damping ratio
 LIFTER_S = 600 / 2560  # the report's lifter: quefrencies 0..600 samples at 2560 Hz
+PEAK_DB = 10.0  # the cepstral metric reads the envelope where it stands this far above median
 
 
 def psd(x: np.ndarray, fs_hz: float, nperseg: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -149,14 +150,18 @@ def liftered_envelope(x: np.ndarray, fs_hz: float, lifter_s: float = LIFTER_S,
 
 
 def cepstral_distance(x: np.ndarray, ref: np.ndarray, fs_hz: float,
-                      lifter_s: float = LIFTER_S) -> float:
+                      lifter_s: float = LIFTER_S, peak_db: float = PEAK_DB) -> float:
     """The metric on the liftered envelopes: the mean level (dB) of x's envelope above ref's
-    below 0.4 fs (the anti-alias band). Signed and averaged, not an RMS: between two clean
-    8192-sample harmonic records the envelopes' RMS difference is 3.9 dB of log-spectrum
-    scatter, their mean difference 0.24 dB. The records must be equally long."""
+    where ref's envelope stands peak_db above its median below 0.4 fs (the report's 'spiky
+    profile at the peak frequencies': the excitation and its harmonics), the whole band if
+    nothing does. Elsewhere the envelopes are the log spectrum's noise floor, whose scatter
+    (3.9 dB RMS between two clean 8192-sample harmonic records) would swamp the peaks. The
+    records must be equally long."""
     if np.size(x) != np.size(ref):
         raise ConfigError(f"cepstral distance: records of {np.size(x)} and {np.size(ref)} "
                           "samples")
     f, e = liftered_envelope(x, fs_hz, lifter_s)
     _, e_ref = liftered_envelope(ref, fs_hz, lifter_s)
-    return float(np.mean((e - e_ref)[f <= 0.4 * fs_hz]))
+    band = f <= 0.4 * fs_hz
+    peaks = band & (e_ref > np.median(e_ref[band]) + peak_db)
+    return float(np.mean((e - e_ref)[peaks if peaks.any() else band]))
