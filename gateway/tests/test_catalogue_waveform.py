@@ -95,3 +95,22 @@ def test_bumper_shortens_the_impact_response_and_grammar_terms_read_it(
     assert np.all(np.abs(out[False][:, 0] - 0.57) < 0.04)
     assert np.all(out[True][:, 1] < out[False][:, 1] - 0.4)
     assert np.all(out[True][:, 2] > out[False][:, 2] * 1.2)
+
+
+def test_grammar_names_and_the_reference_they_compare_with() -> None:
+    """Catalogue names parse and list among the valid ones; a comparing name reads the
+    reference record fit_reference kept (here KS of a record against itself: 0, against a
+    scaled copy: the KS closed form of N(0,1) vs N(0,2), Phi(c) - Phi(c/2) = 0.1613)."""
+    with pytest.raises(ConfigError, match="holder_drops"):
+        parse("nope@acc4")
+    x = np.random.default_rng(6).standard_normal(40000)
+    fset = parse("ks,acf_corr@acc4 + rms@acc4").resolve(["acc4_mps2"])
+    with pytest.raises(ConfigError, match="fit_reference first"):
+        fset.extract({"acc4_mps2": x}, 100.0)
+    fset = fset.fit_reference({"acc4_mps2": x})
+    assert fset.labels() == ["ks@acc4_mps2", "acf_corr@acc4_mps2", "rms@acc4_mps2"]
+    v = fset.extract({"acc4_mps2": x}, 100.0)
+    assert v[:2] == pytest.approx([0.0, 1.0]) and v[2] == pytest.approx(np.sqrt(np.mean(x * x)))
+    c = np.sqrt(8 * np.log(2) / 3)  # where the N(0,1) and N(0,2) CDFs are furthest apart
+    ks = st.norm.cdf(c) - st.norm.cdf(c / 2)
+    assert fset.extract({"acc4_mps2": 2 * x}, 100.0)[0] == pytest.approx(ks, abs=0.005)
