@@ -76,8 +76,11 @@ def decay_fit(x: np.ndarray, fs_hz: float, floor: float = 0.05) -> tuple[float, 
         raise ConfigError("decay fit: fewer than 3 samples between the peak and the floor")
     t = np.arange(env.size) / fs_hz
     a0, l0 = np.polyfit(t, np.log(env), 1)  # the log-linear fit starts the nonlinear one
-    p, _ = optimize.curve_fit(lambda tt, y0, a: y0 * np.exp(a * tt), t, env,
-                              p0=(float(np.exp(l0)), float(a0)))
+    try:
+        p, _ = optimize.curve_fit(lambda tt, y0, a: y0 * np.exp(a * tt), t, env,
+                                  p0=(float(np.exp(l0)), float(a0)))
+    except RuntimeError as e:  # no convergence: not a decaying transient
+        raise ConfigError(f"decay fit: {e}") from e
     return float(p[0]), float(p[1])
 
 
