@@ -4,7 +4,8 @@ generator (dynval.synth, truth at 64 x fs, 1 % sensor noise) makes 10 tests of t
 structure with the shared data's bumper and 10 without, per seed (harmonic tests also with a
 hard bumper, Delta 0.1 um: an impact); `dynval validate`'s verdict (the paired test) on the
 linear declared model is taken for each feature alone. The harmonic tests' peak counts and the
-Holder drop-offs against the contact onsets (within 4 ms) are tallied too.
+Holder drop-offs against the contact onsets (within 4 ms) are tallied too, on the recorded
+tests (from the switch-on) and on steady-state ones (the sine on 2 s before the record).
 
     PYTHONPATH=gateway/src python bench/catalogue_error_rates.py --seeds 20 \
         --out bench/RESULTS.catalogue.md
@@ -65,7 +66,8 @@ def main() -> None:
         for tr, truth in truths.items():
             if tr == "hard bumper" and not isinstance(exc, synth.Sine):
                 continue
-            counts, thd, drops, hits, ons, fas = [], [], [], 0, 0, 0
+            # per kind of record (0: from the switch-on, 1: steady state)
+            counts, thd, drops, hits, ons, fas = ([[], []] for _ in range(6))
             for seed in range(a.seeds):
                 onsets: list[np.ndarray] = []
                 recs = synth.generate(m, truth, n_tests=10, levels_n_rms=(level,), fs_hz=fs,
@@ -75,25 +77,34 @@ def main() -> None:
                     res, _ = study.validate(m, recs, f"{nm}@{CHANNEL}")
                     fails[(tr, nm)] += res["verdict"]["verdict"] == "FAIL"
                 if isinstance(exc, synth.Sine):
-                    for r, on in zip(recs, onsets, strict=True):
+                    steady: list[np.ndarray] = []
+                    recs += synth.generate(m, truth, n_tests=10, levels_n_rms=(level,),
+                                           fs_hz=fs, n_samples=n, excitation=synth.Sine(
+                                               exc.f_hz), fine=mc.FINE, seed=seed,
+                                           onsets=steady)
+                    for k, (r, on) in enumerate(zip(recs, onsets + steady, strict=True)):
                         x = r.channel("acc4_mps2").data
                         hp = spectral.harmonic_peaks(x, fs)
-                        counts.append(hp.count)
-                        thd.append(hp.thd_db)
                         d = holder.drop_offs(holder.holder_exponent(x), fs)
                         h, fa = holder.match_events(d.times_s, on, 0.004)
-                        drops.append(d.count)
-                        hits, ons, fas = hits + h, ons + on.size, fas + fa
+                        for tally, v in zip((counts, thd, drops, hits, ons, fas),
+                                            (hp.count, hp.thd_db, d.count, h, on.size, fa),
+                                            strict=True):
+                            tally[k // 10].append(v)
                 log.info("%s %s seed %d (%.0f s)", tname, tr, seed, time.perf_counter() - t0)
-            if counts:
-                extra.append(f"| {tname} | {tr} | {np.mean(counts):.1f} | {np.mean(thd):.1f} "
-                             f"| {np.mean(drops):.1f} | {hits} / {ons} | {fas} |")
+            for j, kind in enumerate(("from switch-on", "steady state")):
+                if counts[j]:
+                    extra.append(f"| {tname}, {kind} | {tr} | {np.mean(counts[j]):.1f} | "
+                                 f"{np.mean(thd[j]):.1f} | {np.mean(drops[j]):.1f} | "
+                                 f"{sum(hits[j])} / {sum(ons[j])} | {sum(fas[j])} |")
         for nm in names:
             hb = (f"{fails[('hard bumper', nm)]} of {a.seeds}" if isinstance(exc, synth.Sine)
                   else "-")
             lines.append(f"| {tname} | `{nm}@{CHANNEL}` | {fails[('bumper', nm)]} of {a.seeds} "
                          f"| {hb} | {fails[('clean', nm)]} of {a.seeds} |")
-    text = "\n".join([*lines, *extra, "",
+    head = ("# Catalogue features: `dynval validate` verdicts of the linear model "
+            "(bench/catalogue_error_rates.py)")
+    text = "\n".join([head, "", *lines, *extra, "",
                       f"{a.seeds} seeds, 10 tests each; {time.perf_counter() - t0:.0f} s."])
     log.info("%s", text)
     if a.out is not None:
