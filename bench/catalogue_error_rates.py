@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from dynval import model as mdl
 from dynval import synth
 from dynval.catalogue import holder, spectral

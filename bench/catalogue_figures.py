@@ -14,6 +14,7 @@ import logging
 from pathlib import Path
 
 import numpy as np
+
 from dynval import model as mdl
 from dynval import synth
 from dynval.catalogue import plots
