@@ -4,7 +4,7 @@ generator's data: 'measured' is the report's structure with the shared data's bu
 declared model without and with that bumper, driven by the measured force (the validation's
 simulation, with 1 % sensor noise). One PNG per feature and an index.md of the metrics.
 
-    PYTHONPATH=gateway/src python bench/catalogue_figures.py --out /tmp/catalogue-figures
+    PYTHONPATH=gateway/src python bench/catalogue_figures.py --out build/catalogue-figures
 """
 from __future__ import annotations
 
