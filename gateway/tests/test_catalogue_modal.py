@@ -160,7 +160,7 @@ def test_validate_simulates_the_modal_features() -> None:
 def test_plots_draw_without_overlapping_ticks() -> None:
     pytest.importorskip("matplotlib")
     from dynval import plotting
-    from dynval.catalogue import plots
+    from dynval.catalogue import modal_plots as plots
 
     m = declared()
     num = M.numerical(m, ACC)

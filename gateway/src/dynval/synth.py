@@ -16,6 +16,10 @@ Two generators:
 * ``make_experiments``: a truth model driven by zero-phase band-limited forces through
   model.simulate, with test-to-test variation of chosen parameters and of the force level, and
   white sensor noise on every channel.
+
+``generate`` makes the report's three test types (Section 4.2): band-limited random (the
+default), harmonic (``Sine``: 71 Hz on the linear, 54 Hz on the nonlinear structure) and
+impact hammer (``Hammer``: put the model's input at the struck DOF, floor 1 in the report).
 """
 from __future__ import annotations
 
@@ -61,6 +65,58 @@ class Truth:
     elements: tuple[mdl.Element, ...] = ()
     appendages: tuple[Appendage, ...] = ()
     label: str = "clean"
+
+
+@dataclass(frozen=True)
+class Sine:
+    """A harmonic test: a sine of f_hz whose RMS is the test's level, random phase, switched
+    on (0.25 s cosine ramp) lead_s before the record so the free transient has died out."""
+
+    f_hz: float
+    lead_s: float = 2.0
+
+
+@dataclass(frozen=True)
+class Hammer:
+    """An impact-hammer test: half-sine force pulses of width_s whose peak is the test's level,
+    at times_s from the record's start."""
+
+    times_s: tuple[float, ...] = (0.1,)
+    width_s: float = 0.004
+
+
+def excitation_force(exc: Sine | Hammer, rng: np.random.Generator, n: int, fs_hz: float,
+                     level: float) -> np.ndarray:
+    """The force of a harmonic or hammer test at fs_hz, n samples (a Sine's lead included)."""
+    t = np.arange(n) / fs_hz
+    if isinstance(exc, Sine):
+        ramp = 0.5 - 0.5 * np.cos(np.pi * np.minimum(t / 0.25, 1.0))
+        return np.asarray(level * np.sqrt(2.0) * ramp
+                          * np.sin(2 * np.pi * exc.f_hz * t + rng.uniform(0, 2 * np.pi)))
+    f = np.zeros(n)
+    for t0 in exc.times_s:
+        on = (t >= t0) & (t <= t0 + exc.width_s)
+        f[on] += level * np.sin(np.pi * (t[on] - t0) / exc.width_s)
+    return f
+
+
+def contact_onsets(m: mdl.Model, truth: Truth, force_fine: np.ndarray,
+                   fs_fine_hz: float) -> np.ndarray:
+    """Times (s) at which a contact element of the truth closes (its gap is crossed towards
+    contact), sorted: the impacts a feature such as the Holder exponent should find."""
+    contacts = [e for e in truth.elements if isinstance(e, mdl.Contact)]
+    if not contacts:
+        return np.zeros(0)
+    dofs = sorted({j for e in contacts for j in (e.dof_a, e.dof_b) if j > 0})
+    y = mdl.simulate(truth_model(m, truth, [("disp", j) for j in dofs]), force_fine,
+                     fs_fine_hz, oversample=1)
+    out: list[np.ndarray] = []
+    for e in contacts:
+        x = y[f"__disp{e.dof_b}"] - (y[f"__disp{e.dof_a}"] if e.dof_a > 0 else 0.0)
+        for sign in {"pos": (1.0,), "neg": (-1.0,), "both": (1.0, -1.0)}[e.side]:
+            shut = sign * x > e.gap_m
+            out.append(np.flatnonzero(shut[1:] & ~shut[:-1]) + 1.0)
+    return np.sort(np.concatenate(out or [np.zeros(0)])) / fs_fine_hz
 
 
 _INPUT_UNIT = {"force": "N", "ground_acc": "m/s^2", "ground_disp": "m"}
@@ -126,11 +182,14 @@ def simulate_truth_motion(m: mdl.Model, truth: Truth, force_fine: np.ndarray,
 def generate(m: mdl.Model, truth: Truth, *, n_tests: int = 10,
              levels_n_rms: tuple[float, ...] = (12.0, 7.2), n_samples: int = 8192,
              fs_hz: float = 640.0, fine: int = 16, noise: float = 0.01, seed: int = 0,
-             band_hz: tuple[float, float] = (20.0, 200.0)) -> list[Recording]:
+             band_hz: tuple[float, float] = (20.0, 200.0), excitation: Sine | Hammer | None = None,
+             onsets: list[np.ndarray] | None = None) -> list[Recording]:
     """n_tests measured tests (levels cycled: test i has input RMS levels[i % len(levels)],
-    in the input's unit: N, m/s^2 for a shake table, m for a ground displacement), as
-    Recordings whose columns are the model's input channel (default 'force_N') and its
-    acceleration, velocity and displacement outputs (other output kinds are not generated)."""
+    in the input's unit: N, m/s^2 for a shake table, m for a ground displacement; a Hammer's
+    level is its peak force), as Recordings whose columns are the model's input channel
+    (default 'force_N') and its acceleration, velocity and displacement outputs (other output
+    kinds are not generated). excitation: None, band-limited random; a Sine or a Hammer.
+    onsets: if a list, each test's contact_onsets (s from the record's start) are appended."""
     rng = np.random.default_rng(seed)
     fs_fine = fs_hz * fine
     aa = signal.butter(8, 0.4 * fs_hz, btype="low", fs=fs_fine, output="sos")
@@ -142,14 +201,20 @@ def generate(m: mdl.Model, truth: Truth, *, n_tests: int = 10,
     recs = []
     for i in range(n_tests):
         level = levels_n_rms[i % len(levels_n_rms)]
-        f = band_limited_force(rng, n_samples * fine, fs_fine, level, band_hz)
+        lead = round(excitation.lead_s * fs_hz) if isinstance(excitation, Sine) else 0
+        n_fine = (n_samples + lead) * fine
+        f = (band_limited_force(rng, n_fine, fs_fine, level, band_hz) if excitation is None
+             else excitation_force(excitation, rng, n_fine, fs_fine, level))
         motion = simulate_truth_motion(m, truth, f, fs_fine)
+        if onsets is not None:
+            t_on = contact_onsets(m, truth, f, fs_fine) - lead / fs_hz
+            onsets.append(t_on[(t_on >= 0) & (t_on < n_samples / fs_hz)])
         cols = {in_name: f}
         for name, o in motion_outs.items():
             cols[name] = motion[f"{o.kind}{o.index}"] * truth.gains.get(name, 1.0)
         chans = []
         for name, x in cols.items():
-            y = signal.sosfilt(aa, x)[::fine]
+            y = signal.sosfilt(aa, x)[::fine][lead:]
             y = y + noise * float(np.sqrt(np.mean(y * y))) * rng.standard_normal(y.size)
             chans.append(Channel(name=name, data=np.ascontiguousarray(y),
                                  unit=_INPUT_UNIT[m.input.kind] if name == in_name

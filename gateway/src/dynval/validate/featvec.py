@@ -25,7 +25,11 @@ suffix (``acc3``). ``NAME`` is one of:
   the channel to the input (5.3.1, Hann 1024 / 50 %); ``modal_f<N>``, ``modal_zeta<N>``,
   ``modal_mac<N>``: the N strongest modes of an EMA over the term's channels jointly (5.1,
   dynval.catalogue.modal): natural frequencies (Hz), damping ratios, and the MAC of each
-  mode with the nearest mode of the first baseline test (N values each, ascending frequency).
+  mode with the nearest mode of the first baseline test (N values each, ascending frequency);
+* the waveform and spectral catalogue (dynval.catalogue.signal_terms: ``ks ad d10 decay
+  decay_y0 acf_corr harm_n thd srs_peak srs_rms cep_env holder_drops holder_min``); ``ks``,
+  ``ad``, ``acf_corr``, ``srs_*`` and ``cep_env`` compare the record with the first baseline
+  test of that channel (FeatureSet.fit_reference).
 
 Examples: ``peak,std@acc3,acc4``; ``segstd64@acc4``; ``tm_E,tm_T@acc2 + ar_rms@acc4``;
 ``modal_f3,modal_zeta3@acc1,acc2,acc3,acc4 + coh@acc4``.
@@ -44,6 +48,7 @@ from dynval import ar as _ar
 from dynval import features as _feat
 from dynval.catalogue import frf as _frf
 from dynval.catalogue import modal as _modal
+from dynval.catalogue import signal_terms as _cat
 from dynval.errors import ConfigError
 from dynval.validate import measurement as _meas
 
@@ -59,11 +64,11 @@ _MODAL = re.compile(r"^modal_(f|zeta|mac)(\d+)$")
 def valid_names() -> list[str]:
     """Every feature name the grammar accepts (patterns with <N>/<p>)."""
     return [*BASIC, *TEMPORAL, "segstd<N>", "ar_rms", "ar_rms<p>", "coh", "modal_f<N>",
-            "modal_zeta<N>", "modal_mac<N>"]
+            "modal_zeta<N>", "modal_mac<N>", *_cat.TERMS]
 
 
 def _check_name(name: str) -> None:
-    if name in BASIC or name in TEMPORAL or name == "coh":
+    if name in BASIC or name in TEMPORAL or name == "coh" or name in _cat.TERMS:
         return
     g = _SEG.match(name) or _MODAL.match(name)
     if g is not None:
@@ -97,6 +102,7 @@ class FeatureSet:
     band_hz: tuple[float, float] = (0.0, 0.0)
     modal_ref: Mapping[tuple[tuple[str, ...], int], _modal.Modes] = field(
         default_factory=dict, compare=False)  # (channels, N) -> the first test's modes
+    ref_data: Mapping[str, np.ndarray] = field(default_factory=dict, compare=False)
 
     @property
     def channels(self) -> list[str]:
@@ -155,11 +161,14 @@ class FeatureSet:
     def fit_reference(self, data: Mapping[str, np.ndarray], fs_hz: float = 0.0
                       ) -> FeatureSet:
         """Fit the AR reference models (ar_rms) to one baseline record (channel -> samples),
-        and for the input/output features the band and the reference modes (modal_mac)."""
+        keep its channels the catalogue's comparing names read, and for the input/output
+        features find the band and the reference modes (modal_mac)."""
         ref = {(c, p): _ar.burg(data[c], p) for c, p in self.needs_ar()}
+        keep = {c: data[c] for t in self.terms for n in t.names for c in t.channels
+                if n in _cat.TERMS and _cat.TERMS[n].ref}
         io = [t for t in self.terms if any(n == "coh" or _MODAL.match(n) for n in t.names)]
         if not io:
-            return replace(self, ar_ref=ref)
+            return replace(self, ar_ref=ref, ref_data=keep)
         u = self._input(data)
         if not fs_hz > 0:
             raise ConfigError("fit_reference: coh and modal_* need the sampling rate")
@@ -173,7 +182,7 @@ class FeatureSet:
                                       f"baseline test shows fewer than {n} stable modes in "
                                       f"{band[0]:g}-{band[1]:g} Hz")
                 mref[(t.channels, n)] = modes
-        return replace(self, ar_ref=ref, band_hz=band, modal_ref=mref)
+        return replace(self, ar_ref=ref, ref_data=keep, band_hz=band, modal_ref=mref)
 
     def with_input(self, channel: str) -> FeatureSet:
         """The input channel (the force) the input/output features read."""
@@ -229,6 +238,12 @@ class FeatureSet:
                     continue
                 for c in t.channels:
                     x = data[c]
+                    if name in _cat.TERMS:
+                        if _cat.TERMS[name].ref and c not in self.ref_data:
+                            raise ConfigError(f"feature '{name}@{c}' compares with a reference "
+                                              "record: FeatureSet.fit_reference first")
+                        out.append(_cat.TERMS[name].value(x, fs_hz, self.ref_data.get(c, x)))
+                        continue
                     if name in BASIC or name in TEMPORAL:
                         if c not in cache:
                             cache[c] = (_feat.moments(x), None)
