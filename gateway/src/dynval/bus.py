@@ -23,6 +23,7 @@ from dynval import _core
 from dynval.contract import DBC_VALUES, MACROS, const, named
 from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
+from dynval.pacing import tight_timing, wait_until
 
 log = logging.getLogger(__name__)
 
@@ -351,28 +352,16 @@ class ReplayResult:
         return self.frames_sent / self.wall_s if self.wall_s > 0 else math.inf
 
 
-SPIN_NS = 300_000  # the last 0.3 ms before a deadline is waited by polling the clock
-
-
-def wait_until(deadline_ns: int) -> None:
-    """Sleep to ~0.3 ms before an absolute perf_counter_ns deadline, then poll to it."""
-    while True:
-        rem = deadline_ns - time.perf_counter_ns()
-        if rem <= 0:
-            return
-        # sleep(0) while polling releases the GIL: the logger thread of `dynval run` runs
-        time.sleep((rem - SPIN_NS) / 1e9 if rem > SPIN_NS else 0)
-
-
 def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
            on_progress: Callable[[int], None] | None = None,
            send: Callable[[int, bytes], None] | None = None,
-           hold: Callable[[int], None] | None = None) -> ReplayResult:
+           hold: Callable[[int], None] | None = None, realtime: bool = False) -> ReplayResult:
     """Send a plan on a python-can bus. Paced: every batch is due at start + offset / speed
     (absolute deadlines: an early or late batch does not shift the later ones), and the
     send-time error (send return minus deadline) of every frame is recorded. asap: no pacing.
     on_progress(n) is called with the number of sample frames sent since the last call;
-    hold(offset_ns), before each batch, may wait (a logger that must not fall behind)."""
+    hold(offset_ns), before each batch, may wait (a logger that must not fall behind).
+    Pacing (dynval.pacing): sleep then poll, tight timing, SCHED_FIFO with realtime."""
     import can
 
     if not asap and not speed > 0:
@@ -387,30 +376,31 @@ def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
     sample_frames = 0
     t0 = time.perf_counter_ns() + (0 if asap else 2_000_000)  # 2 ms to settle
     last_prog = 0
-    for off, frames in plan.batches():
-        if hold is not None:
-            hold(off)
-        due = t0 + int(off / speed) if not asap else 0
-        if not asap:
-            wait_until(due)
-        errs = []
-        for can_id, data in frames:
-            try:
-                tx(can_id, data)
-            except can.CanError as exc:
-                errors += 1
-                log.warning("send of 0x%03X failed: %s", can_id, exc)
-                continue
-            sent += 1
+    with tight_timing(realtime and not asap):
+        for off, frames in plan.batches():
+            if hold is not None:
+                hold(off)
+            due = t0 + int(off / speed) if not asap else 0
             if not asap:
-                errs.append(time.perf_counter_ns() - due)
-            if can_id == ID_SAMPLES:
-                sample_frames += 1
-        if errs:
-            stats.add_batch(off / speed / 1e9, errs)
-        if on_progress is not None and sample_frames - last_prog >= 512:
-            on_progress(sample_frames - last_prog)
-            last_prog = sample_frames
+                wait_until(due)
+            errs = []
+            for can_id, data in frames:
+                try:
+                    tx(can_id, data)
+                except can.CanError as exc:
+                    errors += 1
+                    log.warning("send of 0x%03X failed: %s", can_id, exc)
+                    continue
+                sent += 1
+                if not asap:
+                    errs.append(time.perf_counter_ns() - due)
+                if can_id == ID_SAMPLES:
+                    sample_frames += 1
+            if errs:
+                stats.add_batch(off / speed / 1e9, errs)
+            if on_progress is not None and sample_frames - last_prog >= 512:
+                on_progress(sample_frames - last_prog)
+                last_prog = sample_frames
     wall = (time.perf_counter_ns() - t0) / 1e9
     if on_progress is not None and sample_frames > last_prog:
         on_progress(sample_frames - last_prog)

@@ -30,6 +30,9 @@ def add_parser(sub: Any) -> None:
     g.add_argument("--speed", type=float, default=1.0,
                    help="replay N times faster than recorded (%(default)s)")
     g.add_argument("--asap", action="store_true", help="as fast as the bus takes frames")
+    p.add_argument("--realtime", action="store_true",
+                   help="pace at SCHED_FIFO priority (root, CAP_SYS_NICE or an rtprio limit): "
+                   "other processes cannot delay the frames")
     p.add_argument("--record-id", type=int, default=1, help="DV_CTRL record_id (%(default)s)")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     add_test_options(p)
@@ -48,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         with Progress(args) as bars:
             res = bus.replay(b, plan, speed=args.speed, asap=args.asap,
-                             on_progress=bars.counter(rec.name, plan.n_sample_frames))
+                             on_progress=bars.counter(rec.name, plan.n_sample_frames),
+                             realtime=args.realtime)
     finally:
         b.shutdown()
     if args.json:
@@ -73,10 +77,11 @@ def run(args: argparse.Namespace) -> int:
 def _replay_log(args: argparse.Namespace, cfg: dict[str, Any]) -> int:
     """A CAN log, frame by frame at its recorded times."""
     from dynval import bus, canlog
+    from dynval.pacing import tight_timing
 
     b = bus.open_bus(cfg)
     try:
-        with Progress(args) as bars:
+        with Progress(args) as bars, tight_timing(args.realtime and not args.asap):
             res = canlog.replay_log(b, args.test, speed=args.speed, asap=args.asap,
                                     on_progress=bars.counter(args.test.name, 0))
     finally:
