@@ -15,19 +15,33 @@ measured on the virtual bus (bench/bench_replay.py, bench/RESULTS.replay.md) and
   collection of the interpreter's ~80,000 objects (numpy, python-can) takes ~50 ms, and
   frames queued in memory (python-can's virtual bus) make it longer;
 - optionally SCHED_FIFO (realtime=True): other processes then cannot preempt the pacer.
+
+On SocketCAN `dynval replay` hands the frames to dv_pacer (firmware_sim/pacer.c: the same
+absolute deadlines with clock_nanosleep(TIMER_ABSTIME), a batch per sendmmsg), fed through a
+pipe: run_pacer.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import ctypes.util
 import gc
 import logging
 import os
+import shutil
+import struct
+import subprocess
 import sys
+import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
-from typing import Any
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+
+from dynval.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
@@ -90,3 +104,100 @@ def tight_timing(realtime: bool = False) -> Iterator[None]:
         sys.setswitchinterval(interval)
         if prctl is not None and slack > 0:
             prctl(_PR_SET_TIMERSLACK, slack, 0, 0, 0)
+
+
+# ---- the C pacer (firmware_sim/pacer.c) for SocketCAN ----------------------------------------
+#: records of dv_pacer's stdin (struct pacer_in: offset, then Linux's struct can_frame) and
+#: stdout (struct pacer_out, one per batch); host byte order
+PACER_IN = struct.Struct("=qIB3x8s")
+PACER_OUT = np.dtype([("offset_ns", "=i8"), ("error_ns", "=i8"), ("frames", "=u4"),
+                      ("failed", "=u4")])
+CAN_EFF_FLAG = 0x80000000
+PIPE_BYTES = 1 << 20  # dv_pacer's input pipe: ~44,000 frames of read-ahead
+
+
+def find_pacer(explicit: str | None = None) -> Path | None:
+    """dv_pacer: an explicit path, $DV_PACER, on PATH, or a build of the repository this command
+    runs in (build/*/firmware_sim/dv_pacer, the newest)."""
+    for c in (explicit, os.environ.get("DV_PACER"), shutil.which("dv_pacer")):
+        if c and Path(c).is_file() and os.access(c, os.X_OK):
+            return Path(c)
+    d = Path.cwd().resolve()
+    for root in (d, *d.parents):
+        if (root / "firmware_sim" / "pacer.c").is_file():
+            cands = sorted((root / "build").glob("*/firmware_sim/dv_pacer"),
+                           key=lambda p: p.stat().st_mtime, reverse=True)
+            return cands[0] if cands else None
+    return None
+
+
+def pacer_records(batches: Iterable[tuple[int, Sequence[tuple[int, bytes]]]],
+                  extended: bool = False) -> Iterator[bytes]:
+    """dv_pacer's input for (offset_ns, [(can_id, data)]) batches, a block of records per
+    batch; offsets at speed 1 (the pacer divides by its speed)."""
+    flag = CAN_EFF_FLAG if extended else 0
+    for off, frames in batches:
+        yield b"".join(PACER_IN.pack(off, cid | flag, len(data), bytes(data))
+                       for cid, data in frames)
+
+
+def run_pacer(exe: Path, batches: Iterable[tuple[int, Sequence[tuple[int, bytes]]]], *,
+              interface: str | None = None, sink: Path | None = None, speed: float = 1.0,
+              realtime: bool = False, on_progress: Callable[[int], None] | None = None,
+              extended: bool = False) -> Any:
+    """Send batches through dv_pacer on a SocketCAN interface (or into a sink file): a thread
+    feeds its input pipe while this one reads its per-batch report into the timing statistics.
+    extended: the ids are 29-bit.
+    Returns a bus.ReplayResult (sample_frames: every frame sent)."""
+    import fcntl
+
+    from dynval import bus
+
+    if (interface is None) == (sink is None):
+        raise ValueError("run_pacer: give one of interface and sink")
+    if not speed > 0:
+        raise ConfigError(f"--speed must be > 0, got {speed}")
+    cmd = [str(exe), *(("-i", interface) if interface is not None else ("-o", str(sink))),
+           "-s", repr(float(speed))]
+    if realtime:
+        cmd += ["-r", str(RT_PRIORITY)]
+    proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    assert proc.stdin is not None and proc.stdout is not None and proc.stderr is not None
+    for pipe in (proc.stdin, proc.stdout):  # Linux: deeper pipes (read-ahead, report backlog)
+        with contextlib.suppress(OSError, AttributeError):
+            fcntl.fcntl(pipe.fileno(), fcntl.F_SETPIPE_SZ, PIPE_BYTES)
+    feeder = threading.Thread(target=_feed, args=(proc.stdin, pacer_records(batches, extended)),
+                              name="dv-pacer-feed", daemon=True)
+    t0 = time.perf_counter()
+    feeder.start()
+    stats = bus.TimingStats()
+    sent = failed = 0
+    while chunk := proc.stdout.read(PACER_OUT.itemsize * 512):
+        before = sent
+        for off, err, n, bad in np.frombuffer(chunk, dtype=PACER_OUT).tolist():
+            stats.add_batch(off / 1e9, [err] * n)
+            sent += n
+            failed += bad
+        if on_progress is not None:
+            on_progress(sent - before)
+    feeder.join()
+    err = proc.stderr.read().decode(errors="replace").strip()
+    rc = proc.wait()
+    wall = time.perf_counter() - t0
+    if rc == 2:
+        raise bus.BusError(f"dv_pacer ({exe}): {err or 'failed'}")
+    if err:
+        log.warning("dv_pacer: %s", err)
+    return bus.ReplayResult(sent, sent, wall, stats.report(), failed)
+
+
+def _feed(pipe: IO[bytes], blocks: Iterable[bytes]) -> None:
+    try:
+        for block in blocks:
+            pipe.write(block)
+    except BrokenPipeError:  # the pacer stopped (it says why on stderr)
+        pass
+    finally:
+        with contextlib.suppress(BrokenPipeError):
+            pipe.close()
