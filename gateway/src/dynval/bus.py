@@ -361,7 +361,15 @@ def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
     send-time error (send return minus deadline) of every frame is recorded. asap: no pacing.
     on_progress(n) is called with the number of sample frames sent since the last call;
     hold(offset_ns), before each batch, may wait (a logger that must not fall behind).
-    Pacing (dynval.pacing): sleep then poll, tight timing, SCHED_FIFO with realtime."""
+    Pacing: dynval.pacing (wait_until; tight_timing, at SCHED_FIFO with realtime)."""
+    with tight_timing(realtime and not asap):
+        return _replay(bus, plan, speed, asap, on_progress, send, hold)
+
+
+def _replay(bus: Any, plan: Plan, speed: float, asap: bool,
+            on_progress: Callable[[int], None] | None,
+            send: Callable[[int, bytes], None] | None,
+            hold: Callable[[int], None] | None) -> ReplayResult:
     import can
 
     if not asap and not speed > 0:
@@ -376,31 +384,30 @@ def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
     sample_frames = 0
     t0 = time.perf_counter_ns() + (0 if asap else 2_000_000)  # 2 ms to settle
     last_prog = 0
-    with tight_timing(realtime and not asap):
-        for off, frames in plan.batches():
-            if hold is not None:
-                hold(off)
-            due = t0 + int(off / speed) if not asap else 0
+    for off, frames in plan.batches():
+        if hold is not None:
+            hold(off)
+        due = t0 + int(off / speed) if not asap else 0
+        if not asap:
+            wait_until(due)
+        errs = []
+        for can_id, data in frames:
+            try:
+                tx(can_id, data)
+            except can.CanError as exc:
+                errors += 1
+                log.warning("send of 0x%03X failed: %s", can_id, exc)
+                continue
+            sent += 1
             if not asap:
-                wait_until(due)
-            errs = []
-            for can_id, data in frames:
-                try:
-                    tx(can_id, data)
-                except can.CanError as exc:
-                    errors += 1
-                    log.warning("send of 0x%03X failed: %s", can_id, exc)
-                    continue
-                sent += 1
-                if not asap:
-                    errs.append(time.perf_counter_ns() - due)
-                if can_id == ID_SAMPLES:
-                    sample_frames += 1
-            if errs:
-                stats.add_batch(off / speed / 1e9, errs)
-            if on_progress is not None and sample_frames - last_prog >= 512:
-                on_progress(sample_frames - last_prog)
-                last_prog = sample_frames
+                errs.append(time.perf_counter_ns() - due)
+            if can_id == ID_SAMPLES:
+                sample_frames += 1
+        if errs:
+            stats.add_batch(off / speed / 1e9, errs)
+        if on_progress is not None and sample_frames - last_prog >= 512:
+            on_progress(sample_frames - last_prog)
+            last_prog = sample_frames
     wall = (time.perf_counter_ns() - t0) / 1e9
     if on_progress is not None and sample_frames > last_prog:
         on_progress(sample_frames - last_prog)
