@@ -23,7 +23,7 @@ from dynval import _core
 from dynval.contract import DBC_VALUES, MACROS, const, named
 from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
-from dynval.pacing import tight_timing, wait_until
+from dynval.pacing import RT_MARGIN_NS, SLEEP_MARGIN_NS, tight_timing, wait_until
 
 log = logging.getLogger(__name__)
 
@@ -363,13 +363,14 @@ def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
     hold(offset_ns), before each batch, may wait (a logger that must not fall behind).
     Pacing: dynval.pacing (wait_until; tight_timing, at SCHED_FIFO with realtime)."""
     with tight_timing(realtime and not asap):
-        return _replay(bus, plan, speed, asap, on_progress, send, hold)
+        margin = RT_MARGIN_NS if realtime else SLEEP_MARGIN_NS
+        return _replay(bus, plan, speed, asap, on_progress, send, hold, margin)
 
 
 def _replay(bus: Any, plan: Plan, speed: float, asap: bool,
             on_progress: Callable[[int], None] | None,
             send: Callable[[int, bytes], None] | None,
-            hold: Callable[[int], None] | None) -> ReplayResult:
+            hold: Callable[[int], None] | None, margin_ns: int) -> ReplayResult:
     import can
 
     if not asap and not speed > 0:
@@ -389,7 +390,7 @@ def _replay(bus: Any, plan: Plan, speed: float, asap: bool,
             hold(off)
         due = t0 + int(off / speed) if not asap else 0
         if not asap:
-            wait_until(due)
+            wait_until(due, margin_ns)
         errs = []
         for can_id, data in frames:
             try:

@@ -4,8 +4,11 @@ Deadlines are absolute times of one monotonic clock (time.perf_counter_ns: CLOCK
 Linux), start + offset / speed, so a late frame never shifts the later ones (no drift). What was
 measured on the virtual bus (bench/bench_replay.py, bench/RESULTS.replay.md) and why:
 
-- sleep to SLEEP_MARGIN_NS before a deadline, then poll the clock: a sleep alone wakes 50 us to
-  milliseconds late (the kernel's timer slack, then the scheduler);
+- sleep to a margin before a deadline, then poll the clock: a sleep alone wakes 50 us to
+  milliseconds late (the kernel's timer slack, then the scheduler). The margin is 150 us at
+  SCHED_FIFO (RT_MARGIN_NS) but 40 us at normal priority (SLEEP_MARGIN_NS): on a loaded host
+  a process that polls more uses more than its share of the CPU, and the scheduler then holds
+  it back until it falls seconds behind (measured at load 12 on 2 cores);
 - poll without time.sleep(0) (a nanosleep: 35-90 us here) or os.sched_yield (a syscall, after
   which the sends run colder); a python-can send costs 10-15 us, 30 us after a sleep;
 - the thread's timer slack at 1 ns and the interpreter's thread switch interval at 100 us
@@ -46,18 +49,19 @@ from dynval.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-SLEEP_MARGIN_NS = 150_000  # sleep until this long before a deadline, poll the rest
+SLEEP_MARGIN_NS = 40_000  # sleep until this long before a deadline, poll the rest
+RT_MARGIN_NS = 150_000  # the same at SCHED_FIFO: the CPU is ours when we want it
 SWITCH_INTERVAL_S = 1e-4  # GIL hand-over while pacing (Python's default: 5 ms)
 RT_PRIORITY = 10  # SCHED_FIFO priority of a realtime pacer: above every normal process
 _PR_SET_TIMERSLACK, _PR_GET_TIMERSLACK = 29, 30  # prctl(2)
 
 
-def wait_until(deadline_ns: int) -> None:
-    """Return at an absolute perf_counter_ns deadline: sleep to SLEEP_MARGIN_NS before it,
-    then poll the clock."""
+def wait_until(deadline_ns: int, margin_ns: int = SLEEP_MARGIN_NS) -> None:
+    """Return at an absolute perf_counter_ns deadline: sleep to margin_ns before it, then poll
+    the clock."""
     rem = deadline_ns - time.perf_counter_ns()
-    if rem > SLEEP_MARGIN_NS:
-        time.sleep((rem - SLEEP_MARGIN_NS) / 1e9)
+    if rem > margin_ns:
+        time.sleep((rem - margin_ns) / 1e9)
     while time.perf_counter_ns() < deadline_ns:
         pass  # not sleep(0) (~40 us) nor sched_yield (a syscall: the next send runs colder)
 
