@@ -58,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
     plan = bus.make_plan(rec, args.record_id)
     exe = _c_pacer(args, cfg)
     if exe is not None:
+        bus.open_bus(cfg).shutdown()  # a bus that cannot be opened: python-can's error and hint
         with Progress(args) as bars:
             res = pacing.run_pacer(exe, plan.batches(), interface=str(cfg["channel"]),
                                    speed=args.speed, realtime=args.realtime,
