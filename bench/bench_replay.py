@@ -40,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_gateway import _rec  # noqa: E402
 
 from dynval import bus  # noqa: E402
-from dynval.pacing import find_pacer, run_pacer, tight_timing  # noqa: E402
+from dynval.pacing import find_pacer, pacer_records, run_pacer, tight_timing  # noqa: E402
 
 log = logging.getLogger("bench_replay")
 #: (channels, Hz): 5 x 2560 Hz = 4,267 frames/s, 5 x 7800 Hz = 13,000 frames/s
@@ -141,22 +141,31 @@ def _candump(iface: str, path: Path) -> subprocess.Popen[bytes]:
 
 
 def _vcan_errors(plan: bus.Plan, dump: Path) -> dict[str, float]:
-    """Errors of the frames candump saw: receive time minus due time, the due times placed by
-    the first frame (the same rule for every player); lost = plan frames not seen in order."""
+    """Errors of the frames candump saw: receive time minus due time, the due times placed so
+    that the player's earliest frame (relative to its due time) is on time: the same rule for
+    every player, whose start we do not see. A frame not seen counts as lost (each received
+    frame is matched to the next equal planned frame within LOOKAHEAD)."""
     want = [(off, cid, data) for off, frames in plan.batches() for cid, data in frames]
-    st = bus.TimingStats()
+    seen: list[tuple[int, float]] = []  # (plan index, receive time)
     k = 0
-    t0: float | None = None
     for line in dump.read_text().splitlines():
         ts, _, frame = line.split()
         cid, _, hexdata = frame.partition("#")
-        if k < len(want) and (int(cid, 16), bytes.fromhex(hexdata)) == want[k][1:]:
-            t = float(ts.strip("()"))
-            if t0 is None:
-                t0 = t - want[k][0] / 1e9
-            st.add_batch(want[k][0] / 1e9, [round((t - t0 - want[k][0] / 1e9) * 1e9)])
-            k += 1
-    return {**st.report(), "lost": float(len(want) - k)}
+        key = (int(cid, 16), bytes.fromhex(hexdata))
+        for j in range(k, min(k + LOOKAHEAD, len(want))):
+            if want[j][1:] == key:
+                seen.append((j, float(ts.strip("()"))))
+                k = j + 1
+                break
+    st = bus.TimingStats()
+    if seen:
+        t0 = min(t - want[j][0] / 1e9 for j, t in seen)
+        for j, t in seen:
+            st.add_batch(want[j][0] / 1e9, [round((t - t0 - want[j][0] / 1e9) * 1e9)])
+    return {**st.report(), "lost": float(len(want) - len(seen))}
+
+
+LOOKAHEAD = 5000  # frames
 
 
 def vcan_run(plan: bus.Plan, who: str, iface: str, tmp: Path) -> dict[str, float]:
@@ -194,6 +203,37 @@ def vcan_run(plan: bus.Plan, who: str, iface: str, tmp: Path) -> dict[str, float
     r = _vcan_errors(plan, dump)
     dump.unlink()  # the VM's tmpfs is small
     return r
+
+
+def vm_prepare(seconds: float, d: Path, iface: str = "vcan0") -> None:
+    """The frames of each rate for bench/replay_vcan_vm.sh: dv_pacer's input (in_FS.bin) and
+    the same frames as a candump log for canplayer (in_FS.log)."""
+    for nch, fs in RATES:
+        plan = bus.make_plan(_rec(seconds, fs=fs, nch=nch))
+        with (d / f"in_{fs}.bin").open("wb") as f:
+            for block in pacer_records(plan.batches()):
+                f.write(block)
+        with (d / f"in_{fs}.log").open("w") as f:
+            for off, frames in plan.batches():
+                for cid, data in frames:
+                    f.write(f"({off // 10**9}.{off % 10**9 // 1000:06d}) {iface} "
+                            f"{cid:03X}#{data.hex().upper()}\n")
+
+
+def vm_collect(seconds: float, d: Path) -> list[dict[str, Any]]:
+    """The table rows of the dumps bench/replay_vcan_vm.sh left in d."""
+    rows = []
+    for nch, fs in RATES:
+        plan = bus.make_plan(_rec(seconds, fs=fs, nch=nch))
+        rate = plan.n_sample_frames / (plan.rec.n_samples / fs)
+        for who in ("dv_pacer", "dv_pacer_fifo", "canplayer", "canplayer_g0"):
+            dump = d / f"{fs}.{who}.dump"
+            if dump.is_file():
+                r = _vcan_errors(plan, dump)
+                rows.append({"who": who.removesuffix("_fifo").replace("_g0", " -g 0"),
+                             "realtime": who.endswith("fifo"), "nch": nch, "fs": fs,
+                             "rate": rate, **r})
+    return rows
 
 
 VCAN_PLAYERS = ("dv_pacer", "dv_pacer_fifo", "canplayer", "canplayer -g 0", "messagesync")
@@ -248,14 +288,16 @@ def _rows(rows: list[dict[str, Any]], host: bool) -> list[str]:
     return L
 
 
-def vcan_table(rows: list[dict[str, Any]], seconds: float) -> list[str]:
+def vcan_table(rows: list[dict[str, Any]], seconds: float, how: str = "") -> list[str]:
+    how = how or f"`python3 bench/bench_replay.py --vcan vcan0 --seconds {seconds:g}`"
     L = ["", f"## On a real SocketCAN vcan ({seconds:g} s per run, QEMU VM)", "",
-         f"`python3 bench/bench_replay.py --vcan vcan0 --seconds {seconds:g}` inside the VM of "
+         f"{how} inside the VM of "
          "../shared/vcan (Debian's kernel, software emulation: TCG, 2 vCPUs, ~3-5x slower than "
          "the host; its clocks and timers are emulated). Every player on the same frames; "
          "error = the kernel receive time of candump -L on vcan0 minus the frame's due time, "
-         "due times placed by each player's first frame. dv_pacer = `dynval replay` on "
-         "SocketCAN (SCHED_FIFO = --realtime); canplayer = can-utils 2020.11 (by default it "
+         "due times placed so that each player's earliest frame is on time; lost = not seen by "
+         "candump. dv_pacer = `dynval replay` on SocketCAN (SCHED_FIFO = --realtime); "
+         "canplayer = can-utils 2020.11 (by default it "
          "sends what is due, then sleeps its gap, -g 1 ms); messagesync = python-can's player "
          "on its socketcan bus.", "",
          *_rows(rows, host=False)]
@@ -271,8 +313,22 @@ def main() -> int:
     ap.add_argument("--vcan", metavar="IFACE", help="measure on this SocketCAN interface "
                     "(dv_pacer, canplayer, MessageSync; receiver: candump) and append the table "
                     "to -o; run inside the VM: see the module docstring")
+    ap.add_argument("--vm-prepare", type=Path, metavar="DIR", help="write the frames for "
+                    "bench/replay_vcan_vm.sh (C players only: the VM runs Python too slowly)")
+    ap.add_argument("--vm-collect", type=Path, metavar="DIR", help="append the table of the "
+                    "dumps bench/replay_vcan_vm.sh left in DIR to -o")
     a = ap.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    if a.vm_prepare:
+        vm_prepare(a.seconds, a.vm_prepare)
+        return 0
+    if a.vm_collect:
+        with a.o.open("a") as f:
+            how = (f"`bench_replay.py --seconds {a.seconds:g} --vm-prepare DIR` on the host, "
+                   "`bench/replay_vcan_vm.sh DIR OUT build/sim/firmware_sim/dv_pacer`")
+            f.write("\n".join(vcan_table(vm_collect(a.seconds, a.vm_collect), a.seconds, how))
+                    + "\n\n(then `--vm-collect OUT` on the host)\n")
+        return 0
     if a.vcan:
         rows = measure_vcan(a.seconds, a.vcan)
         with a.o.open("a") as f:
