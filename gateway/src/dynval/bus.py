@@ -23,6 +23,7 @@ from dynval import _core
 from dynval.contract import DBC_VALUES, MACROS, const, named
 from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
+from dynval.pacing import RT_MARGIN_NS, SLEEP_MARGIN_NS, tight_timing, wait_until
 
 log = logging.getLogger(__name__)
 
@@ -454,28 +455,25 @@ class ReplayResult:
         return self.frames_sent / self.wall_s if self.wall_s > 0 else math.inf
 
 
-SPIN_NS = 300_000  # the last 0.3 ms before a deadline is waited by polling the clock
-
-
-def wait_until(deadline_ns: int) -> None:
-    """Sleep to ~0.3 ms before an absolute perf_counter_ns deadline, then poll to it."""
-    while True:
-        rem = deadline_ns - time.perf_counter_ns()
-        if rem <= 0:
-            return
-        # sleep(0) while polling releases the GIL: the logger thread of `dynval run` runs
-        time.sleep((rem - SPIN_NS) / 1e9 if rem > SPIN_NS else 0)
-
-
 def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
            on_progress: Callable[[int], None] | None = None,
            send: Callable[[int, bytes], None] | None = None,
-           hold: Callable[[int], None] | None = None) -> ReplayResult:
+           hold: Callable[[int], None] | None = None, realtime: bool = False) -> ReplayResult:
     """Send a plan on a python-can bus. Paced: every batch is due at start + offset / speed
     (absolute deadlines: an early or late batch does not shift the later ones), and the
     send-time error (send return minus deadline) of every frame is recorded. asap: no pacing.
     on_progress(n) is called with the number of sample frames sent since the last call;
-    hold(offset_ns), before each batch, may wait (a logger that must not fall behind)."""
+    hold(offset_ns), before each batch, may wait (a logger that must not fall behind).
+    Pacing: dynval.pacing (wait_until; tight_timing, at SCHED_FIFO with realtime)."""
+    with tight_timing(realtime and not asap):
+        margin = RT_MARGIN_NS if realtime else SLEEP_MARGIN_NS
+        return _replay(bus, plan, speed, asap, on_progress, send, hold, margin)
+
+
+def _replay(bus: Any, plan: Plan, speed: float, asap: bool,
+            on_progress: Callable[[int], None] | None,
+            send: Callable[[int, bytes], None] | None,
+            hold: Callable[[int], None] | None, margin_ns: int) -> ReplayResult:
     import can
 
     if not asap and not speed > 0:
@@ -495,7 +493,7 @@ def replay(bus: Any, plan: Plan, *, speed: float = 1.0, asap: bool = False,
             hold(off)
         due = t0 + int(off / speed) if not asap else 0
         if not asap:
-            wait_until(due)
+            wait_until(due, margin_ns)
         errs = []
         for can_id, data in frames:
             try:

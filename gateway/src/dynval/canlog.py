@@ -105,8 +105,9 @@ def replay_log(bus_obj: Any, path: Path | str, *, speed: float = 1.0, asap: bool
     frames are skipped. Returns a bus.ReplayResult with the send-time errors."""
     import can
 
-    from dynval.bus import ReplayResult, TimingStats, wait_until
+    from dynval.bus import ReplayResult, TimingStats
     from dynval.errors import ConfigError
+    from dynval.pacing import wait_until
 
     if not asap and not speed > 0:
         raise ConfigError(f"--speed must be > 0, got {speed}")
