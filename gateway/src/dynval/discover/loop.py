@@ -467,13 +467,14 @@ def _trace(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
             or tr.reaction_view(cur, s.fit_t))
     cands = fx.catalogue(cur, quiet=rnd > 1)
     if view is not None:
-        evidence = tr.score(view, cands)
+        evidence = tr.score(view, cands, s.workers)
         # on the SECOND_TESTS loudest fitting tests (where elements act most): the view
         # propagates every basis through the model, the costliest scoring there is
         loud = sorted(s.fit_t, key=lambda t: -float(np.std(t.u)))[:SECOND_TESTS]
         other = (tr.output_view(cur, loud, s.chans, s.scales)
                  if view.propagate is None else None)
-        second = _second_opinion(evidence, tr.score(other, cands)) if other else []
+        second = (_second_opinion(evidence, tr.score(other, cands, s.workers)) if other
+                  else [])
     else:
         s.notes.append("no evidence view for this model (it needs an accelerometer on every "
                        "DOF, or the model's output view, or a reaction output): every "

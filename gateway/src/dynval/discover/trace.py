@@ -26,6 +26,7 @@ import numpy as np
 from dynval import features as feat
 from dynval import model as mdl
 from dynval.discover import effects as fx
+from dynval.discover import parallel
 from dynval.discover.residual import TestData
 from dynval.errors import DynvalError
 from dynval.model import elements as el
@@ -398,13 +399,15 @@ def _output_gain_basis(view: ForceView, cand: fx.Candidate) -> np.ndarray | None
 _NUISANCE = ("stiffness_change", "damping_change")
 
 
-def score(view: ForceView, cands: Sequence[fx.Candidate]) -> list[Evidence]:
+def score(view: ForceView, cands: Sequence[fx.Candidate], workers: int = 1
+          ) -> list[Evidence]:
     """Evidence of each candidate: the partial R^2 of its best-shaped basis on the missing
     force once the linear model's own parameters (story stiffnesses, damping) may re-adjust:
     (R^2(nuisance + candidate) - R^2(nuisance)) / (1 - R^2(nuisance)). A declared model that
     was calibrated on the data has absorbed what a stiffness or damping change can of the
     effect; the partial R^2 looks at what is left. Candidates that are themselves stiffness or
-    damping changes get their plain R^2."""
+    damping changes get their plain R^2. The candidates are scored on up to ``workers``
+    processes (the same numbers)."""
     ro = view.states.reaction_only
     f = (view.f_miss[:1] if ro else view.f_miss).ravel()
     ff = float(f @ f) or 1e-300
@@ -433,8 +436,8 @@ def score(view: ForceView, cands: Sequence[fx.Candidate]) -> list[Evidence]:
     f_res = f - q @ (q.T @ f)
     r2_n = 1.0 - float(f_res @ f_res) / ff
     fr = float(f_res @ f_res) or 1e-300
-    out = []
-    for cand in cands:
+
+    def evidence(cand: fx.Candidate) -> Evidence:
         plain = cand.type in _NUISANCE
         best = Evidence(cand, 0.0, 0.0)
         for shape, bv in bases(cand):
@@ -453,7 +456,9 @@ def score(view: ForceView, cands: Sequence[fx.Candidate]) -> list[Evidence]:
             if r2 > best.r2:
                 best = Evidence(cand, r2, amp, dict(shape))
         best.shape.update(fx.by_type(cand.type).motion_scales(view.states, cand))
-        out.append(best)
+        return best
+
+    out = parallel.ordered_map(evidence, cands, workers)
     out.sort(key=lambda e: -e.r2)
     log.debug("evidence: the linear nuisance bases explain %.3f of the missing force", r2_n)
     return out
