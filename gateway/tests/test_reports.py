@@ -403,3 +403,17 @@ def test_discover_report_renders_in_a_headless_browser(discover_run: dict[str, A
     assert px.shape == (4000, 1280)
     figures_part = px[1600:]  # below the tables: the figures
     assert np.mean(figures_part < 128) > 0.01
+
+
+def test_validate_report_draws_the_catalogue_features_it_computed() -> None:
+    """Issue 19: a catalogue term in the spec brings its figure into the report (one per kind
+    of figure: ks and ad share the distribution plot), drawn on the overlay channel."""
+    from dynval.validate import report
+
+    a = _artifacts()
+    before = len(report.figures(a))
+    a.feature_names = ["std", "ks", "ad", "acf_corr"]
+    caps = [c for c, _ in report.figures(a)][before:]
+    assert len(caps) == 2
+    assert caps[0].startswith("ks: Kolmogorov-Smirnov") and "; ad: Anderson-Darling" in caps[0]
+    assert caps[1].startswith("acf_corr: correlation coefficient") and caps[1].endswith("acc3")

@@ -3,7 +3,7 @@ records given as label -> samples ('measured' drawn black, the others in the mod
 of dynval.plotting), each figure with its metric in the title."""
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -145,3 +145,24 @@ def plot_holder(x: np.ndarray, fs_hz: float, events_s: Sequence[float] = ()) -> 
             label=f"{d.count} drop-offs")
     a2.axhline(d.threshold, color=plot.WORST, lw=0.8, ls="--", label="threshold")
     return _finish(fig, a2, "", "time (s)", "Holder exponent")
+
+
+Figure = Callable[[Series, float, str], Any]
+
+
+def _one(draw: Callable[[np.ndarray, float, str], Any]) -> Figure:
+    return lambda series, fs_hz, unit: draw(_ref(series), fs_hz, unit)
+
+
+# the figure of each catalogue grammar name (dynval.catalogue.signal_terms.TERMS) for records
+# label -> samples at fs_hz in a unit: what the validate report draws for a term it computed
+FIGURES: dict[str, Figure] = {
+    **dict.fromkeys(("ks", "ad"), lambda s, fs, unit: plot_distribution(s, unit)),
+    **dict.fromkeys(("d10", "decay", "decay_y0"), _one(plot_decay)),
+    "acf_corr": lambda s, fs, unit: plot_acf(s, fs),
+    **dict.fromkeys(("harm_n", "thd"), lambda s, fs, unit: plot_harmonics(s, fs)),
+    **dict.fromkeys(("srs_peak", "srs_rms"), lambda s, fs, unit: plot_srs(s, fs)),
+    "cep_env": lambda s, fs, unit: plot_cepstrum(s, fs),
+    **dict.fromkeys(("holder_drops", "holder_min"),
+                    _one(lambda x, fs, unit: plot_holder(x, fs))),
+}

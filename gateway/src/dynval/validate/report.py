@@ -294,6 +294,26 @@ def figures(a: Artifacts) -> list[tuple[str, str]]:
                     f"{i0 / a.fs_hz:.2f} s of {n / a.fs_hz:g} s, every sample drawn",
                     _png(plot_overlay(a))))
         out.append((f"Power spectral densities (Welch){test}", _png(plot_psd(a))))
+        out += _catalogue_figures(a, test)
+    return out
+
+
+def _catalogue_figures(a: Artifacts, test: str) -> list[tuple[str, str]]:
+    """The figure of each catalogue feature the spec computes (one per kind of figure), drawn
+    for the overlay channel's measured and simulated records."""
+    from dynval.catalogue import signal_plots, signal_terms
+
+    lab = _label(a, a.overlay_channel)
+    series = {k: d[a.overlay_channel] for k, d in a.overlays.items()}
+    by_figure: dict[Any, list[str]] = {}
+    for name in dict.fromkeys(a.feature_names):
+        if name in signal_plots.FIGURES:
+            by_figure.setdefault(signal_plots.FIGURES[name], []).append(name)
+    out = []
+    for draw, names in by_figure.items():
+        what = "; ".join(f"{n}: {signal_terms.TERMS[n].doc}" for n in names)
+        out.append((f"{what}{test}, {lab.short}",
+                    _png(draw(series, a.fs_hz, lab.unit_text))))
     return out
 
 

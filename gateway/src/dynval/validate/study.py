@@ -164,6 +164,7 @@ class Artifacts:
     labels: dict[str, lb.ChannelLabel] = field(default_factory=dict)
     param_units: list[str] = field(default_factory=list)
     overlay_test: str = ""
+    feature_names: list[str] = field(default_factory=list)  # the spec's, for their figures
 
 
 def _label(art: Artifacts, s: Setup, ranges: Sequence[doe.ParamRange]) -> dict[str, str]:
@@ -210,6 +211,7 @@ def validate(m: mdl.Model, recs: Sequence[Recording], spec: str,
         doe.check_params(m, ranges)
     res["units"] = _label(art, s, ranges)
     art.overlay_test = ref.name
+    art.feature_names = [n for t in s.features.terms for n in t.names]
     ch0 = s.rmse_channels[0]
     art.overlay_channel = ch0
     art.overlays["measured"] = {ch0: ref.channel(ch0).data}
