@@ -417,3 +417,24 @@ def test_validate_report_draws_the_catalogue_features_it_computed() -> None:
     assert len(caps) == 2
     assert caps[0].startswith("ks: Kolmogorov-Smirnov") and "; ad: Anderson-Darling" in caps[0]
     assert caps[1].startswith("acf_corr: correlation coefficient") and caps[1].endswith("acc3")
+
+
+def test_validate_report_draws_the_frf_of_the_input_output_features() -> None:
+    """coh / modal_* in the spec bring the FRF and coherence figure (report Fig. 43-47) of the
+    overlay channel to the input, measured and simulated, with the input's unit."""
+    from dynval.validate import report
+
+    a = _artifacts()
+    rng = np.random.default_rng(2)
+    a.overlay_input = rng.standard_normal(4096)
+    a.overlays = {k: {"acc3_mps2": np.convolve(a.overlay_input, [1.0, 0.5, g], "same")}
+                  for k, g in (("measured", 0.2), ("nominal", 0.25))}
+    a.feature_names = ["coh", "modal_f3"]
+    cap, _ = report.figures(a)[-1]
+    assert cap.startswith("FRF (H1) and coherence to the input (coh, modal_f3")
+    fig = report.plot_frf(a, {k: d["acc3_mps2"] for k, d in a.overlays.items()},
+                          lb.channel_labels(["acc3_mps2"])["acc3_mps2"])
+    assert fig.axes[0].get_ylabel() == f"|H1| ({M_S2}/N)"
+    coh = fig.axes[1].get_lines()[0].get_ydata()  # a noise-free FIR: coherence 1
+    assert float(np.median(coh)) > 0.99
+    plot.pyplot().close(fig)

@@ -96,7 +96,7 @@ def plot_harmonics(series: Series, fs_hz: float) -> Any:
     return _finish(fig, ax, "PSD and harmonic peaks", "frequency (Hz)", "PSD (unit^2/Hz)")
 
 
-def plot_srs(series: Series, fs_hz: float) -> Any:
+def plot_srs(series: Series, fs_hz: float, unit: str = "m/s^2") -> Any:
     """Peak and RMS response spectra at 2 % damping (5.3.3, Fig. 50), with the dB distance to
     the measured's."""
     fig, ax = plot.pyplot().subplots(figsize=(8, 3.4))
@@ -106,7 +106,7 @@ def plot_srs(series: Series, fs_hz: float) -> Any:
         ax.loglog(fn, pk, color=c, label=f"{k} peak: {spectral.db_distance(pk, pk_ref):.2f} dB")
         ax.loglog(fn, rms, "--", color=c, lw=0.8)
     return _finish(fig, ax, "response spectra, 2 % damping (solid peak, dashed RMS)",
-                   "oscillator frequency (Hz)", "absolute acceleration")
+                   "oscillator frequency (Hz)", f"absolute acceleration ({unit})")
 
 
 def plot_cepstrum(series: Series, fs_hz: float) -> Any:
@@ -161,7 +161,7 @@ FIGURES: dict[str, Figure] = {
     **dict.fromkeys(("d10", "decay", "decay_y0"), _one(plot_decay)),
     "acf_corr": lambda s, fs, unit: plot_acf(s, fs),
     **dict.fromkeys(("harm_n", "thd"), lambda s, fs, unit: plot_harmonics(s, fs)),
-    **dict.fromkeys(("srs_peak", "srs_rms"), lambda s, fs, unit: plot_srs(s, fs)),
+    **dict.fromkeys(("srs_peak", "srs_rms"), plot_srs),
     "cep_env": lambda s, fs, unit: plot_cepstrum(s, fs),
     **dict.fromkeys(("holder_drops", "holder_min"),
                     _one(lambda x, fs, unit: plot_holder(x, fs))),

@@ -314,7 +314,26 @@ def _catalogue_figures(a: Artifacts, test: str) -> list[tuple[str, str]]:
         what = "; ".join(f"{n}: {signal_terms.TERMS[n].doc}" for n in names)
         out.append((f"{what}{test}, {lab.short}",
                     _png(draw(series, a.fs_hz, lab.unit_text))))
+    io = [n for n in dict.fromkeys(a.feature_names) if n == "coh" or n.startswith("modal_")]
+    if io and a.overlay_input is not None:
+        out.append((f"FRF (H1) and coherence to the input ({', '.join(io)}: 5.1, 5.3.1; "
+                    f"Hann 1024, 50 %){test}, {lab.short}; shaded: the input's band; the "
+                    "simulation drawn without the sensor noise its features carry",
+                    _png(plot_frf(a, series, lab))))
     return out
+
+
+def plot_frf(a: Artifacts, series: dict[str, np.ndarray], lab: lb.ChannelLabel) -> Any:
+    """H1 and coherence of the overlay channel to the input, measured and simulated."""
+    from dynval.catalogue import frf, modal_plots
+    from dynval.validate import measurement
+
+    assert a.overlay_input is not None
+    u = a.overlay_input
+    curves = [(k, frf.estimate(u, {"y": y}, a.fs_hz), 0, OVERLAY_COLOURS.get(k, plot.MODEL))
+              for k, y in series.items()]
+    return modal_plots.plot_frf(curves, measurement.input_band(u, a.fs_hz),
+                                unit=f"{lab.unit_text}/{a.input_unit}")
 
 
 def _table(rows: Sequence[Sequence[Any]], head: Sequence[str]) -> str:

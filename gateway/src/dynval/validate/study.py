@@ -165,6 +165,8 @@ class Artifacts:
     param_units: list[str] = field(default_factory=list)
     overlay_test: str = ""
     feature_names: list[str] = field(default_factory=list)  # the spec's, for their figures
+    overlay_input: np.ndarray | None = None  # the overlay test's input (FRF figures)
+    input_unit: str = "N"
 
 
 def _label(art: Artifacts, s: Setup, ranges: Sequence[doe.ParamRange]) -> dict[str, str]:
@@ -212,6 +214,9 @@ def validate(m: mdl.Model, recs: Sequence[Recording], spec: str,
     res["units"] = _label(art, s, ranges)
     art.overlay_test = ref.name
     art.feature_names = [n for t in s.features.terms for n in t.names]
+    art.overlay_input = ref.channel(s.input_channel).data
+    art.input_unit = ref.channel(s.input_channel).unit or {
+        "force": "N", "ground_acc": "m/s^2", "ground_disp": "m"}.get(m.input.kind, "")
     ch0 = s.rmse_channels[0]
     art.overlay_channel = ch0
     art.overlays["measured"] = {ch0: ref.channel(ch0).data}
