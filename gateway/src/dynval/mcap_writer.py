@@ -115,8 +115,9 @@ class BlockWriter:
     def _submit(self, job: Any) -> None:
         if self._error is not None:
             raise self._error
-        self._submitted += 1
         self._jobs.put(job)
+        self._submitted += 1  # after the put: an interrupt between them must not leave a
+        # job counted that never reaches the I/O thread (sync() would wait for it forever)
 
     def sync(self, pending: int = 0) -> None:
         """Wait until at most `pending` of the jobs submitted (chunks, records) are not yet
