@@ -34,6 +34,25 @@ def lib_file(name: str) -> Path:
     return p
 
 
+def find_program(name: str, env_var: str, explicit: str | None = None) -> Path | None:
+    """One of the project's programs (firmware_sim, dv_pacer): an explicit path, $env_var, on
+    PATH, or the newest build of the repository this command runs in
+    (build/*/firmware_sim/<name>)."""
+    import os
+    import shutil
+
+    for c in (explicit, os.environ.get(env_var), shutil.which(name)):
+        if c and Path(c).is_file() and os.access(c, os.X_OK):
+            return Path(c)
+    d = Path.cwd().resolve()
+    for root in (d, *d.parents):
+        if (root / "firmware_sim").is_dir() and (root / "CMakeLists.txt").is_file():
+            cands = sorted((root / "build").glob(f"*/firmware_sim/{name}"),
+                           key=lambda p: p.stat().st_mtime, reverse=True)
+            return cands[0] if cands else None
+    return None
+
+
 def _dlopen(stem: str) -> Any:
     # Linux (versioned too), macOS, Windows (MSVC: dynval-f64.dll, MinGW: libdynval-f64.dll)
     libs = [lib for pattern in (f"lib{stem}*.so*", f"*{stem}*.dylib", f"*{stem}*.dll")

@@ -32,7 +32,6 @@ import ctypes.util
 import gc
 import logging
 import os
-import shutil
 import struct
 import subprocess
 import sys
@@ -45,6 +44,7 @@ from typing import IO, Any
 
 import numpy as np
 
+from dynval import _core
 from dynval.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -124,16 +124,7 @@ PIPE_BYTES = 1 << 20  # dv_pacer's input pipe: ~44,000 frames of read-ahead
 def find_pacer(explicit: str | None = None) -> Path | None:
     """dv_pacer: an explicit path, $DV_PACER, on PATH, or a build of the repository this command
     runs in (build/*/firmware_sim/dv_pacer, the newest)."""
-    for c in (explicit, os.environ.get("DV_PACER"), shutil.which("dv_pacer")):
-        if c and Path(c).is_file() and os.access(c, os.X_OK):
-            return Path(c)
-    d = Path.cwd().resolve()
-    for root in (d, *d.parents):
-        if (root / "firmware_sim" / "pacer.c").is_file():
-            cands = sorted((root / "build").glob("*/firmware_sim/dv_pacer"),
-                           key=lambda p: p.stat().st_mtime, reverse=True)
-            return cands[0] if cands else None
-    return None
+    return _core.find_program("dv_pacer", "DV_PACER", explicit)
 
 
 def pacer_records(batches: Iterable[tuple[int, Sequence[tuple[int, bytes]]]],

@@ -9,10 +9,8 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import re
 import select
-import shutil
 import signal
 import socket
 import subprocess
@@ -244,16 +242,7 @@ class InProcessFirmware:
 def find_firmware(explicit: str | None = None) -> Path | None:
     """$DV_FIRMWARE_SIM, an explicit path, firmware_sim on PATH, or a build of the repository
     this command runs in (build/*/firmware_sim/firmware_sim)."""
-    for c in (explicit, os.environ.get("DV_FIRMWARE_SIM"), shutil.which("firmware_sim")):
-        if c and Path(c).is_file() and os.access(c, os.X_OK):
-            return Path(c)
-    d = Path.cwd().resolve()
-    for root in (d, *d.parents):
-        if (root / "can" / "dynval.dbc").is_file():
-            cands = sorted((root / "build").glob("*/firmware_sim/firmware_sim"),
-                           key=lambda p: p.stat().st_mtime, reverse=True)
-            return cands[0] if cands else None
-    return None
+    return _core.find_program("firmware_sim", "DV_FIRMWARE_SIM", explicit)
 
 
 def _free_port() -> int:
