@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from dynval import labels as lb
 from dynval import model as mdl
 from dynval.errors import ConfigError
 from dynval.io.recording import Channel, Recording
@@ -117,10 +118,6 @@ def contact_onsets(m: mdl.Model, truth: Truth, force_fine: np.ndarray,
             shut = sign * x > e.gap_m
             out.append(np.flatnonzero(shut[1:] & ~shut[:-1]) + 1.0)
     return np.sort(np.concatenate(out or [np.zeros(0)])) / fs_fine_hz
-
-
-_INPUT_UNIT = {"force": "N", "ground_acc": "m/s^2", "ground_disp": "m"}
-_MOTION_UNIT = {"acc": "m/s^2", "vel": "m/s", "disp": "m"}
 
 
 def band_limited_force(rng: np.random.Generator, n: int, fs_hz: float, rms: float,
@@ -217,8 +214,8 @@ def generate(m: mdl.Model, truth: Truth, *, n_tests: int = 10,
             y = signal.sosfilt(aa, x)[::fine][lead:]
             y = y + noise * float(np.sqrt(np.mean(y * y))) * rng.standard_normal(y.size)
             chans.append(Channel(name=name, data=np.ascontiguousarray(y),
-                                 unit=_INPUT_UNIT[m.input.kind] if name == in_name
-                                 else _MOTION_UNIT[m.outputs[name].kind],
+                                 unit=lb.SI_UNIT[m.input.kind] if name == in_name
+                                 else lb.SI_UNIT[m.outputs[name].kind],
                                  role="input" if name == in_name else "output"))
         tag = "high" if level == max(levels_n_rms) else "low"
         recs.append(Recording(name=f"{truth.label}_{tag}_{i + 1:02d}", fs_hz=fs_hz,

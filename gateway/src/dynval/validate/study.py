@@ -215,8 +215,7 @@ def validate(m: mdl.Model, recs: Sequence[Recording], spec: str,
     art.overlay_test = ref.name
     art.feature_names = [n for t in s.features.terms for n in t.names]
     art.overlay_input = ref.channel(s.input_channel).data
-    art.input_unit = ref.channel(s.input_channel).unit or {
-        "force": "N", "ground_acc": "m/s^2", "ground_disp": "m"}.get(m.input.kind, "")
+    art.input_unit = ref.channel(s.input_channel).unit or lb.SI_UNIT.get(m.input.kind, "")
     ch0 = s.rmse_channels[0]
     art.overlay_channel = ch0
     art.overlays["measured"] = {ch0: ref.channel(ch0).data}
