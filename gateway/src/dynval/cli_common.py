@@ -12,6 +12,7 @@ import importlib
 import logging
 import signal
 import sys
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -209,17 +210,28 @@ def runner_for(args: argparse.Namespace) -> Any:
 
 
 @contextmanager
-def sigterm_interrupts() -> Iterator[None]:
-    """SIGTERM raises KeyboardInterrupt in the main thread, as Ctrl-C does, so the `finally`
-    blocks that finish an MCAP log (summary, footer) run on either."""
-    def _term(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
+def stop_signals() -> Iterator[threading.Event]:
+    """SIGINT and SIGTERM ask the work inside to stop: the first sets the event it yields,
+    which the loops check between frames (bus.replay's hold, the receive loops, the waits
+    after a replay), so the `finally` blocks that finish an MCAP log run on either. No
+    exception lands inside a library's critical section (a KeyboardInterrupt raised in the
+    middle of python-can's send could leave its bus lock held, and the shutdown then waits
+    forever). A second signal raises KeyboardInterrupt at once, for a user who insists."""
+    requested = threading.Event()
 
-    old = signal.signal(signal.SIGTERM, _term)
+    def _ask(signum: int, frame: Any) -> None:
+        if requested.is_set():
+            raise KeyboardInterrupt
+        requested.set()
+        log.info("%s: stopping at the next safe point", signal.Signals(signum).name)
+
+    old = {sig: signal.signal(sig, _ask) for sig in (signal.SIGINT, signal.SIGTERM)
+           if signal.getsignal(sig) is not signal.SIG_IGN}  # a background job's stays ignored
     try:
-        yield
+        yield requested
     finally:
-        signal.signal(signal.SIGTERM, old)
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
 
 
 def fmt_timing(t: dict[str, float]) -> str:

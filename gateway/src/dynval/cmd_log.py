@@ -5,7 +5,9 @@ is any python-can interface (--interface/--channel/--bitrate, CAN_INTERFACE, ~/.
 from __future__ import annotations
 
 import argparse
+import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +16,7 @@ from dynval.cli_common import (
     add_test_options,
     bus_config_of,
     read_with_options,
-    sigterm_interrupts,
+    stop_signals,
 )
 from dynval.errors import InputFileError
 
@@ -39,6 +41,11 @@ def add_parser(sub: Any) -> None:
     p.set_defaults(run=run)
 
 
+def _until(stop: threading.Event, t_end: float | None) -> Callable[[], bool]:
+    """Log until a stop signal or, with --duration, its end."""
+    return lambda: stop.is_set() or (t_end is not None and time.monotonic() > t_end)
+
+
 def run(args: argparse.Namespace) -> int:
     from dynval import bus, canlog
     from dynval.mcap_log import McapLog, log_bus
@@ -53,10 +60,10 @@ def run(args: argparse.Namespace) -> int:
         b = bus.open_bus(cfg)
         n = 0
         try:
-            with sigterm_interrupts():
+            with stop_signals() as stop:
                 n = canlog.record(b, args.output, idle_timeout_s=args.idle_timeout,
-                                  stop=(lambda: time.monotonic() > t_end) if t_end else None)
-        except KeyboardInterrupt:
+                                  stop=_until(stop, t_end))
+        except KeyboardInterrupt:  # a second signal
             pass
         finally:
             b.shutdown()
@@ -77,10 +84,9 @@ def run(args: argparse.Namespace) -> int:
 
     n = 0
     try:
-        with sigterm_interrupts():
-            n = log_bus(b, out, stop=(lambda: time.monotonic() > t_end) if t_end else None,
-                        idle_timeout_s=args.idle_timeout)
-    except KeyboardInterrupt:
+        with stop_signals() as stop:
+            n = log_bus(b, out, stop=_until(stop, t_end), idle_timeout_s=args.idle_timeout)
+    except KeyboardInterrupt:  # a second signal
         pass
     finally:
         s = out.close()

@@ -16,7 +16,7 @@ from dynval.cli_common import (
     add_test_options,
     fmt_timing,
     read_with_options,
-    sigterm_interrupts,
+    stop_signals,
     test_files,
 )
 from dynval.errors import ConfigError
@@ -92,8 +92,8 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"{test}: the model needs an input channel (use --channel-map)")
         stem = f"{runloop.safe_name(test.parent.name)}_{runloop.safe_name(rec.name)}"
         out = args.output / f"{stem}.mcap"
-        with Progress(args) as bars, sigterm_interrupts():  # the log gets its footer
-            r = runloop.run_test(rec, out, choice, model=m,
+        with Progress(args) as bars, stop_signals() as stop:  # the log gets its footer
+            r = runloop.run_test(rec, out, choice, model=m, stop=stop,
                                  model_meta=mdl.to_dict(m) if m is not None else None,
                                  speed=args.speed, asap=args.asap, fw_kw=fw_kw, record_id=i,
                                  on_progress=bars.counter(

@@ -348,8 +348,12 @@ class RunResult:
 def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
              model_meta: dict[str, Any] | None = None, speed: float = 1.0, asap: bool = False,
              fw_kw: dict[str, Any] | None = None, record_id: int = 1,
-             on_progress: Callable[[int], None] | None = None) -> RunResult:
-    """Firmware + logger + replay of one recording; leaves out (an MCAP)."""
+             on_progress: Callable[[int], None] | None = None,
+             stop: threading.Event | None = None) -> RunResult:
+    """Firmware + logger + replay of one recording; leaves out (an MCAP). `stop` (set by a
+    stop signal, cli_common.stop_signals) ends the run between batches with
+    KeyboardInterrupt, after the log is finished."""
+    stop = stop or threading.Event()
     import can
 
     cfg = firmware_config(rec, model, **(fw_kw or {}))
@@ -371,25 +375,24 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
     try:
         rx = bus.open_bus(choice.interface, choice.channel, receive_own_messages=False)
         tx = bus.open_bus(choice.interface, choice.channel, receive_own_messages=False)
-        stop = threading.Event()
+        done = threading.Event()
         state = _LoggerState()
-        t = threading.Thread(target=_logger_loop, args=(rx, logger, stop, state),
+        t = threading.Thread(target=_logger_loop, args=(rx, logger, done, state),
                              name="dv-logger", daemon=True)
         t.start()
         try:
             res = bus.replay(tx, plan, speed=speed, asap=asap, on_progress=on_progress,
-                             hold=lambda off_ns: _hold(logger, state, off_ns))
+                             hold=lambda off_ns: _hold(logger, state, off_ns, stop))
             state.armed = True
             tx.send(can.Message(arbitration_id=bus.ID_CTRL,
                                 data=bus.encode_ctrl(bus.CTRL_STATUS, record_id)[1],
                                 is_extended_id=False))
-            if not state.status.wait(timeout=120.0):
-                log.warning("%s: no DV_STATUS answer within 120 s; results may be incomplete",
-                            rec.name)
+            _wait_for_status(state, stop, rec.name)
             while time.monotonic() - state.last_rx < QUIET_S:  # a heartbeat may race it
+                _stop_point(stop)
                 time.sleep(0.05)
         finally:
-            stop.set()
+            done.set()
             t.join(timeout=30)
             rx.shutdown()
             tx.shutdown()
@@ -406,15 +409,34 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
 
 QUIET_S = 0.3  # no frame for this long after the status answer: the firmware is done
 MAX_BACKLOG_S = 0.5  # data on the bus not yet logged; with the chunk timer: <= 1 s lost on a kill
+STATUS_WAIT_S = 120.0  # the firmware's answer to the status request after a replay
 STALL_S = 5.0  # a logger without progress for this long is not waited for (it reports why)
 
 
-def _hold(logger: McapLog, st: _LoggerState, off_ns: int) -> None:
+def _stop_point(stop: threading.Event) -> None:
+    """Where a stop signal ends the run: between frames, never inside a bus call."""
+    if stop.is_set():
+        raise KeyboardInterrupt
+
+
+def _wait_for_status(st: _LoggerState, stop: threading.Event, name: str) -> None:
+    t_end = time.monotonic() + STATUS_WAIT_S
+    while not st.status.wait(timeout=0.05):
+        _stop_point(stop)
+        if time.monotonic() > t_end:
+            log.warning("%s: no DV_STATUS answer within %.0f s; results may be incomplete",
+                        name, STATUS_WAIT_S)
+            return
+
+
+def _hold(logger: McapLog, st: _LoggerState, off_ns: int, stop: threading.Event) -> None:
     """Keep the replay at most MAX_BACKLOG_S of data ahead of the logger (any --speed,
     --asap): frames waiting in memory are lost on a kill. A logger that makes no progress
     for STALL_S is not waited for again (no hang; the run reports what was logged)."""
+    _stop_point(stop)
     last, t_last = logger.frames_logged, time.monotonic()
     while not st.stalled and st.error is None and off_ns / 1e9 - logger.logged_s > MAX_BACKLOG_S:
+        _stop_point(stop)
         if logger.frames_logged != last:
             last, t_last = logger.frames_logged, time.monotonic()
         elif time.monotonic() - t_last > STALL_S:
