@@ -234,6 +234,13 @@ def stop_signals() -> Iterator[threading.Event]:
             signal.signal(sig, handler)
 
 
+def stop_point(stop: threading.Event) -> None:
+    """Where a requested stop (stop_signals) ends the work: between frames or batches, never
+    inside a bus call."""
+    if stop.is_set():
+        raise KeyboardInterrupt
+
+
 def fmt_timing(t: dict[str, float]) -> str:
     return (f"{int(t['frames'])} frames timed: send-time error mean {t['mean_us']:.1f} us, "
             f"p95 {t['p95_us']:.0f} us, max {t['max_us']:.0f} us, drift "

@@ -20,6 +20,8 @@ from dynval.cli_common import (
     bus_config_of,
     fmt_timing,
     read_with_options,
+    stop_point,
+    stop_signals,
 )
 
 log = logging.getLogger(__name__)
@@ -67,10 +69,10 @@ def run(args: argparse.Namespace) -> int:
     else:
         b = bus.open_bus(cfg)
         try:
-            with Progress(args) as bars:
+            with Progress(args) as bars, stop_signals() as stop:
                 res = bus.replay(b, plan, speed=args.speed, asap=args.asap,
                                  on_progress=bars.counter(rec.name, plan.n_sample_frames),
-                                 realtime=args.realtime)
+                                 realtime=args.realtime, hold=lambda _off: stop_point(stop))
         finally:
             b.shutdown()
     if args.json:

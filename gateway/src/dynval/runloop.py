@@ -24,6 +24,7 @@ from typing import Any
 
 from dynval import __version__, _core, bus
 from dynval.bus import ReplayResult
+from dynval.cli_common import stop_point
 from dynval.contract import IR_COUNTERS, const, named
 from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
@@ -389,7 +390,7 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
                                 is_extended_id=False))
             _wait_for_status(state, stop, rec.name)
             while time.monotonic() - state.last_rx < QUIET_S:  # a heartbeat may race it
-                _stop_point(stop)
+                stop_point(stop)
                 time.sleep(0.05)
         finally:
             done.set()
@@ -413,16 +414,10 @@ STATUS_WAIT_S = 120.0  # the firmware's answer to the status request after a rep
 STALL_S = 5.0  # a logger without progress for this long is not waited for (it reports why)
 
 
-def _stop_point(stop: threading.Event) -> None:
-    """Where a stop signal ends the run: between frames, never inside a bus call."""
-    if stop.is_set():
-        raise KeyboardInterrupt
-
-
 def _wait_for_status(st: _LoggerState, stop: threading.Event, name: str) -> None:
     t_end = time.monotonic() + STATUS_WAIT_S
     while not st.status.wait(timeout=0.05):
-        _stop_point(stop)
+        stop_point(stop)
         if time.monotonic() > t_end:
             log.warning("%s: no DV_STATUS answer within %.0f s; results may be incomplete",
                         name, STATUS_WAIT_S)
@@ -433,10 +428,10 @@ def _hold(logger: McapLog, st: _LoggerState, off_ns: int, stop: threading.Event)
     """Keep the replay at most MAX_BACKLOG_S of data ahead of the logger (any --speed,
     --asap): frames waiting in memory are lost on a kill. A logger that makes no progress
     for STALL_S is not waited for again (no hang; the run reports what was logged)."""
-    _stop_point(stop)
+    stop_point(stop)
     last, t_last = logger.frames_logged, time.monotonic()
     while not st.stalled and st.error is None and off_ns / 1e9 - logger.logged_s > MAX_BACKLOG_S:
-        _stop_point(stop)
+        stop_point(stop)
         if logger.frames_logged != last:
             last, t_last = logger.frames_logged, time.monotonic()
         elif time.monotonic() - t_last > STALL_S:
