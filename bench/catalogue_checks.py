@@ -16,14 +16,20 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-from dynval import model as mdl
 from dynval import synth
 from dynval.validate import checks as chk
 from dynval.validate import montecarlo as mc
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from catalogue_modal_frf import declared  # noqa: E402
+from catalogue_modal_frf import declared
+
+log = logging.getLogger("catalogue_checks")
+
+
+def _stat(os_: list[chk.Outcome], side: str) -> str:
+    z = np.array([getattr(o, side).z2 for o in os_])
+    zc = np.array([getattr(o, side).z2_coh for o in os_])
+    return f"{np.median(z):.2f} / {np.median(zc):.2f} ({z.max():.2f} / {zc.max():.2f})"
 
 
 def main() -> None:
@@ -54,15 +60,10 @@ def main() -> None:
             out["reciprocity"] += chk.run(m, sa, chk.parse(["reciprocity@acc4"], m,
                                                            list(m.outputs)), "force_N",
                                           swapped=sb)
-            logging.info("%s seed %d (%.0f s)", label, seed, time.perf_counter() - t0)
+            log.info("%s seed %d (%.0f s)", label, seed, time.perf_counter() - t0)
         for kind, os_ in out.items():
-            def stat(side: str) -> str:
-                z = np.array([getattr(o, side).z2 for o in os_])
-                zc = np.array([getattr(o, side).z2_coh for o in os_])
-                return (f"{np.median(z):.2f} / {np.median(zc):.2f} ({z.max():.2f} / "
-                        f"{zc.max():.2f})")
             n = len(os_)
-            lines.append(f"| {kind}@acc4 | {label} | {stat('measured')} | {stat('model')} | "
+            lines.append(f"| {kind}@acc4 | {label} | {_stat(os_, 'measured')} | {_stat(os_, 'model')} | "
                          f"{sum(not o.measured.passed for o in os_)} of {n} | "
                          f"{sum(not o.model.passed for o in os_)} of {n} | "
                          f"{sum(not o.consistent for o in os_)} of {n} |")

@@ -24,17 +24,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
 from dynval import model as mdl
 from dynval import synth
 from dynval.catalogue import signal_plots as plots
-from dynval.validate import measurement as meas
 from dynval.validate import checks as chk
+from dynval.validate import measurement as meas
 from dynval.validate import montecarlo as mc
 from dynval.validate import report
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from catalogue_modal_frf import declared, tables_13_14  # noqa: E402
+from catalogue_modal_frf import declared, tables_13_14
 
 log = logging.getLogger("catalogue_figures")
 MODEL = (Path(__file__).resolve().parents[1].parent / "shared" / "data" / "synthetic"
@@ -89,8 +88,8 @@ def _table_html(md: list[str]) -> str:
 def write_html(path: Path, figs: dict[str, Any], tables: list[str]) -> None:
     parts = ["<h1>dynval: the report's feature catalogue in kind (issue 19)</h1>",
              f"<p>{html.escape(__doc__.split(chr(10) + chr(10))[0])}</p>",
-             "<h2>Tables 13-14: modal frequencies and damping, EMA of ten records of models "
-             "L1 (zeta 1 %) and L2 (zeta2 5 %) against the numerical modes</h2>",
+             ("<h2>Tables 13-14: modal frequencies and damping, EMA of ten records of models "
+              "L1 (zeta 1 %) and L2 (zeta2 5 %) against the numerical modes</h2>"),
              _table_html(tables)]
     for cap, fig in figs.items():
         buf = io.BytesIO()
