@@ -1,25 +1,39 @@
-"""Issue 19: the catalogue's figures in kind (report Figures 28-29, 34, 40, 49-53) on the
-generator's data: 'measured' is the report's structure with the shared data's bumper
-(dynval.synth, truth at 64 x fs, 1 % sensor noise); 'linear model' and 'bumper model' are the
-declared model without and with that bumper, driven by the measured force (the validation's
-simulation, with 1 % sensor noise). One PNG per feature and an index.md of the metrics.
+"""Issue 19: the report's Tables 13-14 and Figures 43-53 in kind (and its Figures 28-29, 34,
+40) on independent simulations of its structure, in one self-contained HTML page: Tables 13-14
+(EMA of models L1 and L2 against the numerical modes), the FRF / coherence of the linearity
+(two levels) and reciprocity (force and response swapped) checks with and without the bumper
+(Fig. 43-47), and the signal features on random, 54 Hz harmonic and hammer tests (Fig.
+49-53): 'measured' is the report's structure with the shared data's bumper (dynval.synth,
+truth at 64 x fs, 1 % sensor noise); 'linear model' and 'bumper model' are the declared model
+without and with that bumper, driven by the measured force (the validation's simulation, with
+1 % sensor noise). Also one PNG per figure and an index.md.
 
     PYTHONPATH=gateway/src python bench/catalogue_figures.py --out build/catalogue-figures
+    (writes build/catalogue-figures/catalogue.html)
 """
 from __future__ import annotations
 
 import argparse
+import base64
 import dataclasses
+import html
+import io
 import logging
+import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-
 from dynval import model as mdl
 from dynval import synth
 from dynval.catalogue import signal_plots as plots
+from dynval.validate import checks as chk
 from dynval.validate import measurement as meas
 from dynval.validate import montecarlo as mc
+from dynval.validate import report
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from catalogue_modal_frf import declared, tables_13_14
 
 log = logging.getLogger("catalogue_figures")
 MODEL = (Path(__file__).resolve().parents[1].parent / "shared" / "data" / "synthetic"
@@ -43,6 +57,54 @@ def _series(m: mdl.Model, exc: synth.Sine | synth.Hammer | None, fs: float, n: i
     return out, on[0]
 
 
+def check_figures() -> dict[str, Any]:
+    """Fig. 43-47 in kind: the linearity (10 tests, 12 / 7.2 N) and reciprocity (3 + 3 tests,
+    force at DOF 1 / 4) checks of the linear model L2 on clean and bumper data."""
+    m = declared()
+    figs = {}
+    for label, truth in (("without the bumper", synth.Truth()),
+                         ("with the bumper", synth.Truth(elements=(mc.BUMPER,), label="b"))):
+        recs = synth.generate(m, truth, n_tests=10, seed=21, fine=mc.FINE)
+        (lin,) = chk.run(m, recs, chk.parse(["linearity@acc4"], m, list(m.outputs)),
+                         "force_N")
+        sa, sb = synth.reciprocal(m, truth, 4, n_tests=3, levels_n_rms=(12.0,), seed=22,
+                                  fine=mc.FINE)
+        (rec,) = chk.run(m, sa, chk.parse(["reciprocity@acc4"], m, list(m.outputs)),
+                         "force_N", swapped=sb)
+        for o in (lin, rec):
+            figs[f"{o.check.kind} check {label} (Fig. 43-47 in kind). "
+                 f"{report._check_caption(o)}"] = report.plot_check(o)
+    return figs
+
+
+def _table_html(md: list[str]) -> str:
+    rows = [[c.strip() for c in r.strip("|").split("|")] for r in md if not r.startswith("|--")]
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in rows[0])
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>"
+                   for r in rows[1:])
+    return f"<table><tr>{head}</tr>{body}</table>"
+
+
+def write_html(path: Path, figs: dict[str, Any], tables: list[str]) -> None:
+    parts = ["<h1>dynval: the report's feature catalogue in kind (issue 19)</h1>",
+             f"<p>{html.escape(__doc__.split(chr(10) + chr(10))[0])}</p>",
+             ("<h2>Tables 13-14: modal frequencies and damping, EMA of ten records of models "
+              "L1 (zeta 1 %) and L2 (zeta2 5 %) against the numerical modes</h2>"),
+             _table_html(tables)]
+    for cap, fig in figs.items():
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+        b64 = base64.b64encode(buf.getvalue()).decode()
+        parts.append(f"<figure><img src=\"data:image/png;base64,{b64}\" alt=\""
+                     f"{html.escape(cap)}\"><figcaption>{html.escape(cap)}</figcaption>"
+                     "</figure>")
+    path.write_text("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>dynval "
+                    "catalogue</title><style>body{font-family:sans-serif;max-width:980px;"
+                    "margin:auto;padding:1em}table{border-collapse:collapse}td,th{border:1px "
+                    "solid #ccc;padding:2px 6px}img{max-width:100%}figcaption{font-size:90%;"
+                    "color:#444}</style></head><body>" + "\n".join(parts) + "</body></html>\n")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--model", type=Path, default=MODEL)
@@ -58,7 +120,8 @@ def main() -> None:
     hard_sine, onsets = _series(m, synth.Sine(54.0, lead_s=0.0), 2560.0, 8192, 7.0, hard)
     mh = dataclasses.replace(m, input=mdl.Input("force", 2, "force_N"))
     ham, _ = _series(mh, synth.Hammer(), 320.0, 1024, 300.0, bump)
-    figs = {"distribution (Fig. 28-29), random": plots.plot_distribution(rnd),
+    figs = {**check_figures(),
+            "distribution (Fig. 28-29), random": plots.plot_distribution(rnd),
             "decay (Fig. 32, 34), hammer": plots.plot_decay(ham["measured"], 320.0),
             "autocorrelation (Fig. 40), random": plots.plot_acf(rnd, 640.0, 256),
             "harmonic PSD (Fig. 49), 54 Hz": plots.plot_harmonics(sine, 2560.0),
@@ -73,7 +136,8 @@ def main() -> None:
         fig.savefig(a.out / name, dpi=100, bbox_inches="tight")
         lines += [f"## {cap}", "", f"![{cap}]({name})", ""]
     (a.out / "index.md").write_text("\n".join(lines))
-    log.info("wrote %d figures to %s", len(figs), a.out)
+    write_html(a.out / "catalogue.html", figs, tables_13_14(declared()))
+    log.info("wrote %d figures and %s", len(figs), a.out / "catalogue.html")
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@ from typing import Any
 from dynval.cli_common import (
     Progress,
     add_study_options,
+    read_tests,
     runner_for,
     study_inputs,
     write_study_reports,
@@ -26,6 +27,13 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--levels", type=int, default=3, help="factorial levels (%(default)s)")
     p.add_argument("--ref-test", type=int, default=0, metavar="I",
                    help="0-based test whose force drives the sweep and is the RMSE reference")
+    p.add_argument("--check", action="append", default=[], metavar="KIND@CH",
+                   help="the report's linearity / reciprocity check (5.3.1) on the tests and "
+                   "the model, part of the verdict (repeat): linearity@acc4 (the tests at two "
+                   "excitation levels), reciprocity@acc4 (needs --swapped)")
+    p.add_argument("--swapped", type=Path, nargs="+", default=[], metavar="TEST",
+                   help="reciprocity tests: the force at the DOF of the --check channel, the "
+                   "response at the model's input DOF")
     p.add_argument("--rank-against", type=Path, default=None, metavar="MODEL_B",
                    help="feature selection instead of a verdict: rank the --features "
                    "candidates by how well they tell --model from MODEL_B on these tests")
@@ -38,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
     from dynval.validate import verdict as vd
 
     m, recs, ranges = study_inputs(args)
+    swapped = read_tests(args.swapped, args, besides=args.model) if args.swapped else []
     if args.rank_against is not None:
         return _rank(args, m, recs)
     with runner_for(args) as rn, Progress(args) as bars:
@@ -45,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
                                   design=args.doe, ref_test=args.ref_test,
                                   rmse_channels=args.rmse_channel, seed=args.seed,
                                   levels=args.levels, shrink=args.shrink, noise=args.noise,
-                                  level=args.level, runner=rn, progress=bars.stage)
+                                  level=args.level, checks=args.check, swapped=swapped,
+                                  runner=rn, progress=bars.stage)
     write_study_reports(args, res, art)
     v = res["verdict"]
     print(vd.headline(v, res["model"]))

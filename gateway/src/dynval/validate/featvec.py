@@ -19,7 +19,8 @@ suffix (``acc3``). ``NAME`` is one of:
   report's 64 segments, Fig. 86), by dv_moments on each segment (equal to dv_segstd);
 * ``ar_rms`` / ``ar_rms<p>``: RMS of the one-step AR(p) residual (eq. 31, default p = 30,
   Burg) under a reference AR model fitted by the C core to the first baseline test of that
-  channel (FeatureSet.fit_reference); without a reference, to the record itself;
+  channel (FeatureSet.fit_reference; that test itself under the second test's); without a
+  reference, to the record itself;
 * input/output (the input channel is read too, FeatureSet.with_input; the band is where the
   first baseline test's input holds 98 % of its power): ``coh`` the band-mean coherence of
   the channel to the input (5.3.1, Hann 1024 / 50 %); ``modal_f<N>``, ``modal_zeta<N>``,
@@ -29,7 +30,8 @@ suffix (``acc3``). ``NAME`` is one of:
 * the waveform and spectral catalogue (dynval.catalogue.signal_terms: ``ks ad d10 decay
   decay_y0 acf_corr harm_n thd srs_peak srs_rms cep_env holder_drops holder_min``); ``ks``,
   ``ad``, ``acf_corr``, ``srs_*`` and ``cep_env`` compare the record with the first baseline
-  test of that channel (FeatureSet.fit_reference).
+  test of that channel (FeatureSet.fit_reference), and that test itself with the second
+  (its comparison with itself would be 0 measured against the model's nonzero value).
 
 Examples: ``peak,std@acc3,acc4``; ``segstd64@acc4``; ``tm_E,tm_T@acc2 + ar_rms@acc4``;
 ``modal_f3,modal_zeta3@acc1,acc2,acc3,acc4 + coh@acc4``.
@@ -103,6 +105,9 @@ class FeatureSet:
     modal_ref: Mapping[tuple[tuple[str, ...], int], _modal.Modes] = field(
         default_factory=dict, compare=False)  # (channels, N) -> the first test's modes
     ref_data: Mapping[str, np.ndarray] = field(default_factory=dict, compare=False)
+    # the second baseline test's: the reference of the reference test itself (see _ref)
+    alt_data: Mapping[str, np.ndarray] = field(default_factory=dict, compare=False)
+    ar_alt: Mapping[tuple[str, int], _ar.ARModel] = field(default_factory=dict, compare=False)
 
     @property
     def channels(self) -> list[str]:
@@ -158,17 +163,24 @@ class FeatureSet:
                     out += [(c, p) for c in t.channels if (c, p) not in out]
         return out
 
-    def fit_reference(self, data: Mapping[str, np.ndarray], fs_hz: float = 0.0
-                      ) -> FeatureSet:
+    def fit_reference(self, data: Mapping[str, np.ndarray], fs_hz: float = 0.0,
+                      alt: Mapping[str, np.ndarray] | None = None) -> FeatureSet:
         """Fit the AR reference models (ar_rms) to one baseline record (channel -> samples),
         keep its channels the catalogue's comparing names read, and for the input/output
-        features find the band and the reference modes (modal_mac)."""
+        features find the band and the reference modes (modal_mac). alt: another baseline
+        record, the reference of this one (without it, the reference record's comparing
+        features compare it with itself: 0 measured against a model's noisy nonzero value, a
+        bias that made a right model fail too often)."""
         ref = {(c, p): _ar.burg(data[c], p) for c, p in self.needs_ar()}
-        keep = {c: data[c] for t in self.terms for n in t.names for c in t.channels
-                if n in _cat.TERMS and _cat.TERMS[n].ref}
+        chans = {c for t in self.terms for n in t.names for c in t.channels
+                 if (n in _cat.TERMS and _cat.TERMS[n].ref) or _AR.match(n)}
+        keep = {c: data[c] for c in chans}
+        alt_keep = {c: alt[c] for c in chans} if alt is not None else {}
+        ar_alt = ({(c, p): _ar.burg(alt[c], p) for c, p in self.needs_ar()}
+                  if alt is not None else {})
         io = [t for t in self.terms if any(n == "coh" or _MODAL.match(n) for n in t.names)]
         if not io:
-            return replace(self, ar_ref=ref, ref_data=keep)
+            return replace(self, ar_ref=ref, ref_data=keep, alt_data=alt_keep, ar_alt=ar_alt)
         u = self._input(data)
         if not fs_hz > 0:
             raise ConfigError("fit_reference: coh and modal_* need the sampling rate")
@@ -182,7 +194,14 @@ class FeatureSet:
                                       f"baseline test shows fewer than {n} stable modes in "
                                       f"{band[0]:g}-{band[1]:g} Hz")
                 mref[(t.channels, n)] = modes
-        return replace(self, ar_ref=ref, ref_data=keep, band_hz=band, modal_ref=mref)
+        return replace(self, ar_ref=ref, ref_data=keep, band_hz=band, modal_ref=mref,
+                       alt_data=alt_keep, ar_alt=ar_alt)
+
+    def _is_ref(self, c: str, x: np.ndarray) -> bool:
+        """x is the reference record's channel c itself (then alt_data is its reference)."""
+        r = self.ref_data.get(c)
+        return (c in self.alt_data and r is not None and r.shape == x.shape
+                and bool(np.array_equal(r, x)))
 
     def with_input(self, channel: str) -> FeatureSet:
         """The input channel (the force) the input/output features read."""
@@ -242,7 +261,9 @@ class FeatureSet:
                         if _cat.TERMS[name].ref and c not in self.ref_data:
                             raise ConfigError(f"feature '{name}@{c}' compares with a reference "
                                               "record: FeatureSet.fit_reference first")
-                        out.append(_cat.TERMS[name].value(x, fs_hz, self.ref_data.get(c, x)))
+                        ref = (self.alt_data[c] if self._is_ref(c, x)
+                               else self.ref_data.get(c, x))
+                        out.append(_cat.TERMS[name].value(x, fs_hz, ref))
                         continue
                     if name in BASIC or name in TEMPORAL:
                         if c not in cache:
@@ -263,7 +284,8 @@ class FeatureSet:
                     g = _AR.match(name)
                     if g is not None:
                         p = int(g.group(1) or AR_DEFAULT_ORDER)
-                        mdl = self.ar_ref.get((c, p)) or _ar.burg(x, p)
+                        mdl = ((self.ar_alt.get((c, p)) if self._is_ref(c, x) else None)
+                               or self.ar_ref.get((c, p)) or _ar.burg(x, p))
                         e = _ar.ar_residual(mdl, x)
                         out.append(float(np.sqrt(np.mean(e * e))) if e.size else float("nan"))
         return np.asarray(out, dtype=np.float64)

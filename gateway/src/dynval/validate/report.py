@@ -314,6 +314,7 @@ def _catalogue_figures(a: Artifacts, test: str) -> list[tuple[str, str]]:
         what = "; ".join(f"{n}: {signal_terms.TERMS[n].doc}" for n in names)
         out.append((f"{what}{test}, {lab.short}",
                     _png(draw(series, a.fs_hz, lab.unit_text))))
+    out += [(_check_caption(o), _png(plot_check(o))) for o in a.checks]
     io = [n for n in dict.fromkeys(a.feature_names) if n == "coh" or n.startswith("modal_")]
     if io and a.overlay_input is not None:
         out.append((f"FRF (H1) and coherence to the input ({', '.join(io)}: 5.1, 5.3.1; "
@@ -321,6 +322,27 @@ def _catalogue_figures(a: Artifacts, test: str) -> list[tuple[str, str]]:
                     "simulation drawn without the sensor noise its features carry",
                     _png(plot_frf(a, series, lab))))
     return out
+
+
+def _check_caption(o: Any) -> str:
+    s = o.summary()
+    mo = s["model"]
+    return (f"{s['check'].capitalize()} check (5.3.1): H1 and coherence of "
+            f"{s['groups'][0]} against {s['groups'][1]}, measured (black, grey) and the model "
+            f"driven by the same forces with the same sensor noise (purple, pink); title: the "
+            f"tests' scalars; the model's: z2(H1) {mo['z2']:.2f}, z2(coherence) "
+            f"{mo['z2_coh']:.2f} ({'holds' if mo['holds'] else 'fails'}); {s['meaning']}")
+
+
+def plot_check(o: Any) -> Any:
+    """A linearity / reciprocity check: both groups' H1 and coherence, tests and model."""
+    from dynval.catalogue import modal_plots
+
+    (ma, mb), (sa, sb) = o.frfs["measured"], o.frfs["model"]
+    la, lb_ = o.labels
+    curves = [(f"tests: {la}", ma, 0, plot.MEASURED), (f"tests: {lb_}", mb, 0, plot.NEUTRAL),
+              (f"model: {la}", sa, 0, plot.MODEL), (f"model: {lb_}", sb, 0, "tab:pink")]
+    return modal_plots.plot_frf(curves, o.measured.band_hz, o.measured)
 
 
 def plot_frf(a: Artifacts, series: dict[str, np.ndarray], lab: lb.ChannelLabel) -> Any:
@@ -358,6 +380,17 @@ def _summary_html(res: dict[str, Any]) -> str:
         what = ("held-out check of the calibrated model" if res.get("kind") == "calibrate"
                 else "")
         parts.append(_verdict_html(res["verdict"], res.get("model", ""), what))
+    if res.get("checks"):
+        parts.append("<h3>Linearity and reciprocity checks (z2 limit "
+                     f"{res['checks'][0]['limit']:g})</h3>" + _table(
+                         [[c["check"], c["channel"], " vs ".join(c["groups"]),
+                           f"{c['band_hz'][0]:g}-{c['band_hz'][1]:g}",
+                           c["measured"]["z2"], c["measured"]["z2_coh"], c["model"]["z2"],
+                           c["model"]["z2_coh"], "yes" if c["consistent"] else "NO"]
+                          for c in res["checks"]],
+                         ["check", "channel", "groups", "band (Hz)", "tests z2(H1)",
+                          "tests z2(coh)", "model z2(H1)", "model z2(coh)",
+                          "model reproduces it"]))
     if "doe" in res:
         d = res["doe"]
         parts.append(f"<p>DOE: {d['design']} with {d['runs']} runs driven by {d['ref_test']}; "

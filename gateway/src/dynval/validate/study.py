@@ -20,6 +20,7 @@ from dynval import model as mdl
 from dynval.errors import ConfigError
 from dynval.io.recording import Recording
 from dynval.validate import calibrate as cal
+from dynval.validate import checks as chk
 from dynval.validate import doe
 from dynval.validate import mahalanobis as mh
 from dynval.validate import measurement as meas
@@ -83,7 +84,8 @@ def setup(m: mdl.Model, recs: Sequence[Recording], spec: str,
                                                  for c in r.channels]) for r in recs]
     avail = [c for c in recs[0].names if c in m.outputs]
     inp = mdl.input_channel(m, recs[0])
-    fset = parse(spec).resolve(avail).with_input(inp).fit_reference(_data(recs[0]), fs)
+    fset = parse(spec).resolve(avail).with_input(inp).fit_reference(_data(recs[0]), fs,
+                                                                    _data(recs[1]))
     rc = list(rmse_channels) if rmse_channels else fset.channels
     rc = parse("rms@" + ",".join(rc)).resolve(avail).channels
     nz = meas.noise_levels(noise, m, recs, fset.channels, inp)
@@ -166,6 +168,7 @@ class Artifacts:
     overlay_test: str = ""
     feature_names: list[str] = field(default_factory=list)  # the spec's, for their figures
     overlay_input: np.ndarray | None = None  # the overlay test's input (FRF figures)
+    checks: list[chk.Outcome] = field(default_factory=list)  # linearity / reciprocity
     input_unit: str = "N"
 
 
@@ -189,11 +192,16 @@ def validate(m: mdl.Model, recs: Sequence[Recording], spec: str,
              ranges: Sequence[doe.ParamRange] = (), *, runs: int = 200, design: str = "lhs",
              ref_test: int = 0, rmse_channels: Sequence[str] | None = None, seed: int = 0,
              levels: int = 3, shrink: str = "auto", noise: str = "auto", level: float = 0.95,
+             checks: Sequence[str] = (), swapped: Sequence[Recording] = (),
              runner: doe.Runner | None = None, progress: ProgressFactory = _no_progress
              ) -> tuple[dict[str, Any], Artifacts]:
-    """Validation of m against the tests (one verdict: verdict.decide), with an optional DOE
-    over ranges."""
+    """Validation of m against the tests (one verdict: verdict.decide, joined by the
+    linearity / reciprocity checks of validate.checks; swapped: the reciprocity check's
+    tests), with an optional DOE over ranges."""
     s = setup(m, recs, spec, rmse_channels, noise)
+    outcomes = chk.run(m, s.recs, chk.parse(checks, m, [c for c in s.recs[0].names
+                                                        if c in m.outputs]),
+                       s.input_channel, noise, swapped)
     x_exp = experiment_features(s, s.recs)
     base = mh.fit(x_exp, s.features.labels(), shrink=shrink, level=level)
     f_nom, r_nom, preds = _model_on_tests(s, m, s.recs)
@@ -205,7 +213,11 @@ def validate(m: mdl.Model, recs: Sequence[Recording], spec: str,
         "features": {"spec": spec, "labels": s.features.labels()},
         "simulation": _sim_summary(s), "baseline": base.summary(),
         "verdict": check["verdict"], "nominal": check, "rmse_channels": s.rmse_channels}
-    art = Artifacts(s.fs_hz, d_exp=base.baseline_d, threshold=base.threshold, d_model=d_nom)
+    if outcomes:
+        res["checks"] = [o.summary() for o in outcomes]
+        res["verdict"] = check["verdict"] = vd.with_checks(check["verdict"], res["checks"])
+    art = Artifacts(s.fs_hz, d_exp=base.baseline_d, threshold=base.threshold, d_model=d_nom,
+                    checks=outcomes)
     ref = s.recs[ref_test] if 0 <= ref_test < len(s.recs) else None
     if ref is None:
         raise ConfigError(f"--ref-test {ref_test}: there are {len(s.recs)} tests (0-based)")

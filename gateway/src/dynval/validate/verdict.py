@@ -53,6 +53,20 @@ def decide(paired: PairedTest, mahalanobis: dict[str, Any]) -> dict[str, Any]:
                          "mahalanobis": {"role": ROLE_MAHALANOBIS, **mahalanobis}}}
 
 
+def with_checks(v: dict[str, Any], checks: list[dict[str, Any]]) -> dict[str, Any]:
+    """The verdict with the linearity / reciprocity checks (validate.checks) as evidence: a
+    check the model does not reproduce (it holds on one side, fails on the other) makes it a
+    FAIL whatever the paired test says."""
+    if not checks:
+        return v
+    bad = [c["meaning"] for c in checks if not c["consistent"]]
+    out = {**v, "evidence": {**v["evidence"], "checks": checks}}
+    if bad:
+        out.update(verdict="FAIL", exit_code=EXIT["FAIL"],
+                   meaning="; ".join(bad) + f" (and the paired test: {v['verdict']})")
+    return out
+
+
 def headline(v: dict[str, Any], model: str) -> str:
     """The one line the CLI prints and the HTML report heads with."""
     return f"{v['verdict']}: model {model}: {v['meaning']}"
@@ -74,7 +88,11 @@ def evidence_lines(v: dict[str, Any]) -> list[str]:
             f"  Mahalanobis eq. 41: median D {mh['median_d']:.4g} vs {mh['threshold_kind']} "
             f"95 % limit {mh['threshold']:.4g} ({100 * mh['fraction_within']:.0f} % of tests "
             f"within) - {mh['role']}",
-            f"  together: {agreement(v)}"]
+            f"  together: {agreement(v)}",
+            *(f"  {c['check']} check @{c['channel']} (z2 of H1 / coherence, limit "
+              f"{c['limit']:g}): tests {c['measured']['z2']:.3g} / {c['measured']['z2_coh']:.3g}"
+              f", model {c['model']['z2']:.3g} / {c['model']['z2_coh']:.3g} - {c['meaning']}"
+              for c in v["evidence"].get("checks", ()))]
 
 
 def agreement(v: dict[str, Any]) -> str:
