@@ -244,7 +244,9 @@ static int run(struct sim_ctx *x)
     return 0;
 }
 
-int main(int argc, char **argv)
+/* The command line into x and cfg: -1 to go on, else the exit status (--help: 0; a bad
+ * option, value or configuration: EXIT_USAGE, said on stderr). */
+static int parse_args(int argc, char **argv, struct sim_ctx *x, struct sim_config *cfg)
 {
     static const struct option opts[] = {
         {"iface", required_argument, NULL, 'i'},   {"port", required_argument, NULL, 'p'},
@@ -257,16 +259,10 @@ int main(int argc, char **argv)
         {"force-chan", required_argument, NULL, 'F'},
         {"resid-decim", required_argument, NULL, 'd'}, {"model", required_argument, NULL, 'm'},
         {"help", no_argument, NULL, 'h'},          {NULL, 0, NULL, 0}};
-    struct sim_ctx *x = calloc(1, sizeof *x);
-    if (x == NULL) {
-        fprintf(stderr, "firmware_sim: out of memory\n");
-        return 1;
-    }
     x->ifname = "vcan0";
     x->mb_addr = "127.0.0.1";
     x->mb_port = 1502;
-    struct sim_config cfg;
-    sim_config_default(&cfg);
+    sim_config_default(cfg);
     uint16_t port = 1502, fs = 640;
     int c;
     while ((c = getopt_long(argc, argv, "i:p:a:l:r:c:w:s:n:f:H:A:o:F:d:m:vh", opts, NULL)) != -1) {
@@ -277,44 +273,57 @@ int main(int argc, char **argv)
         case 'a': x->mb_addr = optarg; break;
         case 'l': x->log_path = optarg; break;
         case 'r': x->replay = optarg; break;
-        case 'c': bad = parse_u16(optarg, 1, SIM_MAX_CHAN, &cfg.n_chan); break;
-        case 'w': bad = parse_u16(optarg, 2, 65535, &cfg.win_len); break;
-        case 's': bad = parse_u16(optarg, 2, 65535, &cfg.seg_len); break;
-        case 'n': bad = parse_u16(optarg, 1, 4096, &cfg.n_seg); break;
+        case 'c': bad = parse_u16(optarg, 1, SIM_MAX_CHAN, &cfg->n_chan); break;
+        case 'w': bad = parse_u16(optarg, 2, 65535, &cfg->win_len); break;
+        case 's': bad = parse_u16(optarg, 2, 65535, &cfg->seg_len); break;
+        case 'n': bad = parse_u16(optarg, 1, 4096, &cfg->n_seg); break;
         case 'f': bad = parse_u16(optarg, 1, 65535, &fs); break;
-        case 'H': bad = parse_u16(optarg, 0, 65535, &cfg.heartbeat_ms); break;
-        case 'A': bad = parse_u16(optarg, 0, 32, &cfg.ar_order); break;
-        case 'o': bad = parse_u16(optarg, 0, 65535, &cfg.outlier_x100); break;
-        case 'F': bad = parse_u16(optarg, 0, SIM_MAX_CHAN - 1, &cfg.force_chan); break;
-        case 'd': bad = parse_u16(optarg, 0, 65535, &cfg.resid_decim); break;
-        case 'm': bad = parse_model(optarg, cfg.model); break;
+        case 'H': bad = parse_u16(optarg, 0, 65535, &cfg->heartbeat_ms); break;
+        case 'A': bad = parse_u16(optarg, 0, 32, &cfg->ar_order); break;
+        case 'o': bad = parse_u16(optarg, 0, 65535, &cfg->outlier_x100); break;
+        case 'F': bad = parse_u16(optarg, 0, SIM_MAX_CHAN - 1, &cfg->force_chan); break;
+        case 'd': bad = parse_u16(optarg, 0, 65535, &cfg->resid_decim); break;
+        case 'm': bad = parse_model(optarg, cfg->model); break;
         case 'v': x->verbose = 1; break;
-        case 'h': usage(argv[0]); free(x); return 0;
-        default: usage(argv[0]); free(x); return EXIT_USAGE;
+        case 'h': usage(argv[0]); return 0;
+        default: usage(argv[0]); return EXIT_USAGE;
         }
         if (bad) {
             fprintf(stderr, "firmware_sim: bad value '%s' for -%c\n", optarg, c);
             usage(argv[0]);
-            free(x);
             return EXIT_USAGE;
         }
     }
     if (optind != argc) {
         fprintf(stderr, "firmware_sim: unexpected argument '%s'\n", argv[optind]);
         usage(argv[0]);
-        free(x);
         return EXIT_USAGE;
     }
     x->mb_port = port;
     for (int i = 0; i < SIM_MAX_CHAN; i++) {
-        cfg.fs_hz[i] = fs;
+        cfg->fs_hz[i] = fs;
     }
-    const int bad_reg = sim_config_check(&cfg);
+    const int bad_reg = sim_config_check(cfg);
     if (bad_reg >= 0) {
         fprintf(stderr, "firmware_sim: bad configuration (holding register %d)\n", bad_reg);
         usage(argv[0]);
-        free(x);
         return EXIT_USAGE;
+    }
+    return -1;
+}
+
+int main(int argc, char **argv)
+{
+    struct sim_ctx *x = calloc(1, sizeof *x);
+    if (x == NULL) {
+        fprintf(stderr, "firmware_sim: out of memory\n");
+        return 1;
+    }
+    struct sim_config cfg;
+    const int parsed = parse_args(argc, argv, x, &cfg);
+    if (parsed >= 0) {
+        free(x);
+        return parsed;
     }
     if (sim_core_init(&x->core, &cfg) != 0) {
         fprintf(stderr, "firmware_sim: out of memory\n");

@@ -7,6 +7,7 @@
 #define DV_ELEM_LAW_H
 
 #include "dynval/dv_elem.h"
+#include "dynval/dv_model.h" /* DV_GROUND */
 #include "dv_priv.h"
 
 /* The law sits in the observer's per-step loop: forced inline (-Os would call it). */
@@ -68,6 +69,21 @@ DV_ELEM_INLINE dv_real_t dv_priv_gap_g(int side, dv_real_t gap, dv_real_t delta,
 DV_ELEM_INLINE bool dv_priv_elem_on_velocity(dv_elem_law_t law)
 {
     return law == DV_ELEM_FRICTION || law == DV_ELEM_VV;
+}
+
+/* Where an element's argument starts in a state-like vector (2 n: displacements, then
+ * velocities): X = x_b - x_a, or V = v_b - v_a for the velocity laws (rows n..2n). */
+DV_ELEM_INLINE size_t dv_priv_elem_arg_off(const dv_elem_desc_t *c, size_t n)
+{
+    return dv_priv_elem_on_velocity(c->law) ? n : 0u;
+}
+
+/* The element's argument from z: x_b - x_a (or v_b - v_a); the ground's entry is 0. */
+DV_ELEM_INLINE dv_real_t dv_priv_elem_arg(const dv_elem_desc_t *c, const dv_real_t *z, size_t n)
+{
+    const size_t o = dv_priv_elem_arg_off(c, n);
+    const dv_real_t za = c->dof_a == (uint16_t)DV_GROUND ? DV_R(0.0) : z[o + c->dof_a];
+    return z[o + c->dof_b] - za;
 }
 
 /* The memoryless law g(x) (stick-slip: its virgin curve; x is V for the velocity laws). */

@@ -101,20 +101,6 @@ static void begin_build(struct build *bd, const dv_model_desc_t *d, dv_model_t *
     s->rest = s->zb_next + ns;
 }
 
-/* The element's argument from a state-like vector z (2n): X = x_b - x_a, or V = v_b - v_a
- * for the velocity laws (rows n..2n). */
-static size_t cx_off(const dv_elem_desc_t *e, size_t n)
-{
-    return dv_priv_elem_on_velocity(e->law) ? n : 0u;
-}
-
-static dv_real_t cx_dot(const dv_elem_desc_t *e, const dv_real_t *z, size_t n)
-{
-    const size_t o = cx_off(e, n);
-    const dv_real_t za = e->dof_a == (uint16_t)DV_GROUND ? DV_R(0.0) : z[o + e->dof_a];
-    return z[o + e->dof_b] - za;
-}
-
 /* ---- the linear model and its input holds ------------------------------------------------ */
 
 /* Adds a coupling v between DOFs a and b to the n x n matrix z (a spring or a dashpot). */
@@ -553,7 +539,7 @@ static void subnode_from_state(const struct build *bd)
         for (size_t j = 0; j < ns; j++) {
             row[j] = DV_R(0.0);
         }
-        const size_t off = cx_off(&m->elem[e], n);
+        const size_t off = dv_priv_elem_arg_off(&m->elem[e], n);
         if (m->elem[e].dof_a != (uint16_t)DV_GROUND) {
             row[off + m->elem[e].dof_a] = DV_R(-1.0);
         }
@@ -597,11 +583,11 @@ static void subnode_from_input(const struct build *bd)
             const size_t f = i * nc + e;
             if (dv_priv_elem_on_velocity(m->elem[e].law)) {
                 /* V sees the ground velocity u' = (u[k+1] - u[k]) / T of the linear hold */
-                m->rxa[f] = cx_dot(&m->elem[e], za, n) - m->elem_dx[e] / dt_s;
-                m->rxb[f] = cx_dot(&m->elem[e], zb, n) + m->elem_dx[e] / dt_s;
+                m->rxa[f] = dv_priv_elem_arg(&m->elem[e], za, n) - m->elem_dx[e] / dt_s;
+                m->rxb[f] = dv_priv_elem_arg(&m->elem[e], zb, n) + m->elem_dx[e] / dt_s;
             } else {
-                m->rxa[f] = cx_dot(&m->elem[e], za, n) + m->elem_dx[e] * (DV_R(1.0) - fi);
-                m->rxb[f] = cx_dot(&m->elem[e], zb, n) + m->elem_dx[e] * fi;
+                m->rxa[f] = dv_priv_elem_arg(&m->elem[e], za, n) + m->elem_dx[e] * (DV_R(1.0) - fi);
+                m->rxb[f] = dv_priv_elem_arg(&m->elem[e], zb, n) + m->elem_dx[e] * fi;
             }
         }
         if (i == nsub) {
@@ -659,7 +645,7 @@ static dv_status_t subnode_from_cubic(const struct build *bd)
                 const dv_real_t ud =
                     (cu[1] + si * (DV_R(2.0) * cu[2] + DV_R(3.0) * si * cu[3])) / dt_s;
                 m->rxu[f * DV_PRIV_CUBIC_NIN + j] =
-                    cx_dot(&m->elem[e], za, n) +
+                    dv_priv_elem_arg(&m->elem[e], za, n) +
                     m->elem_dx[e] * (dv_priv_elem_on_velocity(m->elem[e].law) ? ud : ui);
             }
             if (i == nsub) {
@@ -729,7 +715,7 @@ static void subnode_from_forces(const struct build *bd)
                     z[r] = s->za_next[r];
                 }
                 for (size_t e = 0; e < nc; e++) {
-                    m->smat[(i * nc + e) * nf + col] = cx_dot(&m->elem[e], z, n);
+                    m->smat[(i * nc + e) * nf + col] = dv_priv_elem_arg(&m->elem[e], z, n);
                 }
             }
             for (size_t r = 0; r < ns; r++) {

@@ -1,6 +1,6 @@
 /* Fixed-step observer, the API: storage sizes, init (the layout of the caller's buffer),
  * the folded step matrix and gain, reset, a step's dispatch, and reading results. The steps
- * themselves are in dv_obs_step.c, the contact forces in dv_obs_contact.c, the Kalman gain in
+ * themselves are in dv_obs_step.c, the element forces in dv_obs_elem.c, the Kalman gain in
  * dv_obs_gain.c, the modal form in dv_obs_modal.c and the vector kernels in dv_obskern.c. */
 #include "dv_obs_priv.h"
 #include "dv_obskern.h"

@@ -9,7 +9,7 @@
  * multiply-adds for the state instead of eight), which halves the step. With a gap element the
  * contact's sub-node X rows are rewritten over q too (struct dv_obs_modal rx), and a step that
  * finds the element open at every node is the linear modal step (its force columns skipped, as
- * in all_open(), dv_obs_contact.c); a step that engages it runs the node chain and the dense
+ * in all_open(), dv_obs_elem.c); a step that engages it runs the node chain and the dense
  * product on the same q-coordinate rows. x = T q is formed only when asked for
  * (dv_obs_get_state()). The eigenvalues come from dv_mat_eig_real(), each pair's vectors from
  * inverse iteration; F keeps the dense form when T is ill-conditioned (a repeated

@@ -2,7 +2,7 @@
  *   dv_obs.c          the API: sizes, init, gain, reset, dispatch of a step, get
  *   dv_obs_step.c     the portable step paths (first sample, general, direct 8 x 4), the
  *                     block API (dv_obs_update_block(), dv_obs_simulate())
- *   dv_obs_contact.c  the contact elements' sub-node forces of a step
+ *   dv_obs_elem.c     the elements' sub-node forces of a step
  *   dv_obs_gain.c     the steady-state Kalman gain (DARE)
  *   dv_obs_modal.c    the modal form of the 8 x 4 step (x86-64 double)
  *   dv_obskern.c      the AVX2 / AVX-512 step kernels (dv_obskern.h)
@@ -107,13 +107,13 @@ bool dv_priv_obs_noise_ok(const dv_model_t *m, const dv_obs_noise_t *noise);
 bool dv_priv_obs_make_modal(dv_obs_t *o, dv_real_t *x);
 #endif
 
-/* Sub-node contact forces into sv[ns + nin ..] from the state and input window in sv; true when
- * every force is zero because every element stays open (dv_obs_contact.c). */
-bool dv_priv_obs_contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns);
+/* Sub-node element forces into sv[ns + nin ..] from the state and input window in sv; true when
+ * every force is zero because every element stays open (dv_obs_elem.c). */
+bool dv_priv_obs_elem_forces(dv_obs_t *o, dv_real_t *sv, size_t ns);
 
 /* The first sample with the cubic hold: each element's force (n_elem into g) from the state at
  * t0 directly, the input window [0, 0, u[0], u[1]], the element history at rest
- * (dv_obs_contact.c). */
+ * (dv_obs_elem.c). */
 void dv_priv_obs_first_forces_cubic(const dv_obs_t *o, dv_real_t *g);
 
 /* dv_obs_step() without the modal step: the direct path when it applies, else the general one

@@ -25,7 +25,7 @@ static void kernel(size_t ns, size_t no, size_t nin, size_t ny,
     const dv_real_t *restrict in = sv + ns;
     const dv_real_t *restrict fxi = fx + ns * ns;
     const dv_real_t *restrict fyi = fy + no * ns;
-    /* inputs (u[k-1], u[k], contact forces, measurements): off the state chain */
+    /* inputs (u[k-1], u[k], element forces, measurements): off the state chain */
     for (size_t r = 0; r < ns; r++) {
         a[r] = fxi[r] * in[0];
     }
@@ -141,7 +141,7 @@ static void colsum4(size_t ncol, const dv_real_t *restrict f, const dv_real_t *r
  * regular step folded in: sv[0..8) is overwritten by the new state, yo gets the prediction and,
  * with y (4 finite measurements, used for the correction when ny = 4), resid = y - yo. The
  * first nin input columns are used; the measurement columns start at input column iy >= nin
- * (the contact-force columns between are skipped when every force is zero). */
+ * (the element-force columns between are skipped when every force is zero). */
 OBS_NO_LOOP_VEC
 static void kernel_8x4_c(size_t nin, size_t iy, size_t ny, const dv_real_t *restrict fx,
                        const dv_real_t *restrict fy, dv_real_t *restrict sv,
@@ -175,7 +175,7 @@ static void kernel_8x4_c(size_t nin, size_t iy, size_t ny, const dv_real_t *rest
 }
 
 /* kernel_8x4_c(), or its AVX2 + FMA form when the CPU has it (chosen at init, o->kern). The
- * measurement columns start at input column iy: nin, or 2 + nf in a contact step whose forces
+ * measurement columns start at input column iy: nin, or 2 + nf in an element step whose forces
  * are all zero (nin = 2: the input window's columns only, the force columns skipped). */
 static inline void kernel_8x4(const dv_obs_t *o, size_t nin, size_t iy, size_t ny,
                               const dv_real_t *fx, const dv_real_t *fy, dv_real_t *sv,
@@ -237,7 +237,7 @@ static void step_first(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool correc
     dv_real_t *yhat = o->z + ns;
     sv[ns] = u;
     if (o->nf > 0u) {
-        dv_priv_obs_contact_forces(o, sv, ns); /* every node sees the same state: use node 0 */
+        dv_priv_obs_elem_forces(o, sv, ns); /* every node sees the same state: use node 0 */
     }
     for (size_t q = 0; q < no; q++) {
         dv_real_t s = (m->d0[q] + m->d1[q]) * u;
@@ -253,7 +253,7 @@ static void step_first(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool correc
 }
 
 /* First sample (cubic hold): the state is at t0 (at rest); the window is [0, 0, u[0], u[1]].
- * Output only (contact forces from the state at t0 directly), then correct. */
+ * Output only (element forces from the state at t0 directly), then correct. */
 static void step_first_cubic(dv_obs_t *o, const dv_real_t *y, bool correct)
 {
     const dv_model_t *m = o->m;
@@ -318,7 +318,7 @@ static void produce(dv_obs_t *o, const dv_real_t *y, uint32_t flags, bool use_ga
         return;
     }
     if (nf > 0u) {
-        dv_priv_obs_contact_forces(o, sv, ns);
+        dv_priv_obs_elem_forces(o, sv, ns);
     }
     /* the measurements the state rows see: y (correction), nothing (no gain folded), or the
      * prediction itself when a gain is folded but this step is open loop (x+ = x- + L (yhat -
@@ -401,18 +401,18 @@ static dv_status_t step(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool use_g
     return (flags & DV_OBS_FLAG_BAD_MEAS) != 0u ? DV_ENUMERIC : DV_OK;
 }
 
-/* fast_step()'s product with contact elements: the forces, then the step with their columns,
+/* fast_step()'s product with elements: the forces, then the step with their columns,
  * or without them when every force is zero (the element open). Out of line: the linear fast
  * step then needs no saved registers. */
 #if defined(__GNUC__) || defined(__clang__)
 __attribute__((noinline))
 #endif
-static void contact_step_8x4(dv_obs_t *o, const dv_real_t *y)
+static void elem_step_8x4(dv_obs_t *o, const dv_real_t *y)
 {
     dv_real_t *sv = o->sv;
     const size_t ny = o->has_gain ? 4u : 0u;
     const dv_real_t *fy = o->f + DV_OBS8_NS * (size_t)o->ncol_gain;
-    const bool open = dv_priv_obs_contact_forces(o, sv, 8u);
+    const bool open = dv_priv_obs_elem_forces(o, sv, 8u);
     const size_t nfc = open ? 0u : o->nf;
     o->contact_hot = !open;
     kernel_8x4(o, 2u + nfc, 2u + o->nf, ny, o->f, fy, sv, y, o->z + DV_OBS8_NS, o->resid);
@@ -434,7 +434,7 @@ static inline bool fast_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y)
     dv_real_t *sv = o->sv;
     sv[DV_OBS8_COL_UPREV + 1] = u; /* u[k] */
     if (o->nf > 0u) {
-        contact_step_8x4(o, y);
+        elem_step_8x4(o, y);
     } else {
         kernel_8x4(o, 2u, 2u, o->has_gain ? 4u : 0u, o->f,
                    o->f + DV_OBS8_NS * (size_t)o->ncol_gain, sv, y, o->z + DV_OBS8_NS, o->resid);
@@ -457,7 +457,7 @@ dv_status_t dv_priv_obs_step_slow(dv_obs_t *o, dv_real_t u, const dv_real_t *y_m
 }
 
 /* Complete the pending sample (cubic) with an extrapolated next input; the state, window and
- * contact slots are restored afterwards. */
+ * element-force slots are restored afterwards. */
 dv_status_t dv_priv_obs_flush(dv_obs_t *o, bool use_gain)
 {
     if (o->nin != 4u || o->n_steps == 0u) {

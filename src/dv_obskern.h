@@ -20,7 +20,7 @@ void dv_priv_obs_kern8x4_open_avx2(size_t iy, size_t ny, const dv_real_t *fx,
                                    const dv_real_t *fy, dv_real_t *sv, const dv_real_t *y,
                                    dv_real_t *yo, dv_real_t *resid);
 
-/* The force-free X at every contact sub-node (dv_obs_contact.c nodes_x_free(), first-order hold):
+/* The force-free X at every element sub-node (dv_obs_elem.c nodes_x_free(), first-order hold):
  * xl = R [x; u[k-1]; u[k]], the vector = sv[0 .. ns + 2), node f of column j of R at
  * rx[(f / 8) bs + j cs + f % 8]: the model's column-major rows (bs 8, cs nf) or the modal form's
  * blocks of 8 nodes (struct dv_obs_modal rx: bs 80, cs 8). */

@@ -131,7 +131,7 @@ typedef struct {
     const dv_model_t *m; /**< the model (must outlive the observer) */
     uint16_t ns;         /**< states */
     uint16_t no;         /**< outputs */
-    uint16_t nf;         /**< sub-node contact forces */
+    uint16_t nf;         /**< sub-node element forces */
     uint16_t nrows;      /**< ns + no: rows of the folded matrix */
     uint16_t nin;        /**< input samples in the state vector: 2 (FOH) or 4 (cubic) */
     uint16_t ncol_open;  /**< ns + nin + nf */

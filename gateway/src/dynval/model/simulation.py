@@ -106,9 +106,16 @@ def damping_matrix_explicit(m: Model) -> np.ndarray:
     if d.type == "matrix":
         return np.asarray(d.c_n_s_per_m, dtype=np.float64)
     if d.explicit_rayleigh:
-        return float(d.alpha_per_s or 0.0) * np.diag(m.masses_kg) + float(
-            d.beta_s or 0.0) * stiffness_matrix(m)
+        return _explicit_rayleigh(m, stiffness_matrix(m))
     raise ConfigError("the core builds modal and mode-based Rayleigh damping itself")
+
+
+def _explicit_rayleigh(m: Model, k: np.ndarray) -> np.ndarray:
+    """C = alpha M + beta K of an explicit Rayleigh model, K the core's (the core builds
+    Rayleigh damping from two modal ratios only)."""
+    d = m.damping
+    mass = np.array(m.masses_kg, dtype=np.float64)
+    return float(d.alpha_per_s or 0.0) * np.diag(mass) + float(d.beta_s or 0.0) * k
 
 
 class _Core:
@@ -213,11 +220,7 @@ def linear(m: Model) -> Linear:
     k = core.matrix("K")
     f, phi = core.modes(m.n_dof)
     mass = np.array(m.masses_kg, dtype=np.float64)
-    if m.damping.explicit_rayleigh:
-        c = float(m.damping.alpha_per_s or 0.0) * np.diag(mass) + float(
-            m.damping.beta_s or 0.0) * k
-    else:
-        c = core.matrix("C")
+    c = _explicit_rayleigh(m, k) if m.damping.explicit_rayleigh else core.matrix("C")
     return Linear(mass, k, c, f, phi)
 
 

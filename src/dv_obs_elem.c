@@ -1,10 +1,10 @@
-/* The contact elements' sub-node forces of one observer step: a fixed number of fixed-point
+/* The elements' sub-node forces of one observer step: a fixed number of fixed-point
  * iterations per sub-node, the laws from dv_elem_law.h. */
 #include "dv_obs_priv.h"
 #include "dv_elem_law.h"
 #include "dv_obskern.h"
 
-/* The force-free X at every sub-node (what X would be with no contact force at this or any
+/* The force-free X at every sub-node (what X would be with no element force at this or any
  * earlier node of the step), xl[f] = rx[f, :] x + the input window's share: column by column,
  * in each node the same order of operations as a row dot. The rows: the model's (column-major,
  * over x: node f of column j at rx[j nf + f]) or with the modal form its rows over q (the
@@ -93,11 +93,11 @@ static inline DV_OBS_INLINE bool all_open(const dv_obs_t *o, dv_real_t *g, const
     return true;
 }
 
-/* dv_priv_obs_contact_forces() for one element (the common case), in the same order of
+/* dv_priv_obs_elem_forces() for one element (the common case), in the same order of
  * operations: the force-free part of X at every sub-node first (independent of the forces, so
  * it leaves the sequential chain through the nodes), then node by node the earlier forces and
  * the implicit force. */
-static bool contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
+static bool elem_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
 {
     const dv_model_t *m = o->m;
     const size_t nf = m->n_f;
@@ -150,15 +150,15 @@ static bool contact_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
     return false;
 }
 
-/* Sub-node contact forces g into sv[ns + nin ..], from x = sv[0..ns) and the input window
+/* Sub-node element forces g into sv[ns + nin ..], from x = sv[0..ns) and the input window
  * sv[ns .. ns + nin). Stick-slip elements read and advance the observer's element history.
  * True when every force is zero because every element stays open (all_open()). */
-bool dv_priv_obs_contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
+bool dv_priv_obs_elem_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
 {
     const dv_model_t *m = o->m;
     const size_t nc = m->n_elem;
     if (nc == 1u) {
-        return contact_forces_1(o, sv, ns);
+        return elem_forces_1(o, sv, ns);
     }
     const size_t nf = m->n_f;
     const size_t nsub = m->n_sub;
@@ -191,7 +191,7 @@ bool dv_priv_obs_contact_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
                 s += srow[j] * g[j];
             }
             lin[e] = s;
-            /* start: as in contact_forces_1() */
+            /* start: as in elem_forces_1() */
             cur[e] = i == 0u ? DV_R(0.0)
                              : (i == 1u ? g[f0 - nc + e]
                                         : DV_R(2.0) * g[f0 - nc + e] - g[f0 - 2u * nc + e]);
@@ -234,9 +234,8 @@ void dv_priv_obs_first_forces_cubic(const dv_obs_t *o, dv_real_t *g)
         const dv_elem_desc_t *c = &m->elem[e];
         /* velocity laws: at rest, the ground's velocity at t0 is left out (first sample) */
         const bool vel = dv_priv_elem_on_velocity(c->law);
-        const size_t off = vel ? (size_t)m->n_dof : 0u;
-        const dv_real_t xa = c->dof_a == (uint16_t)DV_GROUND ? DV_R(0.0) : sv[off + c->dof_a];
-        const dv_real_t x = sv[off + c->dof_b] - xa + (vel ? DV_R(0.0) : m->elem_dx[e] * win[2]);
+        const dv_real_t x = dv_priv_elem_arg(c, sv, m->n_dof) +
+                            (vel ? DV_R(0.0) : m->elem_dx[e] * win[2]);
         /* history: at rest */
         g[e] = dv_priv_elem_force(c, dv_priv_elem_kh(c), o->elem_x[e], o->elem_g[e], x);
     }
