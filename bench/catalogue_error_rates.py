@@ -86,7 +86,7 @@ def main() -> None:
                     for k, (r, on) in enumerate(zip(recs, onsets + steady, strict=True)):
                         x = r.channel("acc4_mps2").data
                         hp = spectral.harmonic_peaks(x, fs)
-                        d = holder.drop_offs(holder.holder_exponent(x), fs)
+                        d = holder.drops_of(x, fs)
                         h, fa = holder.match_events(d.times_s, on, 0.004)
                         for tally, v in zip((counts, thd, drops, hits, ons, fas),
                                             (hp.count, hp.thd_db, d.count, h, on.size, fa),

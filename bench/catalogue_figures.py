@@ -53,7 +53,7 @@ def _series(m: mdl.Model, exc: synth.Sine | synth.Hammer | None, fs: float, n: i
     for name, mm in (("linear model", m),
                      ("bumper model", dataclasses.replace(m, elements=truth.elements))):
         y = meas.simulate(mm, rec.channel("force_N").data, fs)
-        out[name] = meas.add_noise({CH: y[CH]}, noise, 0)[CH]
+        out[name] = meas.add_noise({CH: y[CH]}, noise, rec.channel("force_N").data)[CH]
     return out, on[0]
 
 

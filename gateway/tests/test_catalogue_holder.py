@@ -83,3 +83,18 @@ def test_drop_offs_line_up_with_a_hard_bumpers_impacts(shared_data: Path) -> Non
         xs, ons = _sine(m, truth, 3)
         assert all(ho.drop_offs(ho.holder_exponent(x), 2560.0).count == 0 for x in xs)
         assert all(fset.extract({"acc4_mps2": x}, 2560.0)[1] > 1.2 for x in xs)
+
+
+def test_switch_on_ramp_gives_no_drop_but_a_spike_does() -> None:
+    """A sine ramped up from rest with 1 % noise: the quiet start is not read (it gave ~11
+    false drop-offs per record before the gate); a spike in the steady part is found."""
+    fs = 2560.0
+    t = np.arange(8192) / fs
+    ramp = 0.5 - 0.5 * np.cos(np.pi * np.minimum(t / 0.25, 1.0))
+    x = 10 * ramp * np.sin(2 * np.pi * 54 * t)
+    x = x + 0.07 * np.random.default_rng(1).standard_normal(t.size)
+    assert ho.drops_of(x, fs).count == 0
+    assert ho.cone_of_influence() == 80  # cgau2's support, +-5 x the largest scale 16
+    x[5000] += 5.0
+    d = ho.drops_of(x, fs)
+    assert d.count == 1 and abs(int(d.index[0]) - 5000) <= 2

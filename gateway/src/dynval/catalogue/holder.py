@@ -8,6 +8,13 @@ signal is smooth. The default wavelet is the complex Gaussian derivative 'cgau2'
 has no zero crossings on an oscillation, which with a real wavelet make false drops every half
 period; the default scales (2..16 samples) stay above the one-sample scale where sensor noise
 (exponent -1/2) rules.
+
+Drop-offs are read only where the transform speaks of the signal: outside the cone of
+influence of the largest scale at either end (the wavelet's support there reaches past the
+record) and where the largest scale's modulus stands at least GATE x its median over the
+record (below, sensor noise rules every scale and pulls the exponent towards -1/2: a harmonic
+test recorded from the switch-on had 11 such false drop-offs in its first 0.2 s, the ramp-up,
+all of them beyond the 31 ms cone of influence).
 """
 from __future__ import annotations
 
@@ -22,7 +29,7 @@ from dynval.errors import ConfigError
 WAVELET = "cgau2"
 SCALES = tuple(float(s) for s in np.geomspace(2.0, 16.0, 8))
 DROP_Z = 4.0  # a drop-off: the exponent this many robust STDs below its median
-EDGE = 64  # samples at each end left out (the transform's edge effect at the largest scale)
+GATE = 0.2  # drop-offs count where the largest scale's modulus is this fraction of its median
 
 
 def _pywt() -> Any:
@@ -32,18 +39,47 @@ def _pywt() -> Any:
         raise ConfigError("the Holder exponent needs PyWavelets (pip install PyWavelets)") from e
 
 
+def _check(x: np.ndarray, scales: tuple[float, ...]) -> None:
+    if np.size(x) < 4 * max(scales):
+        raise ConfigError(f"Holder exponent: {np.size(x)} samples for scales up to "
+                          f"{max(scales):g}")
+
+
+def cone_of_influence(scales: tuple[float, ...] = SCALES, wavelet: str = WAVELET) -> int:
+    """Samples at each end where the largest scale's wavelet reaches past the record (its
+    support: pywt's bounds x the scale; 80 for cgau2 at 16)."""
+    w = _pywt().ContinuousWavelet(wavelet)
+    return int(np.ceil(max(abs(w.lower_bound), abs(w.upper_bound)) * max(scales)))
+
+
+def _modulus(x: np.ndarray, scales: tuple[float, ...], wavelet: str) -> np.ndarray:
+    """log of the 1/s-normalised wavelet modulus (scales x samples)."""
+    s = np.asarray(scales, dtype=np.float64)
+    w, _ = _pywt().cwt(np.asarray(x, dtype=np.float64), s, wavelet)
+    return np.asarray(np.log(np.abs(w) / np.sqrt(s)[:, None] + 1e-300))
+
+
 def holder_exponent(x: np.ndarray, scales: tuple[float, ...] = SCALES,
                     wavelet: str = WAVELET) -> np.ndarray:
     """The Holder exponent at every sample of x (eq. 26): least-squares slope of log of the
     1/s-normalised wavelet modulus against log s."""
-    if np.size(x) < 4 * max(scales):
-        raise ConfigError(f"Holder exponent: {np.size(x)} samples for scales up to "
-                          f"{max(scales):g}")
-    s = np.asarray(scales, dtype=np.float64)
-    w, _ = _pywt().cwt(np.asarray(x, dtype=np.float64), s, wavelet)
-    lm = np.log(np.abs(w) / np.sqrt(s)[:, None] + 1e-300)
-    ls = np.log(s) - np.mean(np.log(s))
+    _check(x, scales)
+    lm = _modulus(x, scales, wavelet)
+    ls = np.log(np.asarray(scales)) - np.mean(np.log(np.asarray(scales)))
     return np.asarray(ls @ (lm - lm.mean(axis=0)) / (ls @ ls))
+
+
+def readable(x: np.ndarray, scales: tuple[float, ...] = SCALES, wavelet: str = WAVELET,
+             gate: float = GATE) -> np.ndarray:
+    """Where x's exponent is read (boolean per sample): outside the cone of influence and
+    where the largest scale's modulus is at least gate x its median (see the module doc)."""
+    _check(x, scales)
+    top = _modulus(x, (max(scales),), wavelet)[0]
+    ok = top >= np.median(top) + np.log(gate)
+    coi = cone_of_influence(scales, wavelet)
+    ok[:coi] = False
+    ok[-coi:] = False
+    return np.asarray(ok)
 
 
 @dataclass(frozen=True)
@@ -61,19 +97,31 @@ class Drops:
         return int(self.index.size)
 
 
-def drop_offs(h: np.ndarray, fs_hz: float, z: float = DROP_Z, edge: int = EDGE) -> Drops:
-    """Runs of h below median - z x 1.4826 MAD (away from the ends), one drop-off per run."""
-    med = float(np.median(h[edge:-edge]))
-    spread = 1.4826 * float(np.median(np.abs(h[edge:-edge] - med)))
+def drop_offs(h: np.ndarray, fs_hz: float, z: float = DROP_Z,
+              ok: np.ndarray | None = None) -> Drops:
+    """Runs of h below median - z x 1.4826 MAD, one drop-off per run, where ok (readable(x);
+    default: all but the cone of influence) holds; median and MAD over ok too."""
+    if ok is None:
+        ok = np.ones(h.size, dtype=bool)
+        c = cone_of_influence()
+        ok[:c] = False
+        ok[-c:] = False
+    if not ok.any():
+        return Drops(np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), float("nan"))
+    med = float(np.median(h[ok]))
+    spread = 1.4826 * float(np.median(np.abs(h[ok] - med)))
     thr = med - z * spread
-    low = h < thr
-    low[:edge] = False
-    low[-edge:] = False
+    low = (h < thr) & ok
     edges = np.diff(low.astype(np.int8), prepend=0, append=0)
     starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
     idx = np.array([a + int(np.argmin(h[a:b])) for a, b in zip(starts, stops, strict=True)],
                    dtype=np.int64)
     return Drops(idx, idx / fs_hz, med - h[idx] if idx.size else np.zeros(0), thr)
+
+
+def drops_of(x: np.ndarray, fs_hz: float, z: float = DROP_Z) -> Drops:
+    """The drop-offs of x's exponent where it is readable (holder_exponent, readable)."""
+    return drop_offs(holder_exponent(x), fs_hz, z, readable(x))
 
 
 def match_events(found_s: np.ndarray, true_s: np.ndarray, tol_s: float

@@ -133,7 +133,7 @@ def plot_holder(x: np.ndarray, fs_hz: float, events_s: Sequence[float] = ()) -> 
     fig, (a1, a2) = plot.pyplot().subplots(2, 1, figsize=(8, 5), sharex=True)
     t = np.arange(x.size) / fs_hz
     h = holder.holder_exponent(x)
-    d = holder.drop_offs(h, fs_hz)
+    d = holder.drop_offs(h, fs_hz, ok=holder.readable(x))
     a1.plot(t, x, color=plot.MEASURED, lw=0.6)
     ev = np.asarray(events_s)
     a1.plot(ev, np.interp(ev, t, x), ".", color=plot.WORST, label="impacts")

@@ -27,12 +27,12 @@ def _srs(i: int) -> Callable[[np.ndarray, float, np.ndarray], float]:
 
 
 def _holder_drops(x: np.ndarray, fs: float, _ref: np.ndarray) -> float:
-    return float(holder.drop_offs(holder.holder_exponent(x), fs).count)
+    return float(holder.drops_of(x, fs).count)
 
 
 def _holder_min(x: np.ndarray, _fs: float, _ref: np.ndarray) -> float:
-    h = holder.holder_exponent(x)
-    return float(np.min(h[holder.EDGE:-holder.EDGE]))
+    ok = holder.readable(x)
+    return float(np.min(holder.holder_exponent(x)[ok])) if ok.any() else float("nan")
 
 
 TERMS: dict[str, SignalTerm] = {

@@ -115,17 +115,21 @@ class SweepJob:
     oversample: int | None = None
     rmse_channels: tuple[str, ...] = ()
     rmse_refs: tuple[np.ndarray, ...] = ()
-    noise: tuple[tuple[str, float], ...] = ()  # sensor noise RMS per channel on the features
+    # sensor noise RMS per channel on the features, per force (its test's)
+    noise: tuple[tuple[tuple[str, float], ...], ...] = ()
 
 
 def make_job(m: mdl.Model, forces: Sequence[np.ndarray], fs_hz: float, features: FeatureSet,
              *, oversample: int | None = None, rmse_refs: Mapping[str, np.ndarray] | None = None,
-             noise: Mapping[str, float] | None = None) -> SweepJob:
+             noise: Sequence[Mapping[str, float]] | None = None) -> SweepJob:
     """A job whose model predicts only the channels the features and RMSE read (fewer
     outputs: a faster core run), with the validation input hold (measurement.py; oversample
     None: measurement.OVERSAMPLE). rmse_refs: channel -> the measured record that forces[0]
-    drove (eq. 47 reference). noise: sensor noise RMS per channel added before the features
-    (the draw of force i is the one measurement.add_noise gives test i)."""
+    drove (eq. 47 reference). noise: per force, the sensor noise RMS per channel of its test,
+    added before the features (measurement.add_noise: the draw of a force is the one its test
+    gets in validation)."""
+    if noise is not None and len(noise) != len(forces):
+        raise ConfigError(f"sweep: {len(noise)} noise levels for {len(forces)} forces")
     refs = dict(rmse_refs or {})
     need = list(features.channels)
     need += [c for c in refs if c not in need]
@@ -138,7 +142,7 @@ def make_job(m: mdl.Model, forces: Sequence[np.ndarray], fs_hz: float, features:
                     fs_hz, features, meas.OVERSAMPLE if oversample is None else oversample,
                     tuple(refs),
                     tuple(np.ascontiguousarray(v, dtype=np.float64) for v in refs.values()),
-                    tuple(sorted((noise or {}).items())))
+                    tuple(tuple(sorted(n.items())) for n in noise or ()))
 
 
 @dataclass
@@ -203,8 +207,8 @@ def _chunk_run(job: SweepJob, sets: list[dict[str, float]]
                     log.warning("run %s diverged (a prediction that is not finite)", sets[i])
                 continue
             y = {c: ys[i, :, j] for j, c in enumerate(chans)}
-            feats[i, fi] = job.features.extract(meas.add_noise(y, dict(job.noise), fi),
-                                                job.fs_hz, u)
+            nz = dict(job.noise[fi]) if job.noise else {}
+            feats[i, fi] = job.features.extract(meas.add_noise(y, nz, u), job.fs_hz, u)
             if fi == 0:
                 for j, (c, ref) in enumerate(zip(job.rmse_channels, job.rmse_refs, strict=True)):
                     rmse[i, j] = rmse_eq47(y[c], ref)

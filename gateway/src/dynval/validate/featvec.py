@@ -30,8 +30,9 @@ suffix (``acc3``). ``NAME`` is one of:
 * the waveform and spectral catalogue (dynval.catalogue.signal_terms: ``ks ad d10 decay
   decay_y0 acf_corr harm_n thd srs_peak srs_rms cep_env holder_drops holder_min``); ``ks``,
   ``ad``, ``acf_corr``, ``srs_*`` and ``cep_env`` compare the record with the first baseline
-  test of that channel (FeatureSet.fit_reference), and that test itself with the second
-  (its comparison with itself would be 0 measured against the model's nonzero value).
+  test of that channel (FeatureSet.fit_reference), and that test itself, measured or
+  simulated (the record driven by its input), with the second (its comparison with itself
+  would be 0 measured against the model's nonzero value).
 
 Examples: ``peak,std@acc3,acc4``; ``segstd64@acc4``; ``tm_E,tm_T@acc2 + ar_rms@acc4``;
 ``modal_f3,modal_zeta3@acc1,acc2,acc3,acc4 + coh@acc4``.
@@ -108,6 +109,8 @@ class FeatureSet:
     # the second baseline test's: the reference of the reference test itself (see _ref)
     alt_data: Mapping[str, np.ndarray] = field(default_factory=dict, compare=False)
     ar_alt: Mapping[tuple[str, int], _ar.ARModel] = field(default_factory=dict, compare=False)
+    # the reference test's input: a record driven by it (measured or simulated) is that test
+    ref_input: np.ndarray | None = field(default=None, compare=False)
 
     @property
     def channels(self) -> list[str]:
@@ -180,7 +183,8 @@ class FeatureSet:
                   if alt is not None else {})
         io = [t for t in self.terms if any(n == "coh" or _MODAL.match(n) for n in t.names)]
         if not io:
-            return replace(self, ar_ref=ref, ref_data=keep, alt_data=alt_keep, ar_alt=ar_alt)
+            return replace(self, ar_ref=ref, ref_data=keep, alt_data=alt_keep, ar_alt=ar_alt,
+                           ref_input=data.get(self.input_channel))
         u = self._input(data)
         if not fs_hz > 0:
             raise ConfigError("fit_reference: coh and modal_* need the sampling rate")
@@ -195,13 +199,20 @@ class FeatureSet:
                                       f"{band[0]:g}-{band[1]:g} Hz")
                 mref[(t.channels, n)] = modes
         return replace(self, ar_ref=ref, ref_data=keep, band_hz=band, modal_ref=mref,
-                       alt_data=alt_keep, ar_alt=ar_alt)
+                       alt_data=alt_keep, ar_alt=ar_alt, ref_input=u)
 
-    def _is_ref(self, c: str, x: np.ndarray) -> bool:
-        """x is the reference record's channel c itself (then alt_data is its reference)."""
-        r = self.ref_data.get(c)
-        return (c in self.alt_data and r is not None and r.shape == x.shape
-                and bool(np.array_equal(r, x)))
+    def _is_ref(self, c: str, x: np.ndarray, u: np.ndarray | None) -> bool:
+        """x (channel c, driven by input u) is the reference test, measured or simulated:
+        then alt_data is its reference. By the input where both are known: the model driven
+        by the reference test's force compared with that test itself would compare two
+        records of one force, measured against two forces (a residual off by the
+        test-to-test scatter); else x is the reference record itself."""
+        if c not in self.alt_data:
+            return False
+        r, ru = self.ref_data.get(c), self.ref_input
+        if ru is not None and u is not None:
+            return ru.shape == u.shape and bool(np.array_equal(ru, u))
+        return r is not None and r.shape == x.shape and bool(np.array_equal(r, x))
 
     def with_input(self, channel: str) -> FeatureSet:
         """The input channel (the force) the input/output features read."""
@@ -247,6 +258,7 @@ class FeatureSet:
             raise ConfigError("FeatureSet.extract before resolve()")
         if u is not None and self.input_channel:
             data = {**data, self.input_channel: u}
+        u_rec = data.get(self.input_channel)
         out: list[float] = []
         cache: dict[str, tuple[_feat.Stats, _feat.Temporal | None]] = {}
         modal: dict[tuple[tuple[str, ...], int], _modal.Modes | None] = {}
@@ -261,7 +273,7 @@ class FeatureSet:
                         if _cat.TERMS[name].ref and c not in self.ref_data:
                             raise ConfigError(f"feature '{name}@{c}' compares with a reference "
                                               "record: FeatureSet.fit_reference first")
-                        ref = (self.alt_data[c] if self._is_ref(c, x)
+                        ref = (self.alt_data[c] if self._is_ref(c, x, u_rec)
                                else self.ref_data.get(c, x))
                         out.append(_cat.TERMS[name].value(x, fs_hz, ref))
                         continue
@@ -284,7 +296,7 @@ class FeatureSet:
                     g = _AR.match(name)
                     if g is not None:
                         p = int(g.group(1) or AR_DEFAULT_ORDER)
-                        mdl = ((self.ar_alt.get((c, p)) if self._is_ref(c, x) else None)
+                        mdl = ((self.ar_alt.get((c, p)) if self._is_ref(c, x, u_rec) else None)
                                or self.ar_ref.get((c, p)) or _ar.burg(x, p))
                         e = _ar.ar_residual(mdl, x)
                         out.append(float(np.sqrt(np.mean(e * e))) if e.size else float("nan"))

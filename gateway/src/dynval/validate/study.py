@@ -64,13 +64,13 @@ class Setup:
     fs_hz: float
     input_channel: str
     rmse_channels: list[str]
-    noise: dict[str, float] = field(default_factory=dict)
+    noise: list[dict[str, float]] = field(default_factory=list)  # per test of recs
 
 
 def setup(m: mdl.Model, recs: Sequence[Recording], spec: str,
           rmse_channels: Sequence[str] | None = None, noise: str = "auto") -> Setup:
     """Check the tests (same rate and length, the model's channels), bind the features and
-    find the sensor noise the simulated features get (measurement.noise_levels)."""
+    find the sensor noise each test's simulated features get (measurement.noise_levels)."""
     if len(recs) < 2:
         raise ConfigError(f"validation needs at least 2 experimental tests, got {len(recs)}")
     fs = recs[0].fs_hz
@@ -98,13 +98,13 @@ def experiment_features(s: Setup, recs: Sequence[Recording]) -> np.ndarray:
 
 def _model_on_tests(s: Setup, m: mdl.Model, recs: Sequence[Recording], first: int = 0
                     ) -> tuple[np.ndarray, np.ndarray, list[dict[str, np.ndarray]]]:
-    """Features (as measured: with the sensor noise of test first + k) and RMSE per RMSE
-    channel of model m driven by each test's force."""
+    """Features (as measured: with the sensor noise of s.recs[first + k], measurement.
+    add_noise) and RMSE per RMSE channel of model m driven by each test's force."""
     feats, rmse, preds = [], [], []
-    for k, r in enumerate(recs):
+    for r, nz in zip(recs, s.noise[first:first + len(recs)], strict=True):
         u = r.channel(s.input_channel).data
         y = meas.simulate(m, u, s.fs_hz)
-        feats.append(s.features.extract(meas.add_noise(y, s.noise, first + k), s.fs_hz, u))
+        feats.append(s.features.extract(meas.add_noise(y, nz, u), s.fs_hz, u))
         rmse.append([doe.rmse_eq47(y[c], r.channel(c).data) for c in s.rmse_channels])
         preds.append(y)
     return np.array(feats), np.array(rmse), preds
@@ -112,7 +112,8 @@ def _model_on_tests(s: Setup, m: mdl.Model, recs: Sequence[Recording], first: in
 
 def _sim_summary(s: Setup) -> dict[str, Any]:
     return {"input_hold": meas.HOLD, "oversample": meas.OVERSAMPLE,
-            "sensor_noise_rms": dict(s.noise)}
+            "sensor_noise_rms": meas.median_noise(s.noise),
+            "sensor_noise_rms_per_test": [dict(n) for n in s.noise]}
 
 
 def _check(s: Setup, base: mh.Baseline, x_exp: np.ndarray, f_mod: np.ndarray,
@@ -181,10 +182,12 @@ def _label(art: Artifacts, s: Setup, ranges: Sequence[doe.ParamRange]) -> dict[s
 
 
 def _sweep(s: Setup, runner: doe.Runner, ranges: Sequence[doe.ParamRange], x: np.ndarray,
-           forces: Sequence[np.ndarray], ref: Recording | None,
-           progress: Progress | None) -> doe.SweepResult:
-    refs = {c: ref.channel(c).data for c in s.rmse_channels} if ref is not None else None
-    job = doe.make_job(s.model, forces, s.fs_hz, s.features, rmse_refs=refs, noise=s.noise)
+           test: int, rmse: bool, progress: Progress | None) -> doe.SweepResult:
+    """The sweep driven by test number test's force (its records the RMSE references)."""
+    ref = s.recs[test]
+    refs = {c: ref.channel(c).data for c in s.rmse_channels} if rmse else None
+    job = doe.make_job(s.model, [ref.channel(s.input_channel).data], s.fs_hz, s.features,
+                       rmse_refs=refs, noise=[s.noise[test]])
     return runner.run(job, doe.as_sets(ranges, x), on_progress=progress)
 
 
@@ -237,8 +240,7 @@ def validate(m: mdl.Model, recs: Sequence[Recording], spec: str,
         rn = runner or doe.Runner()
         try:
             x = doe.design(design, ranges, runs, seed, levels)
-            sw = _sweep(s, rn, ranges, x, [ref.channel(s.input_channel).data], ref,
-                        progress("sweep"))
+            sw = _sweep(s, rn, ranges, x, ref_test, True, progress("sweep"))
             d_runs = base.distance(sw.mean_features)
             score = sw.score
             best, worst = _marks(score)
@@ -259,8 +261,7 @@ def validate(m: mdl.Model, recs: Sequence[Recording], spec: str,
             res["pca"] = {**pc.summary(), "on": "sweep features standardised by the baseline"}
             if len(ranges) <= 4:
                 xf = doe.full_factorial(ranges, 3)
-                sf = _sweep(s, rn, ranges, xf, [ref.channel(s.input_channel).data], None,
-                            progress("factorial"))
+                sf = _sweep(s, rn, ranges, xf, ref_test, False, progress("factorial"))
                 res["sensitivity"] = {"design": "full factorial, 3 levels",
                                       "runs": int(xf.shape[0]),
                                       "table": anova_table(xf, sf.mean_features,
@@ -328,7 +329,7 @@ def calibrate(m: mdl.Model, recs: Sequence[Recording], spec: str,
             x = doe.latin_hypercube(ranges, runs, seed)
             forces = [r.channel(s.input_channel).data for r in train[:mg]]
             job = doe.make_job(s.model, forces, s.fs_hz, s.features, oversample=oversample,
-                               noise=s.noise)
+                               noise=s.noise[:mg])
             sw = rn.run(job, doe.as_sets(ranges, x), on_progress=progress("sweep"))
             resid, jbest = cal.residual_at_best(base, x_tr[:mg], sw.features)
             basis = cal.choose_basis(base, sw.mean_features, mg)
@@ -349,7 +350,7 @@ def calibrate(m: mdl.Model, recs: Sequence[Recording], spec: str,
                 tg2 = cal.make_target(base, x_tr[:md], resid, basis)
                 job2 = doe.make_job(s.model, [r.channel(s.input_channel).data
                                               for r in train[:md]], s.fs_hz, s.features,
-                                    oversample=oversample, noise=s.noise)
+                                    oversample=oversample, noise=s.noise[:md])
                 posts["direct"] = cal.calibrate_direct(
                     tg2, ranges, job2, rn, start=start, walkers=direct_walkers,
                     steps=direct_steps, seed=seed, on_progress=progress("direct"))
