@@ -186,7 +186,9 @@ def recording_from_arrays(p: Path | str, name: str, columns: Mapping[str, Any], 
             log.warning(warnings[-1])
         unit = (units or {}).get(col) or split_unit(col)[1]
         role = (roles or {}).get(col) or default_role(col)
-        chans.append(Channel(name=col, data=np.array(a, dtype=np.float64), unit=unit, role=role))
+        if not isinstance(value, np.memmap):  # a mapped file stays mapped, not loaded
+            a = np.array(a, dtype=np.float64)
+        chans.append(Channel(name=col, data=a, unit=unit, role=role))
     if n is None or n < 2:
         raise InputFileError(p, f"needs at least 2 samples, found {n or 0}")
     src = source if source is not None else (Path(p) if isinstance(p, Path) else None)
