@@ -508,7 +508,8 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     """Simulate many parameter variants (Model.with_params names: m1, k2, zeta3, e1.gap_m, ...)
     of one model for one input. Returns an array (n_sets, n_samples, n_outputs), outputs in
     the order of m.channels. The input is interpolated once; each run rebuilds only the C
-    model and observer in preallocated buffers."""
+    model and observer in preallocated buffers, and simulates in blocks (simulate_blocks) through
+    a block-long buffer at the oversampled rate."""
     if not fs_hz > 0:
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
     r = oversample_factor(m, oversample)
@@ -520,7 +521,8 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     size = _core.ffi.sizeof("dv_model_desc_t")
     setters = _desc_setters(m)
     out = np.empty((len(param_sets), n, core.no))
-    work = np.empty((u.size, core.no)) if r > 1 else None
+    blk = u.size if m.interpolation == "cubic" else BLOCK * r  # see simulate_blocks
+    work = np.empty((min(u.size, blk), core.no)) if r > 1 else None
     for i, ps in enumerate(param_sets):
         _core.ffi.memmove(core.desc, base, size)
         if all(name in setters for name in ps):
@@ -538,12 +540,7 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
             core.build(m, refill=False)
         except ConfigError as exc:
             raise ConfigError(f"parameter set {i} {dict(ps)}: {exc}") from None
-        if work is None:
-            y = out[i]
-            st = core.run(u, y)
-        else:
-            st = core.run(u, work)
-            out[i] = work[::r]
+        st = _run_blocks(core, u, out[i], r, blk, work)
         if st < 0 and st != _core.lib.DV_ENUMERIC:
             _core.check(st, "dv_obs_simulate")
         if on_progress is not None:
@@ -555,6 +552,22 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     if np.any(offsets != 0.0):
         out += offsets
     return out
+
+
+def _run_blocks(core: _Core, u: np.ndarray, y: np.ndarray, r: int, blk: int,
+                work: np.ndarray | None) -> int:
+    """The fine input u from rest into y (every r-th step's outputs), blk steps at a time
+    through `work` (blk x outputs; None for r = 1: straight into y); the worst status."""
+    worst = 0
+    for a in range(0, u.size, blk):
+        uf = u[a:a + blk]
+        dst = y[a:a + uf.size] if work is None else work[:uf.size]
+        st = core.run(uf, dst) if a == 0 else core.cont(uf, dst)
+        if st < 0 and (worst >= 0 or worst == _core.lib.DV_ENUMERIC):  # the first real error
+            worst = st
+        if work is not None:
+            y[a // r:(a + uf.size) // r] = work[:uf.size:r]
+    return worst
 
 
 def _desc_setters(m: Model) -> dict[str, Callable[[Any, float], None]]:
