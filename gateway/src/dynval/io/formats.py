@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import logging
+import mmap
 import re
 from pathlib import Path
 from typing import Any
@@ -184,10 +185,16 @@ def _attr_text(v: Any) -> str:
 
 def _mapped(p: Path, d: Any) -> np.ndarray:
     """A dataset stored contiguously and uncompressed, memory-mapped copy-on-write (its pages are
-    read as they are used, so a long record is not loaded); any other read into memory."""
+    read as they are used, so a long record is not loaded: arrays.release_pages); any other
+    read into memory."""
     off = d.id.get_offset()
     if d.chunks is None and off is not None and d.dtype.kind == "f" and not d.external:
-        return np.memmap(p, dtype=d.dtype, mode="c", offset=off, shape=d.shape)
+        start = off - off % mmap.ALLOCATIONGRANULARITY
+        with open(p, "rb") as fh:
+            mm = mmap.mmap(fh.fileno(), off - start + d.size * d.dtype.itemsize,
+                           access=mmap.ACCESS_COPY, offset=start)
+        return np.frombuffer(mm, dtype=d.dtype, count=d.size, offset=off - start
+                             ).reshape(d.shape)
     return np.asarray(d[()])
 
 

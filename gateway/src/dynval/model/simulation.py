@@ -407,8 +407,9 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
     read them, samples x m.outputs) of each in turn, the state carried across blocks
     (dv_obs_simulate, then dv_obs_update_block open loop) and the input interpolated per block
     (_fine_block): bit for bit the whole record's result, in memory bounded by the block. The
-    input may be memory-mapped: a block of it is read at a time. The cubic hold runs in one
-    block (the core delivers its samples one call late; simulate realigns them)."""
+    input may be memory-mapped: a block of it is read at a time. The cubic hold's samples,
+    which the core completes a call late, are realigned across blocks (dv_obs_flush completes
+    the last one, as dv_obs_simulate does)."""
     if not fs_hz > 0:
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
     r = oversample_factor(m, oversample)
@@ -423,27 +424,45 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
         u = np.asarray(force_or_motion).reshape(-1)
         n = u.size
         _check_input(u, r)
-    if m.interpolation == "cubic" and n > block:
-        log.info("cubic input hold: %d samples simulated in one block", n)
-        block = n
+    # the cubic hold's core completes a sample at the next one's call: realigned across
+    # blocks here for a complete input; with held (non-finite) samples in one block
+    late = m.interpolation == "cubic" and n > block
+    if late and not all(np.isfinite(u[i:i + BLOCK]).all() for i in range(0, u.size, BLOCK)):
+        log.info("cubic input hold with non-finite inputs: %d samples simulated in one block", n)
+        block, late = n, False
 
     def prefix(k: int) -> np.ndarray:  # the first k steps' input, to find a divergence's cause
         return u[:k] if prepared else _fine_block(u, r, 0, -(-k // r))[:k]
 
+    def outputs(a: int, uf: np.ndarray, yf: np.ndarray) -> tuple[int, np.ndarray]:
+        _check_finite(m, uf, yf, dt, a * r, n * r, prefix)
+        y = yf[::r]
+        return a, np.stack([_sensor(np.ascontiguousarray(y[:, j]), o)
+                            for j, o in enumerate(m.outputs.values())], axis=1)
+
     dt = 1.0 / (fs_hz * r)
     core = _Core(m, dt)
     core.build(m, refill=False)
+    held: tuple[int, np.ndarray, np.ndarray] | None = None  # a block awaiting its last row
     for a in range(0, n, block):
         b = min(a + block, n)
         uf = u[a * r:b * r] if prepared else _fine_block(u, r, a, b)
         yf = np.empty((uf.size, core.no))
-        st = core.run(uf, yf) if a == 0 else core.cont(uf, yf)
+        st = core.run(uf, yf) if a == 0 and not late else core.cont(uf, yf)
         if st < 0 and st != _core.lib.DV_ENUMERIC:
             _core.check(st, "dv_obs_simulate")
-        _check_finite(m, uf, yf, dt, a * r, n * r, prefix)
-        y = yf[::r]
-        yield a, np.stack([_sensor(np.ascontiguousarray(y[:, j]), o)
-                           for j, o in enumerate(m.outputs.values())], axis=1)
+        if not late:
+            yield outputs(a, uf, yf)
+            continue
+        if held is not None:  # row j of a late block is sample j - 1
+            yield outputs(held[0], held[1], np.concatenate([held[2][1:], yf[:1]]))
+        held = (a, uf, yf)
+    if held is not None:  # the last sample completed as dv_obs_simulate does (dv_obs_flush)
+        last = np.empty((1, core.no))
+        _core.check(_core.lib.dv_obs_flush(core.obs), "dv_obs_flush")
+        _core.check(_core.lib.dv_obs_get(core.obs, _core.ptr(last), _core.ffi.NULL, core.no),
+                    "dv_obs_get")
+        yield outputs(held[0], held[1], np.concatenate([held[2][1:], last]))
     if core.obs.n_bad_input:
         log.warning("%d non-finite input samples: the core held the state there",
                     int(core.obs.n_bad_input))
