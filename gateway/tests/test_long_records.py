@@ -62,11 +62,13 @@ def test_batch_in_blocks_is_one_run_per_set() -> None:
     """simulate_batch runs each set in blocks of simulate's BLOCK samples (two here)."""
     u = _force(70_000)
     sets = [{"k2": 3.9e5}, {"zeta2": 0.02, "e1.gap_m": 2e-5}]
-    m = dataclasses.replace(MODEL, elements=(BUMPER,))
-    got = mdl.simulate_batch(m, u, 640.0, sets)
-    for i, ps in enumerate(sets):
-        assert np.array_equal(got[i], _one_run(m.with_params(ps), u, 4))
-    assert not np.array_equal(got[0], got[1])
+    for m, r in ((dataclasses.replace(MODEL, elements=(BUMPER,)), 4),
+                 (dataclasses.replace(CUBIC, elements=(BUMPER,)), 1),
+                 (dataclasses.replace(CUBIC, elements=(BUMPER,), oversample=4), 4)):
+        got = mdl.simulate_batch(m, u, 640.0, sets, oversample=r)
+        for i, ps in enumerate(sets):
+            assert np.array_equal(got[i], _one_run(m.with_params(ps), u, r)), (m, r, i)
+        assert not np.array_equal(got[0], got[1])
 
 
 def test_non_finite_input_held_across_blocks(caplog: pytest.LogCaptureFixture) -> None:

@@ -540,8 +540,11 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     size = _core.ffi.sizeof("dv_model_desc_t")
     setters = _desc_setters(m)
     out = np.empty((len(param_sets), n, core.no))
-    blk = u.size if m.interpolation == "cubic" else BLOCK * r  # see simulate_blocks
-    work = np.empty((min(u.size, blk), core.no)) if r > 1 else None
+    blk = BLOCK * r
+    late = m.interpolation == "cubic" and u.size > blk  # see simulate_blocks
+    if late and not all(np.isfinite(u[i:i + blk]).all() for i in range(0, u.size, blk)):
+        blk, late = u.size, False
+    work = np.empty((min(u.size, blk), core.no)) if r > 1 or late else None
     for i, ps in enumerate(param_sets):
         _core.ffi.memmove(core.desc, base, size)
         if all(name in setters for name in ps):
@@ -559,7 +562,7 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
             core.build(m, refill=False)
         except ConfigError as exc:
             raise ConfigError(f"parameter set {i} {dict(ps)}: {exc}") from None
-        st = _run_blocks(core, u, out[i], r, blk, work)
+        st = _run_blocks(core, u, out[i], r, blk, work, late)
         if st < 0 and st != _core.lib.DV_ENUMERIC:
             _core.check(st, "dv_obs_simulate")
         if on_progress is not None:
@@ -574,18 +577,30 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
 
 
 def _run_blocks(core: _Core, u: np.ndarray, y: np.ndarray, r: int, blk: int,
-                work: np.ndarray | None) -> int:
+                work: np.ndarray | None, late: bool) -> int:
     """The fine input u from rest into y (every r-th step's outputs), blk steps at a time
-    through `work` (blk x outputs; None for r = 1: straight into y); the worst status."""
+    through `work` (blk x outputs; None for r = 1 without `late`: straight into y); the worst
+    status. late: the cubic hold's core gives step k at the call of step k + 1 (realigned
+    here, the last step completed by dv_obs_flush as dv_obs_simulate does)."""
     worst = 0
     for a in range(0, u.size, blk):
         uf = u[a:a + blk]
         dst = y[a:a + uf.size] if work is None else work[:uf.size]
-        st = core.run(uf, dst) if a == 0 else core.cont(uf, dst)
+        st = core.run(uf, dst) if a == 0 and not late else core.cont(uf, dst)
         if st < 0 and (worst >= 0 or worst == _core.lib.DV_ENUMERIC):  # the first real error
             worst = st
-        if work is not None:
+        if late:  # row j is step a + j - 1: keep the multiples of r
+            j0 = 0 if a and r == 1 else 1
+            rows = dst[j0:uf.size:r]
+            y[(a + j0 - 1) // r:(a + j0 - 1) // r + rows.shape[0]] = rows
+        elif work is not None:
             y[a // r:(a + uf.size) // r] = work[:uf.size:r]
+    if late and r == 1:
+        last = np.empty(core.no)
+        _core.check(_core.lib.dv_obs_flush(core.obs), "dv_obs_flush")
+        _core.check(_core.lib.dv_obs_get(core.obs, _core.ptr(last), _core.ffi.NULL, core.no),
+                    "dv_obs_get")
+        y[-1] = last
     return worst
 
 
