@@ -255,3 +255,29 @@ def test_damaged_mdf_is_one_stderr_line_in_a_real_run(tmp_path: Path) -> None:
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "bad.mf4: not a readable MDF file" in lines[0], r.stderr
+
+
+def test_hdf5_contiguous_datasets_are_memory_mapped(tmp_path: Path) -> None:
+    """Issue 21: a contiguous float dataset is mapped (a long record is read page by page as it
+    is used), at the file's offsets of the data (a 512-byte user block before them here); a
+    compressed (chunked) one and an integer one are read into memory. The same samples."""
+    from dynval.io.arrays import mapped
+
+    h5py = pytest.importorskip("h5py")
+    p = tmp_path / "t.h5"
+    with h5py.File(p, "w", userblock_size=512) as f:
+        f.attrs["fs_hz"] = FS
+        f.create_dataset("force_N", data=FORCE)
+        f.create_dataset("acc1_mps2", data=ACC, compression="gzip")
+        f.create_dataset("acc2_mps2", data=(1000 * ACC).astype(np.int32))
+        f.create_dataset("acc3_mps2", data=ACC.astype(">f8"))
+    rec = read_test(p)
+    assert {c.name: mapped(c.data) for c in rec.channels} == {
+        "force_N": True, "acc1_mps2": False, "acc2_mps2": False,
+        "acc3_mps2": False}  # big-endian: mapped, then converted into memory
+    assert np.array_equal(rec.channel("force_N").data, FORCE)
+    assert np.array_equal(rec.channel("acc1_mps2").data, ACC)
+    assert np.array_equal(rec.channel("acc2_mps2").data, (1000 * ACC).astype(np.int32))
+    assert np.array_equal(rec.channel("acc3_mps2").data, ACC)
+    rec.channel("force_N").data[0] = 7.0  # copy-on-write: the file keeps its sample
+    assert np.array_equal(read_test(p).channel("force_N").data, FORCE)

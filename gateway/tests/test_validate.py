@@ -212,6 +212,27 @@ def test_sweep_processes_equal_inline_and_direct(nominal: mdl.Model,
         rel=1e-12)
 
 
+def test_sweep_of_a_long_record_runs_a_few_sets_at_a_time(
+        nominal: mdl.Model, linear_tests: list[Recording], monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 21: simulate_batch gets at most BATCH_BYTES of records (one set of this test
+    here, as for a set of an hour-long one), with the same features and RMSE; a refused set
+    still fails alone."""
+    job = _small_job(nominal, linear_tests)
+    sets = doe.as_sets(LIN_RANGES, doe.latin_hypercube(LIN_RANGES, 5, 0))
+    sets[3] = {**sets[3], "zeta2": -1.0}  # the core refuses a negative damping ratio
+    whole = doe.Runner(workers=1).run(job, sets)
+    monkeypatch.setattr(doe, "BATCH_BYTES", 1)
+    calls: list[int] = []
+    batch = mdl.simulate_batch
+    monkeypatch.setattr(mdl, "simulate_batch", lambda *a, **k: calls.append(len(a[3])) or
+                        batch(*a, **k))
+    few = doe.Runner(workers=1).run(job, sets)
+    assert calls == [1] * 6 and whole.failed == few.failed == [3]  # the refused one twice
+    np.testing.assert_array_equal(whole.features, few.features)
+    np.testing.assert_array_equal(whole.rmse, few.rmse)
+    assert np.isfinite(few.features[[0, 1, 2, 4]]).all() and np.isnan(few.features[3]).all()
+
+
 def test_sweep_on_dask_local_cluster(nominal: mdl.Model, linear_tests: list[Recording]) -> None:
     distributed: Any = pytest.importorskip("dask.distributed")
     job = _small_job(nominal, linear_tests)

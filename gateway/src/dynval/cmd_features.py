@@ -35,6 +35,7 @@ def add_parser(sub: Any) -> None:
 
 def compute(rec: Recording, seg_len: int = 64) -> dict[str, Any]:
     from dynval import features
+    from dynval.io.arrays import release_pages
 
     out: dict[str, Any] = {"test": rec.name, "fs_hz": rec.fs_hz, "n_samples": rec.n_samples,
                            "sha256": rec.sha256, "warnings": len(rec.warnings), "channels": {}}
@@ -51,6 +52,7 @@ def compute(rec: Recording, seg_len: int = 64) -> dict[str, Any]:
         if dropped:
             row["dropped_out_of_range"] = dropped
         out["channels"][ch.name] = row
+        release_pages(ch.data)  # a memory-mapped long record: one channel's pages at a time
     return out
 
 

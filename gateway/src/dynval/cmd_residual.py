@@ -31,7 +31,7 @@ def compute(model_path: Path, recs: list[Recording],
     m = mdl.load(model_path)
     res = []
     for rec in recs:
-        r = mdl.residual(m, rec, oversample=oversample).summary()
+        r = mdl.residual(m, rec, oversample=oversample, keep=False).summary()
         r["file"] = str(rec.source or rec.name)
         units = labels.channel_labels(r["channels"], m, [rec])
         for c, v in r["channels"].items():  # rmse and rms_measured are in the channel's unit

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import gc
 import logging
+import mmap
 import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -186,13 +187,40 @@ def recording_from_arrays(p: Path | str, name: str, columns: Mapping[str, Any], 
             log.warning(warnings[-1])
         unit = (units or {}).get(col) or split_unit(col)[1]
         role = (roles or {}).get(col) or default_role(col)
-        chans.append(Channel(name=col, data=np.array(a, dtype=np.float64), unit=unit, role=role))
+        if mapped(a):  # a mapped file stays mapped, not loaded (its checked pages let go)
+            release_pages(a)
+        else:
+            a = np.array(a, dtype=np.float64)
+        chans.append(Channel(name=col, data=a, unit=unit, role=role))
     if n is None or n < 2:
         raise InputFileError(p, f"needs at least 2 samples, found {n or 0}")
     src = source if source is not None else (Path(p) if isinstance(p, Path) else None)
     sha = file_sha256(src) if src is not None and src.is_file() else ""
     return Recording(name=name, fs_hz=fs, channels=chans, source=src, sha256=sha,
                      warnings=warnings, t0_s=t0_s)
+
+
+def _mmap_of(a: np.ndarray) -> mmap.mmap | None:
+    b: Any = a
+    while isinstance(b, np.ndarray):
+        b = b.base
+    if isinstance(b, memoryview):  # np.frombuffer's base
+        b = b.obj
+    return b if isinstance(b, mmap.mmap) else None
+
+
+def mapped(a: np.ndarray) -> bool:
+    """Whether a is a view of a memory-mapped file (the HDF5 reader's long records)."""
+    return _mmap_of(a) is not None
+
+
+def release_pages(a: np.ndarray) -> None:
+    """Let go of the pages of a's mapped file that this process holds (they stay in the page
+    cache; a later read maps them again): memory in use stays a block, not the record. Only
+    for an array nothing has written to (its copy-on-write changes would be lost)."""
+    mm = _mmap_of(a)
+    if mm is not None and hasattr(mmap, "MADV_DONTNEED"):
+        mm.madvise(mmap.MADV_DONTNEED)
 
 
 def find_time(names: list[str]) -> str | None:

@@ -115,7 +115,8 @@ def apply_channel_map(rec: Recording, cmap: ChannelMap | None) -> Recording:
                 src = rec.channel(s.column)
             except KeyError as exc:
                 raise ConfigError(f"{cmap.source}: {exc.args[0]}") from None
-        out.append(Channel(name=s.name or src.name, data=src.data * s.scale,
+        out.append(Channel(name=s.name or src.name,
+                           data=src.data * s.scale if s.scale != 1.0 else src.data,
                            unit=s.unit if s.unit is not None else src.unit,
                            role=s.role or src.role, dof=s.dof if s.dof is not None else src.dof,
                            scale=s.scale))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import logging
+import mmap
 import re
 from pathlib import Path
 from typing import Any
@@ -182,10 +183,26 @@ def _attr_text(v: Any) -> str:
     return str(v)
 
 
+def _mapped(p: Path, d: Any) -> np.ndarray:
+    """A dataset stored contiguously and uncompressed, memory-mapped copy-on-write (its pages are
+    read as they are used, so a long record is not loaded: arrays.release_pages); any other
+    read into memory."""
+    off = d.id.get_offset()
+    if d.chunks is None and off is not None and d.dtype.kind == "f" and not d.external:
+        start = off - off % mmap.ALLOCATIONGRANULARITY
+        with open(p, "rb") as fh:
+            mm = mmap.mmap(fh.fileno(), off - start + d.size * d.dtype.itemsize,
+                           access=mmap.ACCESS_COPY, offset=start)
+        return np.frombuffer(mm, dtype=d.dtype, count=d.size, offset=off - start
+                             ).reshape(d.shape)
+    return np.asarray(d[()])
+
+
 def read_hdf5(path: Path | str, *, lenient: bool = False) -> Recording:
     """Equal-length 1-D datasets of an HDF5 file (the root's, or else of the one group that
     holds such datasets), timed by a time dataset or a rate (a scalar dataset or an attribute
-    of the file or group, RATE_NAMES). Units from each dataset's `unit` or `units` attribute."""
+    of the file or group, RATE_NAMES). Units from each dataset's `unit` or `units` attribute.
+Contiguous float datasets are memory-mapped (_mapped)."""
     p = Path(path)
     h5py = _need(p, "h5py", "h5py")
 
@@ -213,7 +230,7 @@ def read_hdf5(path: Path | str, *, lenient: bool = False) -> Recording:
                              isinstance(g[k], h5py.Dataset) and g[k].size == 1), None)
             tname = find_time(list(dsets))
             time = dsets.pop(tname)[()] if tname is not None else None
-            cols = {k: v[()] for k, v in dsets.items()}
+            cols = {k: _mapped(p, v) for k, v in dsets.items()}
             units = {k: _attr_text(v.attrs.get("unit", v.attrs.get("units", "")))
                      for k, v in dsets.items()}
             return cols, units, time, rate

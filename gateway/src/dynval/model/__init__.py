@@ -52,6 +52,7 @@ from dynval.model.simulation import (
                                    prepare_input,
                                    simulate,
                                    simulate_batch,
+                                   simulate_blocks,
                                    stiffness_matrix,
 )
 from dynval.model.validation import validate
@@ -65,5 +66,6 @@ __all__ = ["DAMPING_TYPES", "ELEMENT_TYPES", "FORMAT", "INPUT_KINDS", "INTERPOLA
            "damping_matrix_explicit", "free_response", "from_dict", "input_channel",
            "interpolate_input", "linear", "load", "modes", "natural_frequencies",
            "oversample_factor", "param_unit", "predict_observed", "prepare_input", "residual",
-           "save", "simulate", "simulate_batch", "simulate_recording", "stiffness_matrix",
+           "save", "simulate", "simulate_batch", "simulate_blocks", "simulate_recording",
+           "stiffness_matrix",
            "to_dict", "validate"]

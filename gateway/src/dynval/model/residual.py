@@ -12,18 +12,18 @@ import numpy as np
 from dynval.errors import ConfigError
 from dynval.io.recording import Recording
 from dynval.model.schema import Model
-from dynval.model.simulation import simulate
+from dynval.model.simulation import BLOCK, simulate, simulate_blocks
 
 log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
 class ChannelResidual:
-    """measured - predicted of one channel; rmse over its n_used finite samples (a measured
-    NaN a lenient reader kept is left out, and counted); nrmse = rmse / rms of the measured
-    channel (NaN when that is 0)."""
+    """measured - predicted of one channel (None when not kept); rmse over its n_used finite
+    samples (a measured NaN a lenient reader kept is left out, and counted); nrmse = rmse / rms
+    of the measured channel (NaN when that is 0)."""
 
-    residual: np.ndarray
+    residual: np.ndarray | None
     rmse: float
     nrmse: float
     rms_measured: float
@@ -36,7 +36,7 @@ class ResidualResult:
     fs_hz: float
     n_samples: int
     channels: dict[str, ChannelResidual]
-    predicted: dict[str, np.ndarray]
+    predicted: dict[str, np.ndarray] | None
 
     def summary(self) -> dict[str, Any]:
         return {"test": self.test, "fs_hz": self.fs_hz, "n_samples": self.n_samples,
@@ -72,9 +72,17 @@ def simulate_recording(m: Model, rec: Recording, *,
     return simulate(m, rec.channel(input_channel(m, rec)).data, rec.fs_hz, oversample=oversample)
 
 
-def residual(m: Model, rec: Recording, *, oversample: int | None = None) -> ResidualResult:
+# samples per partial sum of squares: the sums of whole chunks are added exactly (math.fsum),
+# so the RMSE does not depend on how the record is split into blocks (a multiple of this)
+_CHUNK = 4096
+
+
+def residual(m: Model, rec: Recording, *, oversample: int | None = None, keep: bool = True,
+             block: int = BLOCK) -> ResidualResult:
     """measured - predicted for every model output the recording also has, with RMSE and
-    NRMSE (RMSE / RMS of the measured channel)."""
+    NRMSE (RMSE / RMS of the measured channel). Simulated and summed in blocks of `block`
+    samples (a multiple of _CHUNK): keep=False holds no series, so a long (memory-mapped)
+    record needs memory for a block only; the results do not depend on the block."""
     common = [c for c in m.outputs if c in rec.names]
     if not common:
         raise ConfigError(f"{rec.source or rec.name}: none of the model's outputs "
@@ -83,14 +91,44 @@ def residual(m: Model, rec: Recording, *, oversample: int | None = None) -> Resi
     missing = [c for c in m.outputs if c not in rec.names]
     if missing:
         log.info("%s: the test lacks the model outputs %s", rec.name, ", ".join(missing))
-    pred = simulate_recording(m, rec, oversample=oversample)
+    if block % _CHUNK:
+        raise ValueError(f"block {block} is not a multiple of {_CHUNK}")
+    _check_fs(m, rec)
+    n = rec.n_samples
+    col = {c: j for j, c in enumerate(m.outputs)}
+    pred = {c: np.empty(n) for c in m.outputs} if keep else None
+    resid = {c: np.empty(n) for c in common} if keep else None
+    sums: dict[str, list[list[float]]] = {c: [[], []] for c in common}  # e^2, y^2 per chunk
+    used = dict.fromkeys(common, 0)
+    u = rec.channel(input_channel(m, rec)).data
+    for a, yp in simulate_blocks(m, u, rec.fs_hz, oversample=oversample, block=block):
+        b = a + yp.shape[0]
+        if pred is not None:
+            for c, arr in pred.items():
+                arr[a:b] = yp[:, col[c]]
+        for c in common:
+            y = np.asarray(rec.channel(c).data[a:b], dtype=np.float64)
+            e = y - yp[:, col[c]]
+            if resid is not None:
+                resid[c][a:b] = e
+            ok = np.isfinite(e)
+            used[c] += int(ok.sum())
+            sums[c][0] += _chunk_sums(np.where(ok, e, 0.0))
+            sums[c][1] += _chunk_sums(np.where(ok, y, 0.0))
     chans: dict[str, ChannelResidual] = {}
     for c in common:
-        y = rec.channel(c).data
-        e = y - pred[c]
-        ok = np.isfinite(e)
-        rmse = float(np.sqrt(np.mean(e[ok] ** 2))) if ok.any() else math.nan
-        rms = float(np.sqrt(np.mean(y[ok] ** 2))) if ok.any() else math.nan
-        chans[c] = ChannelResidual(e, rmse, rmse / rms if rms > 0 else math.nan, rms,
-                                   int(ok.sum()))
-    return ResidualResult(rec.name, rec.fs_hz, rec.n_samples, chans, pred)
+        k = used[c]
+        rmse = math.sqrt(math.fsum(sums[c][0]) / k) if k else math.nan
+        rms = math.sqrt(math.fsum(sums[c][1]) / k) if k else math.nan
+        chans[c] = ChannelResidual(None if resid is None else resid[c], rmse,
+                                   rmse / rms if rms > 0 else math.nan, rms, k)
+    return ResidualResult(rec.name, rec.fs_hz, n, chans, pred)
+
+
+def _chunk_sums(x: np.ndarray) -> list[float]:
+    """Sums of squares of x's _CHUNK-sample chunks (the last one may be shorter)."""
+    full = x.size - x.size % _CHUNK
+    out: list[float] = (x[:full].reshape(-1, _CHUNK) ** 2).sum(axis=1).tolist()
+    if full < x.size:
+        out.append(float(np.sum(x[full:] ** 2)))
+    return out

@@ -18,7 +18,7 @@ import importlib
 import logging
 import math
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -161,6 +161,12 @@ class _Core:
     def run(self, u: np.ndarray, y: np.ndarray) -> int:
         """Simulate from rest into y (n x no, C-contiguous); returns the core's status."""
         return int(_core.lib.dv_obs_simulate(self.obs, _core.ptr(u), u.size, _core.ptr(y)))
+
+    def cont(self, u: np.ndarray, y: np.ndarray) -> int:
+        """Simulate on from the current state, open loop (dv_obs_update_block without
+        measurements: the same steps as dv_obs_simulate, bit for bit, for a first-order hold)."""
+        return int(_core.lib.dv_obs_update_block(self.obs, _core.ptr(u), _core.ffi.NULL, u.size,
+                                                 _core.ptr(y), _core.ffi.NULL))
 
     def matrix(self, which: str) -> np.ndarray:
         """A copy of one of the built model's matrices (dv_model_get_mat, DV_MODEL_MAT_<which>)."""
@@ -316,25 +322,48 @@ def oversample_factor(m: Model, oversample: int | None = None) -> int:
 KAISER_BETA = 12.0
 
 
+# input samples either side of a block that its band-limited interpolation reads (scipy's
+# resample_poly filter reaches 10 samples each way)
+_CONTEXT = 16
+_TAIL = 32  # zeros after the record's last sample, so its tail is not cut by the filter
+
+
 def interpolate_input(u: np.ndarray, r: int) -> np.ndarray:
     """Band-limited interpolation by r (zeros before the first sample: the structure starts at
     rest; zeros padded after the last so its tail is not cut by the filter)."""
+    return _fine_block(u, r, 0, np.asarray(u).size)
+
+
+def _fine_block(u: Any, r: int, a: int, b: int) -> np.ndarray:
+    """interpolate_input(u, r) of the samples a..b-1 only, bit for bit that slice of the whole
+    record's (the filter sees the same samples): a long record is interpolated block by block."""
     if r == 1:
-        return _core.as_doubles(u)
-    pad = np.concatenate([_core.as_doubles(u), np.zeros(32)])
+        return _core.as_doubles(u[a:b])
+    n = np.asarray(u).size
+    s, e = max(a - _CONTEXT, 0), min(b + _CONTEXT, n)
+    seg = _core.as_doubles(u[s:e])
+    if e == n:
+        seg = np.concatenate([seg, np.zeros(_TAIL)])
     resample_poly = importlib.import_module("scipy.signal").resample_poly
-    return np.ascontiguousarray(resample_poly(pad, r, 1, window=("kaiser", KAISER_BETA))
-                                [: u.size * r])
+    fine = resample_poly(seg, r, 1, window=("kaiser", KAISER_BETA))
+    return np.ascontiguousarray(fine[(a - s) * r:(b - s) * r])
+
+
+def _check_input(a: np.ndarray, r: int) -> None:
+    if a.size == 0:
+        raise ConfigError("the input record is empty")
+    if r > 1:
+        bad = sum(int(np.count_nonzero(~np.isfinite(a[i:i + BLOCK])))
+                  for i in range(0, a.size, BLOCK))
+        if bad:
+            raise ConfigError(f"the input has {bad} non-finite samples: band-limited "
+                              "interpolation needs a complete record (use oversample=1 to let "
+                              "the core hold)")
 
 
 def _prepare_input(u: Any, r: int) -> np.ndarray:
     a = _core.as_doubles(u)
-    if a.size == 0:
-        raise ConfigError("the input record is empty")
-    if r > 1 and not np.all(np.isfinite(a)):
-        bad = int(np.count_nonzero(~np.isfinite(a)))
-        raise ConfigError(f"the input has {bad} non-finite samples: band-limited interpolation "
-                          "needs a complete record (use oversample=1 to let the core hold)")
+    _check_input(a, r)
     return interpolate_input(a, r)
 
 
@@ -355,55 +384,116 @@ def prepare_input(m: Model, force_or_motion: Any, oversample: int | None = None
     return PreparedInput(_prepare_input(force_or_motion, r), r)
 
 
+# input samples per block of a simulation (its memory: block x oversample x outputs doubles)
+BLOCK = 1 << 16
+
+
 def simulate(m: Model, force_or_motion: Any, fs_hz: float, *,
              oversample: int | None = None) -> dict[str, np.ndarray]:
     """Predicted outputs (channel -> array) of the model driven from rest by the sampled input
     (or a PreparedInput of it), through the C core (dv_model_init, dv_obs_init open loop,
     dv_obs_simulate). oversample: band-limited interpolation factor (None: the model's; 1: the
-    samples as they are)."""
+    samples as they are). Runs block by block (simulate_blocks)."""
+    u = force_or_motion
+    n = u.fine.size // u.r if isinstance(u, PreparedInput) else np.asarray(u).size
+    out = {name: np.empty(n) for name in m.outputs}
+    for a, y in simulate_blocks(m, u, fs_hz, oversample=oversample):
+        for j, col in enumerate(out.values()):
+            col[a:a + y.shape[0]] = y[:, j]
+    return out
+
+
+def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
+                    oversample: int | None = None, block: int = BLOCK
+                    ) -> Iterator[tuple[int, np.ndarray]]:
+    """simulate() in blocks of `block` input samples: (first sample, outputs as the sensors
+    read them, samples x m.outputs) of each in turn, the state carried across blocks
+    (dv_obs_simulate, then dv_obs_update_block open loop) and the input interpolated per block
+    (_fine_block): bit for bit the whole record's result, in memory bounded by the block. The
+    input may be memory-mapped: a block of it is read at a time. The cubic hold's samples,
+    which the core completes a call late, are realigned across blocks (dv_obs_flush completes
+    the last one, as dv_obs_simulate does)."""
     if not fs_hz > 0:
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
     r = oversample_factor(m, oversample)
+    prepared = isinstance(force_or_motion, PreparedInput)
     if isinstance(force_or_motion, PreparedInput):
         if force_or_motion.r != r:
             raise ConfigError(f"the input was prepared for oversample {force_or_motion.r}, "
                               f"the model simulates at {r}")
         u = force_or_motion.fine
+        n = u.size // r
     else:
-        u = _prepare_input(force_or_motion, r)
+        u = np.asarray(force_or_motion).reshape(-1)
+        n = u.size
+        _check_input(u, r)
+    # the cubic hold's core completes a sample at the next one's call: realigned across
+    # blocks here for a complete input; with held (non-finite) samples in one block
+    late = m.interpolation == "cubic" and n > block
+    if late and not all(np.isfinite(u[i:i + BLOCK]).all() for i in range(0, u.size, BLOCK)):
+        log.info("cubic input hold with non-finite inputs: %d samples simulated in one block", n)
+        block, late = n, False
+
+    def prefix(k: int) -> np.ndarray:  # the first k steps' input, to find a divergence's cause
+        return u[:k] if prepared else _fine_block(u, r, 0, -(-k // r))[:k]
+
+    def outputs(a: int, uf: np.ndarray, yf: np.ndarray) -> tuple[int, np.ndarray]:
+        _check_finite(m, uf, yf, dt, a * r, n * r, prefix)
+        y = yf[::r]
+        return a, np.stack([_sensor(np.ascontiguousarray(y[:, j]), o)
+                            for j, o in enumerate(m.outputs.values())], axis=1)
+
     dt = 1.0 / (fs_hz * r)
-    y = _run(m, u, dt, warn=True)
-    _check_finite(m, u, y, dt)
-    y = y[::r]
-    return {name: _sensor(np.ascontiguousarray(y[:, j]), o)
-            for j, (name, o) in enumerate(m.outputs.items())}
+    core = _Core(m, dt)
+    core.build(m, refill=False)
+    held: tuple[int, np.ndarray, np.ndarray] | None = None  # a block awaiting its last row
+    for a in range(0, n, block):
+        b = min(a + block, n)
+        uf = u[a * r:b * r] if prepared else _fine_block(u, r, a, b)
+        yf = np.empty((uf.size, core.no))
+        st = core.run(uf, yf) if a == 0 and not late else core.cont(uf, yf)
+        if st < 0 and st != _core.lib.DV_ENUMERIC:
+            _core.check(st, "dv_obs_simulate")
+        if not late:
+            yield outputs(a, uf, yf)
+            continue
+        if held is not None:  # row j of a late block is sample j - 1
+            yield outputs(held[0], held[1], np.concatenate([held[2][1:], yf[:1]]))
+        held = (a, uf, yf)
+    if held is not None:  # the last sample completed as dv_obs_simulate does (dv_obs_flush)
+        last = np.empty((1, core.no))
+        _core.check(_core.lib.dv_obs_flush(core.obs), "dv_obs_flush")
+        _core.check(_core.lib.dv_obs_get(core.obs, _core.ptr(last), _core.ffi.NULL, core.no),
+                    "dv_obs_get")
+        yield outputs(held[0], held[1], np.concatenate([held[2][1:], last]))
+    if core.obs.n_bad_input:
+        log.warning("%d non-finite input samples: the core held the state there",
+                    int(core.obs.n_bad_input))
 
 
-def _run(m: Model, u: np.ndarray, dt: float, *, warn: bool = False) -> np.ndarray:
+def _run(m: Model, u: np.ndarray, dt: float) -> np.ndarray:
     """The core's outputs (samples x outputs) for the input u at step dt, from rest."""
     core = _Core(m, dt)
     core.build(m, refill=False)
     y = np.empty((u.size, core.no))
     st = core.run(u, y)
-    if st < 0:
-        bad = int(core.obs.n_bad_input)
-        if st != _core.lib.DV_ENUMERIC:
-            _core.check(st, "dv_obs_simulate")
-        elif warn:
-            log.warning("%d non-finite input samples: the core held the state there", bad)
+    if st < 0 and st != _core.lib.DV_ENUMERIC:
+        _core.check(st, "dv_obs_simulate")
     return y
 
 
-def _check_finite(m: Model, u: np.ndarray, y: np.ndarray, dt: float) -> None:
+def _check_finite(m: Model, u: np.ndarray, y: np.ndarray, dt: float, start: int, total: int,
+                  prefix: Callable[[int], np.ndarray]) -> None:
     """A prediction that is not finite where the input is (a diverged simulation) is a
-    ConfigError naming the element (or the linear part) that makes it diverge."""
+    ConfigError naming the element (or the linear part) that makes it diverge. u, y: the block
+    of steps start.. of a record of `total` steps; prefix(k): its first k steps' input."""
     bad = ~np.isfinite(y).all(axis=1) & np.isfinite(u)
     if not bad.any():
         return
-    k = int(np.argmax(bad))
-    cause = _divergence_cause(m, u[: k + 1], dt)
+    k = start + int(np.argmax(bad))
+    cause = _divergence_cause(m, prefix(k + 1), dt)
     raise ConfigError(f"{m.source or '<model>'}: the simulation diverged at t = {k * dt:.6g} s "
-                      f"(step {k} of {u.size}): {cause}")
+                      f"(step {k} of {total}): {cause}")
 
 
 def _divergence_cause(m: Model, u: np.ndarray, dt: float) -> str:
@@ -440,7 +530,8 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     """Simulate many parameter variants (Model.with_params names: m1, k2, zeta3, e1.gap_m, ...)
     of one model for one input. Returns an array (n_sets, n_samples, n_outputs), outputs in
     the order of m.channels. The input is interpolated once; each run rebuilds only the C
-    model and observer in preallocated buffers."""
+    model and observer in preallocated buffers, and simulates in blocks (simulate_blocks) through
+    a block-long buffer at the oversampled rate."""
     if not fs_hz > 0:
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
     r = oversample_factor(m, oversample)
@@ -452,7 +543,11 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     size = _core.ffi.sizeof("dv_model_desc_t")
     setters = _desc_setters(m)
     out = np.empty((len(param_sets), n, core.no))
-    work = np.empty((u.size, core.no)) if r > 1 else None
+    blk = BLOCK * r
+    late = m.interpolation == "cubic" and u.size > blk  # see simulate_blocks
+    if late and not all(np.isfinite(u[i:i + blk]).all() for i in range(0, u.size, blk)):
+        blk, late = u.size, False
+    work = np.empty((min(u.size, blk), core.no)) if r > 1 or late else None
     for i, ps in enumerate(param_sets):
         _core.ffi.memmove(core.desc, base, size)
         if all(name in setters for name in ps):
@@ -470,12 +565,7 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
             core.build(m, refill=False)
         except ConfigError as exc:
             raise ConfigError(f"parameter set {i} {dict(ps)}: {exc}") from None
-        if work is None:
-            y = out[i]
-            st = core.run(u, y)
-        else:
-            st = core.run(u, work)
-            out[i] = work[::r]
+        st = _run_blocks(core, u, out[i], r, blk, work, late)
         if st < 0 and st != _core.lib.DV_ENUMERIC:
             _core.check(st, "dv_obs_simulate")
         if on_progress is not None:
@@ -487,6 +577,34 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     if np.any(offsets != 0.0):
         out += offsets
     return out
+
+
+def _run_blocks(core: _Core, u: np.ndarray, y: np.ndarray, r: int, blk: int,
+                work: np.ndarray | None, late: bool) -> int:
+    """The fine input u from rest into y (every r-th step's outputs), blk steps at a time
+    through `work` (blk x outputs; None for r = 1 without `late`: straight into y); the worst
+    status. late: the cubic hold's core gives step k at the call of step k + 1 (realigned
+    here, the last step completed by dv_obs_flush as dv_obs_simulate does)."""
+    worst = 0
+    for a in range(0, u.size, blk):
+        uf = u[a:a + blk]
+        dst = y[a:a + uf.size] if work is None else work[:uf.size]
+        st = core.run(uf, dst) if a == 0 and not late else core.cont(uf, dst)
+        if st < 0 and (worst >= 0 or worst == _core.lib.DV_ENUMERIC):  # the first real error
+            worst = st
+        if late:  # row j is step a + j - 1: keep the multiples of r
+            j0 = 0 if a and r == 1 else 1
+            rows = dst[j0:uf.size:r]
+            y[(a + j0 - 1) // r:(a + j0 - 1) // r + rows.shape[0]] = rows
+        elif work is not None:
+            y[a // r:(a + uf.size) // r] = work[:uf.size:r]
+    if late and r == 1:
+        last = np.empty(core.no)
+        _core.check(_core.lib.dv_obs_flush(core.obs), "dv_obs_flush")
+        _core.check(_core.lib.dv_obs_get(core.obs, _core.ptr(last), _core.ffi.NULL, core.no),
+                    "dv_obs_get")
+        y[-1] = last
+    return worst
 
 
 def _desc_setters(m: Model) -> dict[str, Callable[[Any, float], None]]:

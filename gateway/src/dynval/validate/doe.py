@@ -176,6 +176,11 @@ def rmse_eq47(pred: np.ndarray, meas: np.ndarray) -> float:
     return float(np.sqrt(np.mean(e * e))) if e.size else math.nan
 
 
+# bytes of simulated records one simulate_batch call returns (a long record's sets are run a
+# few at a time; a test of the usual length runs a whole chunk at once)
+BATCH_BYTES = 256 << 20
+
+
 def _chunk_run(job: SweepJob, sets: list[dict[str, float]]
                ) -> tuple[np.ndarray, np.ndarray, list[int]]:
     """Simulate and extract one chunk (runs in a worker process)."""
@@ -185,34 +190,47 @@ def _chunk_run(job: SweepJob, sets: list[dict[str, float]]
     failed: list[int] = []
     chans = list(job.model.outputs)
     for fi, u in enumerate(job.forces):
-        try:
-            ys = mdl.simulate_batch(job.model, u, job.fs_hz, sets, oversample=job.oversample)
-            ok = list(range(len(sets)))
-        except ConfigError:  # a set refused: run them one by one, keep the good ones
-            ys = np.full((len(sets), u.size, len(chans)), np.nan)
-            ok = []
-            for i, s in enumerate(sets):
-                try:
-                    ys[i] = mdl.simulate_batch(job.model, u, job.fs_hz, [s],
-                                               oversample=job.oversample)[0]
-                    ok.append(i)
-                except ConfigError as exc:
+        step = max(1, BATCH_BYTES // (u.size * len(chans) * 8))
+        for s0 in range(0, len(sets), step):
+            ys, ok = _simulate_sets(job, u, sets[s0:s0 + step], s0, failed)
+            for i in ok:
+                if (~np.isfinite(ys[i - s0]).all(axis=1) & np.isfinite(u)).any():  # diverged
                     if i not in failed:
                         failed.append(i)
-                        log.warning("run %s refused by the core: %s", s, exc)
-        for i in ok:
-            if (~np.isfinite(ys[i]).all(axis=1) & np.isfinite(u)).any():  # diverged: failed
-                if i not in failed:
-                    failed.append(i)
-                    log.warning("run %s diverged (a prediction that is not finite)", sets[i])
-                continue
-            y = {c: ys[i, :, j] for j, c in enumerate(chans)}
-            nz = dict(job.noise[fi]) if job.noise else {}
-            feats[i, fi] = job.features.extract(meas.add_noise(y, nz, u), job.fs_hz, u)
-            if fi == 0:
-                for j, (c, ref) in enumerate(zip(job.rmse_channels, job.rmse_refs, strict=True)):
-                    rmse[i, j] = rmse_eq47(y[c], ref)
+                        log.warning("run %s diverged (a prediction that is not finite)",
+                                    sets[i])
+                    continue
+                y = {c: ys[i - s0, :, j] for j, c in enumerate(chans)}
+                nz = dict(job.noise[fi]) if job.noise else {}
+                feats[i, fi] = job.features.extract(meas.add_noise(y, nz, u), job.fs_hz, u)
+                if fi == 0:
+                    for j, (c, ref) in enumerate(zip(job.rmse_channels, job.rmse_refs,
+                                                     strict=True)):
+                        rmse[i, j] = rmse_eq47(y[c], ref)
     return feats, rmse, failed
+
+
+def _simulate_sets(job: SweepJob, u: np.ndarray, sets: list[dict[str, float]], s0: int,
+                   failed: list[int]) -> tuple[np.ndarray, list[int]]:
+    """The sets (numbered from s0) on the force u: their records and the numbers of those the
+    core ran; a set it refuses is logged and added to `failed`."""
+    try:
+        ys = mdl.simulate_batch(job.model, u, job.fs_hz, sets, oversample=job.oversample)
+        return ys, list(range(s0, s0 + len(sets)))
+    except ConfigError:  # a set refused: run them one by one, keep the good ones
+        pass
+    ys = np.full((len(sets), u.size, len(job.model.outputs)), np.nan)
+    ok = []
+    for i, s in enumerate(sets, start=s0):
+        try:
+            ys[i - s0] = mdl.simulate_batch(job.model, u, job.fs_hz, [s],
+                                            oversample=job.oversample)[0]
+            ok.append(i)
+        except ConfigError as exc:
+            if i not in failed:
+                failed.append(i)
+                log.warning("run %s refused by the core: %s", s, exc)
+    return ys, ok
 
 
 class Runner:
