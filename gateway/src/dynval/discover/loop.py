@@ -577,6 +577,11 @@ def _best(s: _Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model,
         log.info(msg)
         s.notes.append(msg)
         best = _judge_all(s, rd, judge, rivals, best)
+    siblings = _siblings(rd, best)
+    if siblings:
+        log.info("round %d: %d other place(s) of %s re-fitted from its values", rd.index,
+                 len(siblings), best["candidate"].label if best else "")
+        best = _judge_all(s, rd, judge, siblings, best)
     return _simplest_nested(best, rd.fits, s.o.min_gain)
 
 
@@ -603,6 +608,31 @@ def _judge_all(s: _Session, rd: Round, judge: _Judge, evs: list[tr.Evidence],
 
 
 LINEAR_CHANGES = ("stiffness_change", "damping_change")
+# effect types whose parameters belong to the effect, not to its place: a missing mode's
+# frequency, damping and mass are the same whichever DOF it is tried at
+PLACE_FREE = ("appendage",)
+START = "start:"  # shape keys: a candidate's own starting values (from a sibling's fit)
+
+
+def _siblings(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
+    """The winner's type at the other places fitted this round, to be fitted again from the
+    winner's values when they belong to the effect (PLACE_FREE): a fit at the right place can
+    stop in another minimum (an appendage at 113 Hz where the winner found the 35 Hz mode at
+    the wrong DOF)."""
+    if best is None or best["candidate"].type not in PLACE_FREE:
+        return []
+    win: ft.FitResult = best["fit"]
+    start = {START + n: v for n, v in zip(win.names, win.values, strict=True)
+             if not n.endswith(ft.READJUSTED)}
+    out = []
+    for f in list(rd.fits):
+        c: fx.Candidate = f["candidate"]
+        if (c.type == win.cand.type and c.location != win.cand.location
+                and not any(k.startswith(START) for k in c.shape)):
+            out.append(tr.Evidence(dataclasses.replace(c, shape={**c.shape, **start}),
+                                   f["evidence"], float(c.shape.get("amp", 0.0)),
+                                   {**c.shape, **start}))
+    return out
 
 
 def _nonlinear_rivals(rd: Round, best: dict[str, Any] | None, accepted: set[str]
@@ -687,6 +717,7 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
             initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
             cur_table, _ = s.table(cur)
     accepted: set[str] = set()
+    steps: list[_Step] = []
     timing: dict[str, float] = {}
     for rnd in range(1, o.max_effects + 2):
         t0 = time.perf_counter()
@@ -709,6 +740,7 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
                            if pool else "no available candidate: stop")
             break
         rd.accepted = best
+        steps.append(_Step(cur, best, len(effects), rnd))
         res_b: ft.FitResult = best["fit"]
         spread = ft.scatter(cur, res_b, s.fit_t, s.chans, s.scales, best["readjusted"],
                             workers=s.workers)
@@ -727,6 +759,7 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
         noise = {c: f.rms for c, f in floors.items()}
         accepted.add(_key(res_b.cand))
         rd.decision = f"accepted {res_b.cand.label}"
+    cur, cur_table = _backward(s, steps, cur, cur_table, effects, prediction)
     after, res_after = s.table(cur)
     left = _ratio(after, s.fit_names + s.held_names, s.chans, noise)
     unexp = (ux.characterise(s.evals, res_after, s.chans, noise, s.modes_hz)
@@ -737,6 +770,75 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
                           before, after, res_before, res_after, rounds, effects, mah, s.band,
                           s.modes_hz, s.notes, timing, calibration, floors, unexp, prediction,
                           open_loop_before)
+
+
+@dataclass
+class _Step:
+    """An accepted effect: the model before it, its fit's record, its index in the effects,
+    the round that accepted it."""
+    before: mdl.Model
+    info: dict[str, Any]
+    entry: int
+    round: int
+
+
+def _backward(s: _Session, steps: list[_Step], cur: mdl.Model, cur_table: rs.ErrorTable,
+              effects: list[dict[str, Any]], prediction: str
+              ) -> tuple[mdl.Model, rs.ErrorTable]:
+    """Backward elimination: each accepted effect but the last, left out with the later ones
+    re-fitted in its place (from their values, with what they re-adjust); dropped when the
+    held-out error stays within half of min_gain of the full model's. An early effect can be
+    a stand-in for one found later (an appendage at the wrong DOF, then the right one)."""
+    k = 0
+    while k < len(steps) - 1:
+        trial = _without(s, steps, k, prediction)
+        held_full = cur_table.total(s.held_names)
+        if trial is None or trial[1].total(s.held_names) > (1 + 0.5 * s.o.min_gain) * held_full:
+            if prediction == "open loop":  # the tests' initial states for cur again
+                initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
+            k += 1
+            continue
+        cur, cur_table, refits = trial
+        gone = steps[k]
+        msg = (f"{gone.info['candidate'].label} (round {gone.round}) left out: with the later "
+               f"effects re-fitted without it the held-out error is "
+               f"{cur_table.total(s.held_names) / held_full:.3f} x the full model's")
+        log.info(msg)
+        s.notes.append(msg)
+        del effects[gone.entry]
+        for st, (before, res) in zip(steps[k + 1:], refits, strict=True):
+            spread = ft.scatter(before, res, s.fit_t, s.chans, s.scales,
+                                st.info["readjusted"], workers=s.workers)
+            st.before, st.info, st.entry = before, {**st.info, "fit": res}, st.entry - 1
+            effects[st.entry] = _effect_entry(res, st.info, before, spread)
+        del steps[k]
+    return cur, cur_table
+
+
+def _without(s: _Session, steps: Sequence[_Step], k: int, prediction: str
+             ) -> tuple[mdl.Model, rs.ErrorTable, list[tuple[mdl.Model, ft.FitResult]]] | None:
+    """The model without step k's effect: the later effects re-fitted on the model before it.
+    (model, its error table, (model before, fit) of each re-fitted effect); None if a fit
+    fails."""
+    m = steps[k].before
+    refits = []
+    for st in steps[k + 1:]:
+        res: ft.FitResult = st.info["fit"]
+        own = [v for n, v in zip(res.names, res.values, strict=True)
+               if not n.endswith(ft.READJUSTED)]
+        try:
+            r = ft.fit(m, res.cand, own, s.fit_t, s.chans, s.scales, s.o.max_nfev,
+                       st.info["readjusted"])
+        except ConfigError as exc:
+            log.info("%s re-fitted without %s: %s", res.cand.label,
+                     steps[k].info["candidate"].label, exc)
+            return None
+        refits.append((m, r))
+        m = r.model
+        if prediction == "open loop":
+            initial.apply(m, s.evals, s.chans, s.scales, s.settle)
+    table, _ = s.table(m)
+    return m, table, refits
 
 
 class _Judge:
@@ -787,6 +889,9 @@ class _Judge:
         et = fx.by_type(cand.type)
         names = self.readjusted(cand)
         starts = et.starts(self.cur, cand, e.amp)
+        given = [v for k, v in cand.shape.items() if k.startswith(START)]
+        if given:  # a sibling's values (_siblings): the other starts were tried already
+            starts = [given]
         if len(starts) > 2:
             starts = ft.screen(self.cur, cand, starts, self.fit_t, self.chans, self.scales)
         res = None
