@@ -1,4 +1,4 @@
-"""discover's backward elimination (loop._backward): an early effect that a later one made
+"""discover's backward elimination (judge.backward): an early effect that a later one made
 redundant is left out, the later effects keep their re-fitted values, and the effects list,
 its indices and the notes follow. The fits and error tables are stand-ins (the real ones are
 covered by the blind cases); what is tested is the decision and its bookkeeping."""
@@ -12,7 +12,7 @@ import pytest
 from dynval import model as mdl
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
-from dynval.discover import loop
+from dynval.discover import judge, session
 from dynval.discover import residual as rs
 
 HELD = ["h1", "h2"]
@@ -26,7 +26,7 @@ def _model(tag: float) -> mdl.Model:
                      fs_hz=512.0)
 
 
-class _Session(loop._Session):
+class _Session(session.Session):
     held_error: dict[float, float]
 
     def table(self, m: mdl.Model) -> tuple[rs.ErrorTable, dict[str, dict[str, np.ndarray]]]:
@@ -38,8 +38,8 @@ def _fit(cand: fx.Candidate, model: mdl.Model, value: float) -> ft.FitResult:
     return ft.FitResult(cand, ["f_hz"], ["Hz"], [value], [0.1], model, 1.0, 1, True)
 
 
-def _step(before: mdl.Model, cand: fx.Candidate, fit: ft.FitResult, entry: int) -> loop._Step:
-    return loop._Step(before, {"candidate": cand, "fit": fit, "readjusted": (),
+def _step(before: mdl.Model, cand: fx.Candidate, fit: ft.FitResult, entry: int) -> judge.Step:
+    return judge.Step(before, {"candidate": cand, "fit": fit, "readjusted": (),
                                "reference": "the current model", "evidence": 0.5,
                                "held_gain": 0.2, "delta_bic": -10.0}, entry, entry + 1)
 
@@ -54,9 +54,9 @@ def test_an_effect_a_later_one_made_redundant_is_left_out(
     base, one, both, alone = (_model(t) for t in (1.0, 2.0, 3.0, 4.0))
     # held-out error: declared 1.0, wrong place 0.5, both 0.1; the right place alone (the
     # re-fit without the first effect) `without`: within 5 % of both -> the first goes
-    s = _Session(loop.Options(min_gain=0.1, workers=1), [], ["a1"], {"a1": 1.0}, [],
+    s = _Session(session.Options(min_gain=0.1, workers=1), [], ["a1"], {"a1": 1.0}, [],
                  [rs.TestData.__new__(rs.TestData) for _ in HELD], (1.0, 100.0), [], 0)
-    monkeypatch.setattr(loop._Session, "held_names", property(lambda self: HELD))
+    monkeypatch.setattr(session.Session, "held_names", property(lambda self: HELD))
     s.held_error = {1.0: 1.0, 2.0: 0.5, 3.0: 0.1, 4.0: without}
     refits: list[tuple[mdl.Model, Any]] = []
 
@@ -70,7 +70,7 @@ def test_an_effect_a_later_one_made_redundant_is_left_out(
                                      {"label": "right"}]
     steps = [_step(base, _cand(2), _fit(_cand(2), one, 32.0), 1),
              _step(one, _cand(1), _fit(_cand(1), both, 35.0), 2)]
-    cur, table = loop._backward(s, steps, both, s.table(both)[0], effects, "observer")
+    cur, table = judge.backward(s, steps, both, s.table(both)[0], effects, "observer")
     assert refits == [(base, [35.0])]  # the later effect re-fitted on the model before
     if not dropped:
         assert cur is both and [e.get("label") for e in effects] == [None, "wrong", "right"]

@@ -27,7 +27,6 @@ import logging
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -36,105 +35,35 @@ from dynval import model as mdl
 from dynval.discover import drift as dr
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
-from dynval.discover import initial, parallel
+from dynval.discover import initial
 from dynval.discover import noise as nz
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
 from dynval.discover import unexplained as ux
+from dynval.discover.judge import (
+    Step,
+    backward,
+    best_of_round,
+    cand_key,
+    effect_entry,
+)
+from dynval.discover.session import (
+    DiscoverResult,
+    Options,
+    Round,
+    Session,
+    bic,
+    make_session,
+    settle_s,
+)
 from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
 from dynval.validate import mahalanobis as mh
 
+__all__ = ["DiscoverResult", "Options", "Round", "discover"]
+
 log = logging.getLogger(__name__)
 _threadpoolctl: Any = importlib.import_module("threadpoolctl")
-
-
-@dataclass
-class Options:
-    max_effects: int = 3
-    top_k: int = 4
-    min_gain: float = 0.10
-    max_worse: float = 0.05  # a held-out test where the effect never acts moves by fit noise
-    significance_ratio: float = rs.SIGNIFICANCE_RATIO
-    noise: dict[str, float] | None = None  # stated noise RMS per channel (channel units)
-    max_nfev: int = 40
-    evidence_cut: float = 0.2  # fit only candidates with >= this share of the top evidence
-    uncertain: tuple[str, ...] = ()  # declared parameters to calibrate first and re-adjust
-    # re-adjust the declared stiffness, mass and damping at each candidate's location (and
-    # the modal damping) while it is fitted
-    readjust: bool = True
-    workers: int = 0  # processes for the candidate fits of a round; 0: every available core
-
-
-@dataclass
-class Round:
-    index: int
-    ratio: dict[str, float]
-    traits: dict[str, Any]
-    evidence: list[tr.Evidence]
-    fits: list[dict[str, Any]]
-    accepted: dict[str, Any] | None
-    decision: str
-    view: tr.ForceView | None = None
-    second: list[tr.Evidence] = field(default_factory=list)  # the output view's top picks
-
-
-@dataclass
-class DiscoverResult:
-    model0: mdl.Model
-    model: mdl.Model
-    tests: list[rs.TestData]
-    fit_names: list[str]
-    held_names: list[str]
-    chans: list[str]
-    scales: dict[str, float]
-    noise: dict[str, float]
-    before: rs.ErrorTable
-    after: rs.ErrorTable
-    res_before: dict[str, dict[str, np.ndarray]]
-    res_after: dict[str, dict[str, np.ndarray]]
-    rounds: list[Round]
-    effects: list[dict[str, Any]]
-    mahalanobis: dict[str, Any]
-    band_hz: tuple[float, float]
-    modes_hz: list[float]
-    notes: list[str] = field(default_factory=list)
-    timing_s: dict[str, float] = field(default_factory=dict)
-    calibration: dict[str, Any] = field(default_factory=dict)
-    noise_floors: dict[str, nz.Floor] = field(default_factory=dict)
-    unexplained: dict[str, Any] = field(default_factory=dict)  # traits of a residual left
-    prediction: str = "open loop"  # or "observer" (a drifting model: discover/drift.py)
-    open_loop_before: dict[str, float] = field(default_factory=dict)  # held-out, per channel
-
-
-# fewer tests than this: cross-validate over time segments of every test instead of
-# splitting the tests (two tests split by level leave one level out of the fit entirely)
-MIN_TESTS_FOR_TEST_SPLIT = 4
-
-
-def split(tests: Sequence[rs.TestData]) -> tuple[list[rs.TestData], list[rs.TestData], str]:
-    """Fitting and held-out sets, and a sentence saying how they were made."""
-    if len(tests) < MIN_TESTS_FOR_TEST_SPLIT:
-        fit, held = rs.segment_split(tests)
-        return fit, held, (
-            f"{len(tests)} test(s): cross-validation over time — each record is cut into "
-            f"{rs.SEGMENT_BLOCKS} blocks, the even ones fit and the odd ones are held out "
-            "(simulated over the whole record, so every block starts from its true state)")
-    order = sorted(tests, key=lambda t: (float(np.std(t.u)), t.name))
-    return order[0::2], order[1::2], (
-        f"{len(tests)} tests sorted by input RMS, dealt alternately to the fitting and "
-        "held-out sets")
-
-
-def _settle_s(modes_hz: Sequence[float], zeta: float = 0.01) -> float:
-    """How long the structure rings after its input stops: 1 % of the amplitude left in the
-    lowest flexible mode at a light damping ratio (at most 5 s)."""
-    flex = [f for f in modes_hz if f > 0.1]
-    return min(5.0, math.log(100.0) / (2 * math.pi * min(flex) * zeta)) if flex else 5.0
-
-
-def _bic(nsse: float, n: float, p: int) -> float:
-    return n * math.log(max(nsse, 1e-300) / n) + p * math.log(n)
 
 
 def _ratio(et: rs.ErrorTable, names: Sequence[str], chans: Sequence[str],
@@ -188,63 +117,7 @@ def _mahal(m0: mdl.Model, m1: mdl.Model, tests: Sequence[rs.TestData],
     return out
 
 
-@dataclass
-class _Session:
-    """What every stage of one discover run reads: the tests and their split, the channels
-    and their scales, the input band, the model's modes and the options."""
-
-    o: Options
-    tests: list[rs.TestData]
-    chans: list[str]
-    scales: dict[str, float]
-    fit_t: list[rs.TestData]
-    held_t: list[rs.TestData]
-    band: tuple[float, float]
-    modes_hz: list[float]
-    settle: int
-    notes: list[str] = field(default_factory=list)
-    # declared parameters an accepted effect re-adjusted: free already, so a later change of
-    # one is the re-adjustment going on (the final joint one), not a new effect
-    readjusted: set[str] = field(default_factory=set)
-
-    @property
-    def workers(self) -> int:
-        """Processes for independent fits (candidates, per-test refits)."""
-        return self.o.workers or parallel.available_workers()
-
-    @property
-    def evals(self) -> list[rs.TestData]:
-        return [*self.fit_t, *self.held_t]  # every test once, or every test's two views
-
-    @property
-    def fit_names(self) -> list[str]:
-        return [t.name for t in self.fit_t]
-
-    @property
-    def held_names(self) -> list[str]:
-        return [t.name for t in self.held_t]
-
-    def table(self, m: mdl.Model) -> tuple[rs.ErrorTable, dict[str, dict[str, np.ndarray]]]:
-        return rs.error_table(m, self.evals, self.chans, self.scales)
-
-
-def _session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> _Session:
-    tests = rs.prepare(m, recs)
-    chans = rs.common_channels(m, tests)
-    if not chans:
-        raise ConfigError("no model output is a column of every test")
-    fs_set = {round(t.fs_hz, 6) for t in tests}
-    if len(fs_set) != 1:
-        raise ConfigError(f"the tests have different sample rates: {sorted(fs_set)}")
-    fit_t, held_t, how = split(tests)
-    band = tr.input_band(tests)
-    modes_hz = [float(f) for f in mdl.natural_frequencies(m)]
-    settle = int(_settle_s([f for f in modes_hz if f > 0.05 * band[0]]) * tests[0].fs_hz)
-    return _Session(o, tests, chans, rs.channel_scales(tests, chans), fit_t, held_t, band,
-                    modes_hz, settle, [how])
-
-
-def _open_loop_or_observer(s: _Session, m: mdl.Model, before: rs.ErrorTable,
+def _open_loop_or_observer(s: Session, m: mdl.Model, before: rs.ErrorTable,
                            res: dict[str, dict[str, np.ndarray]], noise: dict[str, float]
                            ) -> tuple[str, dict[str, float]]:
     """Switch the tests to the observer's predictions when the model drifts (drift.py):
@@ -267,7 +140,7 @@ def _open_loop_or_observer(s: _Session, m: mdl.Model, before: rs.ErrorTable,
     return "observer", open_loop
 
 
-def _calibrate_uncertain(s: _Session, m: mdl.Model, before: rs.ErrorTable
+def _calibrate_uncertain(s: Session, m: mdl.Model, before: rs.ErrorTable
                          ) -> tuple[mdl.Model, rs.ErrorTable, dict[str, Any]]:
     """Calibrate the declared uncertain parameters first, so that a plain calibration error
     is not taken for a missing effect (kept only if the held-out tests improve)."""
@@ -298,7 +171,7 @@ def _calibrate_uncertain(s: _Session, m: mdl.Model, before: rs.ErrorTable
 READJUST_GAIN = 0.02  # the joint re-adjustment must lower the held-out error by this share
 
 
-def _readjust_declared(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
+def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
                        ) -> tuple[mdl.Model, rs.ErrorTable, dict[str, dict[str, np.ndarray]]
                                   ] | None:
     """With the effects in (after each accepted one), every declared stiffness and damping
@@ -320,8 +193,8 @@ def _readjust_declared(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
     tab, res = s.table(cal.model)
     before, after = cur_table.total(s.held_names), tab.total(s.held_names)
     n_eff = sum(t.n for t in s.fit_t for _ in s.chans) / cal.n_eff_factor
-    dbic = (_bic(cal.nsse_fit, n_eff, len(names))
-            - _bic(cur_table.total(s.fit_names), n_eff, 0))
+    dbic = (bic(cal.nsse_fit, n_eff, len(names))
+            - bic(cur_table.total(s.fit_names), n_eff, 0))
     if not (after < (1 - READJUST_GAIN) * before and dbic < 0):
         log.info("re-adjusting the declared parameters jointly: held-out %.4g -> %.4g: "
                  "not kept", before, after)
@@ -338,7 +211,7 @@ def _readjust_declared(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
 OFFSET_SHARE = 0.05  # a channel's constant residual must hold this share of its energy
 
 
-def _sensor_offsets(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
+def _sensor_offsets(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
                     ) -> tuple[mdl.Model, rs.ErrorTable, dict[str, Any] | None]:
     """Every channel's DC offset at once, before the physical effects: the mean of its
     residual over the fitting tests (the least-squares offset), kept on the channels where
@@ -379,7 +252,7 @@ def _sensor_offsets(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable
     return m1, tab, entry
 
 
-def _a_force_instead(s: _Session, cur: mdl.Model, res: dict[str, dict[str, np.ndarray]],
+def _a_force_instead(s: Session, cur: mdl.Model, res: dict[str, dict[str, np.ndarray]],
                      held_offsets: float) -> str | None:
     """The label of a probed effect (a constant force at a DOF) that, fitted by least squares
     on the fitting tests, leaves a held-out error no larger than the per-channel offsets do
@@ -401,7 +274,7 @@ def _a_force_instead(s: _Session, cur: mdl.Model, res: dict[str, dict[str, np.nd
     return None if best is None else best[1]
 
 
-def _probe_regression(s: _Session, cur: mdl.Model, cand: fx.Candidate, amount: float,
+def _probe_regression(s: Session, cur: mdl.Model, cand: fx.Candidate, amount: float,
                       res: dict[str, dict[str, np.ndarray]]) -> tuple[float, float] | None:
     """For an effect judged by probing: (share of the fitting tests' normalised residual the
     change of the predictions under ``amount`` of it explains, the least-squares multiple of
@@ -424,7 +297,7 @@ def _probe_regression(s: _Session, cur: mdl.Model, cand: fx.Candidate, amount: f
     return num * num / den / rr, num / den
 
 
-def _floors(s: _Session, m: mdl.Model, res: dict[str, dict[str, np.ndarray]],
+def _floors(s: Session, m: mdl.Model, res: dict[str, dict[str, np.ndarray]],
             before: dict[str, nz.Floor]) -> dict[str, nz.Floor]:
     """The noise floor of each channel from a model's residual records (each record once: a
     test's two views share one), kept where it is lower than ``before``: an effect the model
@@ -441,7 +314,7 @@ def _floors(s: _Session, m: mdl.Model, res: dict[str, dict[str, np.ndarray]],
             return None
         return {c: a[c] - b[c] for c in s.chans}
 
-    new = nz.estimate(s.tests, s.chans, once, s.band, _settle_s(s.modes_hz), s.o.noise,
+    new = nz.estimate(s.tests, s.chans, once, s.band, settle_s(s.modes_hz), s.o.noise,
                       respond)
     out = dict(new)
     for c, f in before.items():
@@ -453,7 +326,7 @@ def _floors(s: _Session, m: mdl.Model, res: dict[str, dict[str, np.ndarray]],
     return out
 
 
-def _trace(s: _Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
+def _trace(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
            noise: dict[str, float]) -> Round:
     """One round's residual traits and the evidence of every candidate."""
     fs = s.tests[0].fs_hz
@@ -498,17 +371,17 @@ def _second_opinion(first: list[tr.Evidence], second: list[tr.Evidence],
     evidence it does not have, and buries a rarely acting effect); the output view builds
     them from the model's simulated states, free of the sensors' noise, but its first-order
     evidence ranks less sharply on clean data, so it adds candidates, not ranks them."""
-    own = {_key(e.cand): e for e in first}
+    own = {cand_key(e.cand): e for e in first}
     ranked = sorted((e for e in second if not e.cand.type.startswith("sensor")
                      and e.cand.available and e.cand.type != "none"), key=lambda e: -e.r2)
-    return [own.get(_key(e.cand), e) for e in ranked[:keep]]
+    return [own.get(cand_key(e.cand), e) for e in ranked[:keep]]
 
 
-def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
+def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
           accepted: set[str]) -> list[tr.Evidence]:
     """The candidates worth fitting this round."""
     def offered(c: fx.Candidate) -> bool:  # not accepted, not a re-adjusted parameter's change
-        return _key(c) not in accepted and fx.by_type(c.type).changes(c) not in s.readjusted
+        return cand_key(c) not in accepted and fx.by_type(c.type).changes(c) not in s.readjusted
 
     pool = [e for e in rd.evidence if e.cand.available and e.cand.type != "none"
             and offered(e.cand)]
@@ -523,7 +396,7 @@ def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     top = max((e.r2 for e in pool), default=0.0)
     chosen = _diverse([e for e in pool if e.r2 >= s.o.evidence_cut * top], s.o.top_k)
     chosen += [e for e in rd.second
-               if offered(e.cand) and all(_key(e.cand) != _key(c.cand) for c in chosen)]
+               if offered(e.cand) and all(cand_key(e.cand) != cand_key(c.cand) for c in chosen)]
     if not accepted:  # bounded cost: only where the answer would otherwise be "no effect"
         chosen += _weak_evidence_fallback(s, rd, pool, chosen, top)
     # evidence is first order (the output view) or taken through integrated accelerations
@@ -538,7 +411,7 @@ def _pool(s: _Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
 WEAK_EVIDENCE = 0.1  # the best evidence under this share of the residual above the noise
 
 
-def _weak_evidence_fallback(s: _Session, rd: Round, pool: list[tr.Evidence],
+def _weak_evidence_fallback(s: Session, rd: Round, pool: list[tr.Evidence],
                             chosen: list[tr.Evidence], top: float) -> list[tr.Evidence]:
     """When the view explains under WEAK_EVIDENCE of the residual above the noise (its noise
     swamps an effect that acts at a few instants: a rarely closing contact on a shake table),
@@ -563,124 +436,6 @@ def _weak_evidence_fallback(s: _Session, rd: Round, pool: list[tr.Evidence],
     return extra
 
 
-def _best(s: _Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model,
-          cur_table: rs.ErrorTable, accepted: set[str]) -> dict[str, Any] | None:
-    """Fit and judge the pool; the accepted fit with the lowest held-out error."""
-    judge = _Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band)
-    best = _judge_all(s, rd, judge, pool, None)
-    rivals = _nonlinear_rivals(rd, best, accepted)
-    if rivals:
-        msg = (f"round {rd.index}: {best['candidate'].label if best else ''} would win; the "
-               f"best-placed candidate of each nonlinear element type is fitted too "
-               f"({len(rivals)}): an element seen at a few excitation levels can pass for a "
-               f"linear change")
-        log.info(msg)
-        s.notes.append(msg)
-        best = _judge_all(s, rd, judge, rivals, best)
-    siblings = _siblings(rd, best)
-    if siblings:
-        log.info("round %d: %d other place(s) of %s re-fitted from its values", rd.index,
-                 len(siblings), best["candidate"].label if best else "")
-        best = _judge_all(s, rd, judge, siblings, best)
-    return _simplest_nested(best, rd.fits, s.o.min_gain)
-
-
-def _judge_all(s: _Session, rd: Round, judge: _Judge, evs: list[tr.Evidence],
-               best: dict[str, Any] | None) -> dict[str, Any] | None:
-    """Fit ``evs`` on every core (their references first: candidates share them), add them to
-    the round's fits; the accepted fit with the lowest held-out error, ``best`` included."""
-    names = list(dict.fromkeys(judge.readjusted(_with_shape(e)) for e in evs))
-    judge.known(names, parallel.ordered_map(judge.reference, names, s.workers))
-    for info in parallel.ordered_map(judge.candidate, evs, s.workers):
-        if info is None:
-            continue
-        rd.fits.append(info)
-        log.info("round %d: %s: held-out gain %.3f, worst test %+.3f, dBIC %.1f -> %s",
-                 rd.index, info["candidate"].label, info["held_gain"],
-                 info["held_worst_test_change"], info["delta_bic"],
-                 "accept" if info["accepted"] else "reject")
-        # the lowest held-out error wins (the gains are against each candidate's own
-        # reference, which differs with what it re-adjusts)
-        if info["accepted"] and (best is None
-                                 or info["nsse_held_after"] < best["nsse_held_after"]):
-            best = info
-    return best
-
-
-LINEAR_CHANGES = ("stiffness_change", "damping_change")
-# effect types whose parameters belong to the effect, not to its place: a missing mode's
-# frequency, damping and mass are the same whichever DOF it is tried at
-PLACE_FREE = ("appendage",)
-START = "start:"  # shape keys: a candidate's own starting values (from a sibling's fit)
-
-
-def _siblings(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
-    """The winner's type at the other places fitted this round, to be fitted again from the
-    winner's values when they belong to the effect (PLACE_FREE): a fit at the right place can
-    stop in another minimum (an appendage at 113 Hz where the winner found the 35 Hz mode at
-    the wrong DOF)."""
-    if best is None or best["candidate"].type not in PLACE_FREE:
-        return []
-    win: ft.FitResult = best["fit"]
-    start = {START + n: v for n, v in zip(win.names, win.values, strict=True)
-             if not n.endswith(ft.READJUSTED)}
-    out = []
-    for f in list(rd.fits):
-        c: fx.Candidate = f["candidate"]
-        if (c.type == win.cand.type and c.location != win.cand.location
-                and not any(k.startswith(START) for k in c.shape)):
-            out.append(tr.Evidence(dataclasses.replace(c, shape={**c.shape, **start}),
-                                   f["evidence"], float(c.shape.get("amp", 0.0)),
-                                   {**c.shape, **start}))
-    return out
-
-
-def _nonlinear_rivals(rd: Round, best: dict[str, Any] | None, accepted: set[str]
-                      ) -> list[tr.Evidence]:
-    """When a stiffness or damping change would win the round: the best-placed candidate of
-    each nonlinear element type, and each type's candidate where the change is, not fitted
-    yet. Friction at a few excitation levels reads as extra damping, a hardening spring as a
-    stiffer story, and the evidence view may rank them below the change; the held-out tests
-    judge them like any candidate."""
-    if best is None or best["candidate"].type not in LINEAR_CHANGES:
-        return []
-    done = accepted | {_key(f["candidate"]) for f in rd.fits}
-    where = best["candidate"].location.get("between")
-    picked: dict[Any, tr.Evidence] = {}
-    for e in rd.evidence:  # best evidence first
-        c = e.cand
-        if not c.available or not fx.by_type(c.type).nonlinear or _key(c) in done:
-            continue
-        picked.setdefault(c.type, e)
-        if where is not None and c.location.get("between") == where:
-            picked.setdefault((c.type, "here"), e)
-    return list({_key(e.cand): e for e in picked.values()}.values())
-
-
-def _nested_in(simple: fx.Candidate, rich: fx.Candidate) -> bool:
-    """Whether ``simple`` is a special case of ``rich`` at the same place: the same effect
-    without its extra offset, or a type ``rich`` declares it contains (EffectType.simpler:
-    a mass change is an appendage far above the band)."""
-    loc = {k: v for k, v in rich.location.items() if k != "offset"}
-    if simple.type == rich.type:
-        return simple.location == loc and loc != rich.location
-    return simple.type in fx.by_type(rich.type).simpler and simple.location == loc
-
-
-def _simplest_nested(best: dict[str, Any] | None, fits: Sequence[dict[str, Any]],
-                     min_gain: float) -> dict[str, Any] | None:
-    """The best fit, or an accepted special case of it with fewer parameters (_nested_in)
-    unless the richer one lowers the held-out error by at least half of min_gain more: a
-    spurious offset, or an appendage standing in for a mass, must not win on a tie."""
-    if best is None:
-        return None
-    simpler = [info for info in fits
-               if info["accepted"] and _nested_in(info["candidate"], best["candidate"])
-               and len(info["fit"].values) < len(best["fit"].values)
-               and best["nsse_held_after"] > (1 - 0.5 * min_gain) * info["nsse_held_after"]]
-    return min(simpler, key=lambda i: i["nsse_held_after"]) if simpler else best
-
-
 def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = None,
              on_progress: Callable[[str], None] | None = None) -> DiscoverResult:
     """Run the loop on a declared model and measured tests."""
@@ -694,7 +449,7 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
 def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
               on_progress: Callable[[str], None] | None) -> DiscoverResult:
     t_start = time.perf_counter()
-    s = _session(m, recs, o)
+    s = make_session(m, recs, o)
     s.notes += initial.apply(m, s.evals, s.chans, s.scales, s.settle)
     before, res_before = s.table(m)
     if not res_before:
@@ -717,7 +472,7 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
             initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
             cur_table, _ = s.table(cur)
     accepted: set[str] = set()
-    steps: list[_Step] = []
+    steps: list[Step] = []
     timing: dict[str, float] = {}
     for rnd in range(1, o.max_effects + 2):
         t0 = time.perf_counter()
@@ -733,18 +488,18 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
             rd.decision = f"max_effects = {o.max_effects} reached: stop"
             break
         pool = _pool(s, rd, cur, cur_table, accepted)
-        best = _best(s, rd, pool, cur, cur_table, accepted)
+        best = best_of_round(s, rd, pool, cur, cur_table, accepted)
         timing[f"round_{rnd}"] = time.perf_counter() - t0
         if best is None:
             rd.decision = ("no candidate improved the held-out tests significantly: stop"
                            if pool else "no available candidate: stop")
             break
         rd.accepted = best
-        steps.append(_Step(cur, best, len(effects), rnd))
+        steps.append(Step(cur, best, len(effects), rnd))
         res_b: ft.FitResult = best["fit"]
         spread = ft.scatter(cur, res_b, s.fit_t, s.chans, s.scales, best["readjusted"],
                             workers=s.workers)
-        effects.append(_effect_entry(res_b, best, cur, spread))
+        effects.append(effect_entry(res_b, best, cur, spread))
         cur = res_b.model
         if prediction == "open loop":  # the new model's initial states
             initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
@@ -757,9 +512,9 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
             cur, cur_table, res_cur = kept
         floors = _floors(s, cur, res_cur, floors)
         noise = {c: f.rms for c, f in floors.items()}
-        accepted.add(_key(res_b.cand))
+        accepted.add(cand_key(res_b.cand))
         rd.decision = f"accepted {res_b.cand.label}"
-    cur, cur_table = _backward(s, steps, cur, cur_table, effects, prediction)
+    cur, cur_table = backward(s, steps, cur, cur_table, effects, prediction)
     after, res_after = s.table(cur)
     left = _ratio(after, s.fit_names + s.held_names, s.chans, noise)
     unexp = (ux.characterise(s.evals, res_after, s.chans, noise, s.modes_hz)
@@ -770,196 +525,6 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
                           before, after, res_before, res_after, rounds, effects, mah, s.band,
                           s.modes_hz, s.notes, timing, calibration, floors, unexp, prediction,
                           open_loop_before)
-
-
-@dataclass
-class _Step:
-    """An accepted effect: the model before it, its fit's record, its index in the effects,
-    the round that accepted it."""
-    before: mdl.Model
-    info: dict[str, Any]
-    entry: int
-    round: int
-
-
-def _backward(s: _Session, steps: list[_Step], cur: mdl.Model, cur_table: rs.ErrorTable,
-              effects: list[dict[str, Any]], prediction: str
-              ) -> tuple[mdl.Model, rs.ErrorTable]:
-    """Backward elimination: each accepted effect but the last, left out with the later ones
-    re-fitted in its place (from their values, with what they re-adjust); dropped when the
-    held-out error stays within half of min_gain of the full model's. An early effect can be
-    a stand-in for one found later (an appendage at the wrong DOF, then the right one)."""
-    k = 0
-    while k < len(steps) - 1:
-        trial = _without(s, steps, k, prediction)
-        held_full = cur_table.total(s.held_names)
-        if trial is None or trial[1].total(s.held_names) > (1 + 0.5 * s.o.min_gain) * held_full:
-            if prediction == "open loop":  # the tests' initial states for cur again
-                initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
-            k += 1
-            continue
-        cur, cur_table, refits = trial
-        gone = steps[k]
-        msg = (f"{gone.info['candidate'].label} (round {gone.round}) left out: with the later "
-               f"effects re-fitted without it the held-out error is "
-               f"{cur_table.total(s.held_names) / held_full:.3f} x the full model's")
-        log.info(msg)
-        s.notes.append(msg)
-        del effects[gone.entry]
-        for st, (before, res) in zip(steps[k + 1:], refits, strict=True):
-            spread = ft.scatter(before, res, s.fit_t, s.chans, s.scales,
-                                st.info["readjusted"], workers=s.workers)
-            st.before, st.info, st.entry = before, {**st.info, "fit": res}, st.entry - 1
-            effects[st.entry] = _effect_entry(res, st.info, before, spread)
-        del steps[k]
-    return cur, cur_table
-
-
-def _without(s: _Session, steps: Sequence[_Step], k: int, prediction: str
-             ) -> tuple[mdl.Model, rs.ErrorTable, list[tuple[mdl.Model, ft.FitResult]]] | None:
-    """The model without step k's effect: the later effects re-fitted on the model before it.
-    (model, its error table, (model before, fit) of each re-fitted effect); None if a fit
-    fails."""
-    m = steps[k].before
-    refits = []
-    for st in steps[k + 1:]:
-        res: ft.FitResult = st.info["fit"]
-        own = [v for n, v in zip(res.names, res.values, strict=True)
-               if not n.endswith(ft.READJUSTED)]
-        try:
-            r = ft.fit(m, res.cand, own, s.fit_t, s.chans, s.scales, s.o.max_nfev,
-                       st.info["readjusted"])
-        except ConfigError as exc:
-            log.info("%s re-fitted without %s: %s", res.cand.label,
-                     steps[k].info["candidate"].label, exc)
-            return None
-        refits.append((m, r))
-        m = r.model
-        if prediction == "open loop":
-            initial.apply(m, s.evals, s.chans, s.scales, s.settle)
-    table, _ = s.table(m)
-    return m, table, refits
-
-
-class _Judge:
-    """Fits the candidates of one round and judges each against its reference: the current
-    model with the same declared parameters re-adjusted and no effect (a best-linear declared
-    model absorbed part of the effect; re-adjusting it alone must not count as the effect)."""
-
-    def __init__(self, cur: mdl.Model, cur_table: rs.ErrorTable, fit_t: list[rs.TestData],
-                 held_t: list[rs.TestData], chans: list[str], scales: dict[str, float],
-                 o: Options, band: tuple[float, float]) -> None:
-        self.cur, self.cur_table = cur, cur_table
-        self.fit_t, self.held_t, self.chans, self.scales, self.o = fit_t, held_t, chans, scales, o
-        self.band = band
-        self.fit_names = [t.name for t in fit_t]
-        self.held_names = [t.name for t in held_t]
-        self._refs: dict[tuple[str, ...], tuple[mdl.Model, rs.ErrorTable, int]] = {}
-
-    def readjusted(self, cand: fx.Candidate) -> tuple[str, ...]:
-        local = fx.by_type(cand.type).readjust(self.cur, cand, self.band) \
-            if self.o.readjust else ()
-        return tuple(dict.fromkeys([*self.o.uncertain, *local]))
-
-    def reference(self, names: tuple[str, ...]) -> tuple[mdl.Model, rs.ErrorTable, int]:
-        """(model, its error table, its free parameter count) a candidate must beat."""
-        if not names:
-            return self.cur, self.cur_table, 0
-        if names not in self._refs:
-            ref = (self.cur, self.cur_table, 0)
-            try:
-                cal = ft.fit(self.cur, fx.NONE.candidates(self.cur)[0], [], self.fit_t,
-                             self.chans, self.scales, self.o.max_nfev, names)
-                tab, _ = rs.error_table(cal.model, [*self.fit_t, *self.held_t], self.chans,
-                                        self.scales)
-                if tab.total(self.held_names) < self.cur_table.total(self.held_names):
-                    ref = (cal.model, tab, len(names))
-            except ConfigError as exc:
-                log.info("re-adjusting %s alone failed: %s", ", ".join(names), exc)
-            self._refs[names] = ref
-        return self._refs[names]
-
-    def known(self, names: Sequence[tuple[str, ...]],
-              refs: Sequence[tuple[mdl.Model, rs.ErrorTable, int]]) -> None:
-        """References computed elsewhere (reference() in worker processes)."""
-        self._refs.update(zip(names, refs, strict=True))
-
-    def candidate(self, e: tr.Evidence) -> dict[str, Any] | None:
-        cand = _with_shape(e)
-        et = fx.by_type(cand.type)
-        names = self.readjusted(cand)
-        starts = et.starts(self.cur, cand, e.amp)
-        given = [v for k, v in cand.shape.items() if k.startswith(START)]
-        if given:  # a sibling's values (_siblings): the other starts were tried already
-            starts = [given]
-        if len(starts) > 2:
-            starts = ft.screen(self.cur, cand, starts, self.fit_t, self.chans, self.scales)
-        res = None
-        for init in starts:
-            try:
-                r1 = ft.fit(self.cur, cand, init, self.fit_t, self.chans, self.scales,
-                            self.o.max_nfev, names)
-            except ConfigError as exc:
-                log.info("%s: fit failed: %s", cand.label, exc)
-                continue
-            if res is None or r1.nsse_fit < res.nsse_fit:
-                res = r1
-        if res is None:
-            return None
-        _, ref_table, ref_p = self.reference(names)
-        tab, _ = rs.error_table(res.model, self.held_t, self.chans, self.scales)
-        verdict = self._verdict(res, tab, ref_table, ref_p)
-        if verdict[-1] and names:
-            # the re-adjustment alone, from where the candidate's fit left it: a reference
-            # fitted from the current model can stop short (a rough objective), and the
-            # gain of re-adjusting must not count as the effect's
-            warm = self.warm_reference(res, names)
-            if warm is not None and (warm.total(self.held_names)
-                                     < ref_table.total(self.held_names)):
-                ref_table, ref_p = warm, len(names)
-                verdict = self._verdict(res, tab, ref_table, ref_p)
-        gain, worst, dbic, held_before, nsse_fit_before, ok = verdict
-        held_after = tab.total(self.held_names)
-        return {"candidate": cand, "evidence": e.r2, "fit": res, "held_gain": gain,
-                "readjusted": names,
-                "held_worst_test_change": worst, "delta_bic": dbic, "accepted": ok,
-                "reference": ("the current model with " + ", ".join(names) +
-                              " re-adjusted, no effect") if ref_p else "the current model",
-                "nsse_fit_before": nsse_fit_before, "nsse_fit_after": res.nsse_fit,
-                "nsse_held_before": held_before, "nsse_held_after": held_after}
-
-    def warm_reference(self, res: ft.FitResult, names: tuple[str, ...]
-                       ) -> rs.ErrorTable | None:
-        """The error table of the declared parameters ``names`` re-fitted without the
-        effect, starting from the values the candidate's fit gave them."""
-        fitted = {n[: -len(ft.READJUSTED)]: v for n, v in zip(res.names, res.values,
-                                                                strict=True)
-                  if n.endswith(ft.READJUSTED)}
-        try:
-            cal = ft.fit(self.cur.with_params(fitted), fx.NONE.candidates(self.cur)[0], [],
-                         self.fit_t, self.chans, self.scales, self.o.max_nfev, names)
-        except ConfigError as exc:
-            log.info("re-adjusting %s alone (warm) failed: %s", ", ".join(names), exc)
-            return None
-        tab, _ = rs.error_table(cal.model, [*self.fit_t, *self.held_t], self.chans,
-                                self.scales)
-        return tab
-
-    def _verdict(self, res: ft.FitResult, tab: rs.ErrorTable, ref_table: rs.ErrorTable,
-                 ref_p: int) -> tuple[float, float, float, float, float, bool]:
-        """(held-out gain, worst held-out test change, dBIC, held-out and fitting normalised
-        SSE of the reference, accepted) of a fit against a reference."""
-        held_before = ref_table.total(self.held_names)
-        held_after = tab.total(self.held_names)
-        gain = 1.0 - held_after / held_before if held_before > 0 else 0.0
-        worst = max((tab.nsse[h] / ref_table.nsse[h] - 1.0 for h in self.held_names
-                     if ref_table.nsse[h] > 0), default=0.0)
-        n_eff = sum(t.n for t in self.fit_t for c in self.chans) / res.n_eff_factor
-        nsse_fit_before = ref_table.total(self.fit_names)
-        dbic = (_bic(res.nsse_fit, n_eff, len(res.values))
-                - _bic(nsse_fit_before, n_eff, ref_p))
-        ok = gain >= self.o.min_gain and worst <= self.o.max_worse and dbic < 0
-        return gain, worst, dbic, held_before, nsse_fit_before, ok
 
 
 _LINEAR = ("stiffness_change", "mass_change")
@@ -995,7 +560,7 @@ def _direct_evidence(evidence: list[tr.Evidence], residuals: list[dict[str, np.n
     return out
 
 
-def _probe_amount(m: mdl.Model, s: _Session) -> float:
+def _probe_amount(m: mdl.Model, s: Session) -> float:
     """A small force for probing (1 % of the input's force scale: the amount matters only
     through the model's nonlinear elements)."""
     u_rms = float(np.std(np.concatenate([t.u for t in s.fit_t]))) or 1.0
@@ -1005,7 +570,7 @@ def _probe_amount(m: mdl.Model, s: _Session) -> float:
     return 1e-2 * max(m.masses_kg) * acc
 
 
-def _probe_evidence(s: _Session, cur: mdl.Model, evidence: list[tr.Evidence],
+def _probe_evidence(s: Session, cur: mdl.Model, evidence: list[tr.Evidence],
                     res: dict[str, dict[str, np.ndarray]]) -> list[tr.Evidence]:
     """Evidence of the effects judged by probing (EffectType.probe, _probe_regression): the
     share of the fitting residual the change of the predictions under a small amount of the
@@ -1018,17 +583,6 @@ def _probe_evidence(s: _Session, cur: mdl.Model, evidence: list[tr.Evidence],
         out.append(e if reg is None else
                    tr.Evidence(e.cand, reg[0], reg[1] * amount, {"probe": amount}))
     return out
-
-
-def _key(c: fx.Candidate) -> str:
-    return c.type + ":" + ",".join(f"{k}={v}" for k, v in sorted(c.location.items()))
-
-
-def _with_shape(e: tr.Evidence) -> fx.Candidate:
-    c = e.cand
-    shape = dict(e.shape)
-    shape["amp"] = e.amp
-    return fx.Candidate(c.type, dict(c.location), c.label, c.available, c.note, shape)
 
 
 def _diverse(pool: list[tr.Evidence], k: int) -> list[tr.Evidence]:
@@ -1046,28 +600,3 @@ def _diverse(pool: list[tr.Evidence], k: int) -> list[tr.Evidence]:
     return [e for e in out if e.r2 > 0.0] or out[:1]
 
 
-def _effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
-                  spread: Sequence[float]) -> dict[str, Any]:
-    """The accepted effect's JSON entry: its parameters, and each declared parameter that was
-    re-adjusted with it (value before and after, relative change). Each uncertainty is the
-    Gauss-Newton sigma and the test-to-test scatter's standard error combined (fit.scatter:
-    the model-form part the first misses)."""
-    et = fx.by_type(res.cand.type)
-    params, readjusted = {}, {}
-    declared = before.parameters()
-    for n, v, s, sc, u in zip(res.names, res.values, res.sigma, spread, res.units,
-                              strict=True):
-        unc = {"uncertainty": math.hypot(s, sc) if math.isfinite(sc) else s,
-               "uncertainty_fit": s, "uncertainty_scatter": sc, "unit": u}
-        if n.endswith(ft.READJUSTED):
-            name = n[: -len(ft.READJUSTED)]
-            was = float(declared[name])
-            readjusted[name] = {"before": was, "value": v, **unc,
-                                "change_rel": (v - was) / was if was else math.nan}
-        else:
-            params[n] = {"value": v, **unc}
-    return {"type": res.cand.type, "location": dict(res.cand.location),
-            "label": res.cand.label, "law": et.law, "parameters": params,
-            "readjusted": readjusted, "reference": info["reference"],
-            "evidence": info["evidence"], "held_out_gain": info["held_gain"],
-            "delta_bic": info["delta_bic"]}

@@ -1,0 +1,368 @@
+"""Judging a round's candidates: each fitted and compared on the held-out tests with its
+reference (Judge), the rivals and siblings worth fitting too, the winner (best_of_round),
+each accepted effect's entry, and the backward elimination after the rounds."""
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from dynval import model as mdl
+from dynval.discover import effects as fx
+from dynval.discover import fit as ft
+from dynval.discover import initial, parallel
+from dynval.discover import residual as rs
+from dynval.discover import trace as tr
+from dynval.discover.session import Options, Round, Session, bic
+from dynval.errors import ConfigError
+
+log = logging.getLogger(__name__)
+
+
+def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model,
+          cur_table: rs.ErrorTable, accepted: set[str]) -> dict[str, Any] | None:
+    """Fit and judge the pool; the accepted fit with the lowest held-out error."""
+    judge = Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band)
+    best = judge_all(s, rd, judge, pool, None)
+    rivals = nonlinear_rivals(rd, best, accepted)
+    if rivals:
+        msg = (f"round {rd.index}: {best['candidate'].label if best else ''} would win; the "
+               f"best-placed candidate of each nonlinear element type is fitted too "
+               f"({len(rivals)}): an element seen at a few excitation levels can pass for a "
+               f"linear change")
+        log.info(msg)
+        s.notes.append(msg)
+        best = judge_all(s, rd, judge, rivals, best)
+    sibs = siblings(rd, best)
+    if sibs:
+        log.info("round %d: %d other place(s) of %s re-fitted from its values", rd.index,
+                 len(sibs), best["candidate"].label if best else "")
+        best = judge_all(s, rd, judge, sibs, best)
+    return simplest_nested(best, rd.fits, s.o.min_gain)
+
+
+def judge_all(s: Session, rd: Round, judge: Judge, evs: list[tr.Evidence],
+               best: dict[str, Any] | None) -> dict[str, Any] | None:
+    """Fit ``evs`` on every core (their references first: candidates share them), add them to
+    the round's fits; the accepted fit with the lowest held-out error, ``best`` included."""
+    names = list(dict.fromkeys(judge.readjusted(with_shape(e)) for e in evs))
+    judge.known(names, parallel.ordered_map(judge.reference, names, s.workers))
+    for info in parallel.ordered_map(judge.candidate, evs, s.workers):
+        if info is None:
+            continue
+        rd.fits.append(info)
+        log.info("round %d: %s: held-out gain %.3f, worst test %+.3f, dBIC %.1f -> %s",
+                 rd.index, info["candidate"].label, info["held_gain"],
+                 info["held_worst_test_change"], info["delta_bic"],
+                 "accept" if info["accepted"] else "reject")
+        # the lowest held-out error wins (the gains are against each candidate's own
+        # reference, which differs with what it re-adjusts)
+        if info["accepted"] and (best is None
+                                 or info["nsse_held_after"] < best["nsse_held_after"]):
+            best = info
+    return best
+
+
+LINEAR_CHANGES = ("stiffness_change", "damping_change")
+# effect types whose parameters belong to the effect, not to its place: a missing mode's
+# frequency, damping and mass are the same whichever DOF it is tried at
+PLACE_FREE = ("appendage",)
+START = "start:"  # shape keys: a candidate's own starting values (from a sibling's fit)
+
+
+def siblings(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
+    """The winner's type at the other places fitted this round, to be fitted again from the
+    winner's values when they belong to the effect (PLACE_FREE): a fit at the right place can
+    stop in another minimum (an appendage at 113 Hz where the winner found the 35 Hz mode at
+    the wrong DOF)."""
+    if best is None or best["candidate"].type not in PLACE_FREE:
+        return []
+    win: ft.FitResult = best["fit"]
+    start = {START + n: v for n, v in zip(win.names, win.values, strict=True)
+             if not n.endswith(ft.READJUSTED)}
+    out = []
+    for f in list(rd.fits):
+        c: fx.Candidate = f["candidate"]
+        if (c.type == win.cand.type and c.location != win.cand.location
+                and not any(k.startswith(START) for k in c.shape)):
+            out.append(tr.Evidence(dataclasses.replace(c, shape={**c.shape, **start}),
+                                   f["evidence"], float(c.shape.get("amp", 0.0)),
+                                   {**c.shape, **start}))
+    return out
+
+
+def nonlinear_rivals(rd: Round, best: dict[str, Any] | None, accepted: set[str]
+                      ) -> list[tr.Evidence]:
+    """When a stiffness or damping change would win the round: the best-placed candidate of
+    each nonlinear element type, and each type's candidate where the change is, not fitted
+    yet. Friction at a few excitation levels reads as extra damping, a hardening spring as a
+    stiffer story, and the evidence view may rank them below the change; the held-out tests
+    judge them like any candidate."""
+    if best is None or best["candidate"].type not in LINEAR_CHANGES:
+        return []
+    done = accepted | {cand_key(f["candidate"]) for f in rd.fits}
+    where = best["candidate"].location.get("between")
+    picked: dict[Any, tr.Evidence] = {}
+    for e in rd.evidence:  # best evidence first
+        c = e.cand
+        if not c.available or not fx.by_type(c.type).nonlinear or cand_key(c) in done:
+            continue
+        picked.setdefault(c.type, e)
+        if where is not None and c.location.get("between") == where:
+            picked.setdefault((c.type, "here"), e)
+    return list({cand_key(e.cand): e for e in picked.values()}.values())
+
+
+def nested_in(simple: fx.Candidate, rich: fx.Candidate) -> bool:
+    """Whether ``simple`` is a special case of ``rich`` at the same place: the same effect
+    without its extra offset, or a type ``rich`` declares it contains (EffectType.simpler:
+    a mass change is an appendage far above the band)."""
+    loc = {k: v for k, v in rich.location.items() if k != "offset"}
+    if simple.type == rich.type:
+        return simple.location == loc and loc != rich.location
+    return simple.type in fx.by_type(rich.type).simpler and simple.location == loc
+
+
+def simplest_nested(best: dict[str, Any] | None, fits: Sequence[dict[str, Any]],
+                     min_gain: float) -> dict[str, Any] | None:
+    """The best fit, or an accepted special case of it with fewer parameters (nested_in)
+    unless the richer one lowers the held-out error by at least half of min_gain more: a
+    spurious offset, or an appendage standing in for a mass, must not win on a tie."""
+    if best is None:
+        return None
+    simpler = [info for info in fits
+               if info["accepted"] and nested_in(info["candidate"], best["candidate"])
+               and len(info["fit"].values) < len(best["fit"].values)
+               and best["nsse_held_after"] > (1 - 0.5 * min_gain) * info["nsse_held_after"]]
+    return min(simpler, key=lambda i: i["nsse_held_after"]) if simpler else best
+
+
+class Judge:
+    """Fits the candidates of one round and judges each against its reference: the current
+    model with the same declared parameters re-adjusted and no effect (a best-linear declared
+    model absorbed part of the effect; re-adjusting it alone must not count as the effect)."""
+
+    def __init__(self, cur: mdl.Model, cur_table: rs.ErrorTable, fit_t: list[rs.TestData],
+                 held_t: list[rs.TestData], chans: list[str], scales: dict[str, float],
+                 o: Options, band: tuple[float, float]) -> None:
+        self.cur, self.cur_table = cur, cur_table
+        self.fit_t, self.held_t, self.chans, self.scales, self.o = fit_t, held_t, chans, scales, o
+        self.band = band
+        self.fit_names = [t.name for t in fit_t]
+        self.held_names = [t.name for t in held_t]
+        self._refs: dict[tuple[str, ...], tuple[mdl.Model, rs.ErrorTable, int]] = {}
+
+    def readjusted(self, cand: fx.Candidate) -> tuple[str, ...]:
+        local = fx.by_type(cand.type).readjust(self.cur, cand, self.band) \
+            if self.o.readjust else ()
+        return tuple(dict.fromkeys([*self.o.uncertain, *local]))
+
+    def reference(self, names: tuple[str, ...]) -> tuple[mdl.Model, rs.ErrorTable, int]:
+        """(model, its error table, its free parameter count) a candidate must beat."""
+        if not names:
+            return self.cur, self.cur_table, 0
+        if names not in self._refs:
+            ref = (self.cur, self.cur_table, 0)
+            try:
+                cal = ft.fit(self.cur, fx.NONE.candidates(self.cur)[0], [], self.fit_t,
+                             self.chans, self.scales, self.o.max_nfev, names)
+                tab, _ = rs.error_table(cal.model, [*self.fit_t, *self.held_t], self.chans,
+                                        self.scales)
+                if tab.total(self.held_names) < self.cur_table.total(self.held_names):
+                    ref = (cal.model, tab, len(names))
+            except ConfigError as exc:
+                log.info("re-adjusting %s alone failed: %s", ", ".join(names), exc)
+            self._refs[names] = ref
+        return self._refs[names]
+
+    def known(self, names: Sequence[tuple[str, ...]],
+              refs: Sequence[tuple[mdl.Model, rs.ErrorTable, int]]) -> None:
+        """References computed elsewhere (reference() in worker processes)."""
+        self._refs.update(zip(names, refs, strict=True))
+
+    def candidate(self, e: tr.Evidence) -> dict[str, Any] | None:
+        cand = with_shape(e)
+        et = fx.by_type(cand.type)
+        names = self.readjusted(cand)
+        starts = et.starts(self.cur, cand, e.amp)
+        given = [v for k, v in cand.shape.items() if k.startswith(START)]
+        if given:  # a sibling's values (siblings): the other starts were tried already
+            starts = [given]
+        if len(starts) > 2:
+            starts = ft.screen(self.cur, cand, starts, self.fit_t, self.chans, self.scales)
+        res = None
+        for init in starts:
+            try:
+                r1 = ft.fit(self.cur, cand, init, self.fit_t, self.chans, self.scales,
+                            self.o.max_nfev, names)
+            except ConfigError as exc:
+                log.info("%s: fit failed: %s", cand.label, exc)
+                continue
+            if res is None or r1.nsse_fit < res.nsse_fit:
+                res = r1
+        if res is None:
+            return None
+        _, ref_table, ref_p = self.reference(names)
+        tab, _ = rs.error_table(res.model, self.held_t, self.chans, self.scales)
+        verdict = self._verdict(res, tab, ref_table, ref_p)
+        if verdict[-1] and names:
+            # the re-adjustment alone, from where the candidate's fit left it: a reference
+            # fitted from the current model can stop short (a rough objective), and the
+            # gain of re-adjusting must not count as the effect's
+            warm = self.warm_reference(res, names)
+            if warm is not None and (warm.total(self.held_names)
+                                     < ref_table.total(self.held_names)):
+                ref_table, ref_p = warm, len(names)
+                verdict = self._verdict(res, tab, ref_table, ref_p)
+        gain, worst, dbic, held_before, nsse_fit_before, ok = verdict
+        held_after = tab.total(self.held_names)
+        return {"candidate": cand, "evidence": e.r2, "fit": res, "held_gain": gain,
+                "readjusted": names,
+                "held_worst_test_change": worst, "delta_bic": dbic, "accepted": ok,
+                "reference": ("the current model with " + ", ".join(names) +
+                              " re-adjusted, no effect") if ref_p else "the current model",
+                "nsse_fit_before": nsse_fit_before, "nsse_fit_after": res.nsse_fit,
+                "nsse_held_before": held_before, "nsse_held_after": held_after}
+
+    def warm_reference(self, res: ft.FitResult, names: tuple[str, ...]
+                       ) -> rs.ErrorTable | None:
+        """The error table of the declared parameters ``names`` re-fitted without the
+        effect, starting from the values the candidate's fit gave them."""
+        fitted = {n[: -len(ft.READJUSTED)]: v for n, v in zip(res.names, res.values,
+                                                                strict=True)
+                  if n.endswith(ft.READJUSTED)}
+        try:
+            cal = ft.fit(self.cur.with_params(fitted), fx.NONE.candidates(self.cur)[0], [],
+                         self.fit_t, self.chans, self.scales, self.o.max_nfev, names)
+        except ConfigError as exc:
+            log.info("re-adjusting %s alone (warm) failed: %s", ", ".join(names), exc)
+            return None
+        tab, _ = rs.error_table(cal.model, [*self.fit_t, *self.held_t], self.chans,
+                                self.scales)
+        return tab
+
+    def _verdict(self, res: ft.FitResult, tab: rs.ErrorTable, ref_table: rs.ErrorTable,
+                 ref_p: int) -> tuple[float, float, float, float, float, bool]:
+        """(held-out gain, worst held-out test change, dBIC, held-out and fitting normalised
+        SSE of the reference, accepted) of a fit against a reference."""
+        held_before = ref_table.total(self.held_names)
+        held_after = tab.total(self.held_names)
+        gain = 1.0 - held_after / held_before if held_before > 0 else 0.0
+        worst = max((tab.nsse[h] / ref_table.nsse[h] - 1.0 for h in self.held_names
+                     if ref_table.nsse[h] > 0), default=0.0)
+        n_eff = sum(t.n for t in self.fit_t for c in self.chans) / res.n_eff_factor
+        nsse_fit_before = ref_table.total(self.fit_names)
+        dbic = (bic(res.nsse_fit, n_eff, len(res.values))
+                - bic(nsse_fit_before, n_eff, ref_p))
+        ok = gain >= self.o.min_gain and worst <= self.o.max_worse and dbic < 0
+        return gain, worst, dbic, held_before, nsse_fit_before, ok
+
+
+def cand_key(c: fx.Candidate) -> str:
+    return c.type + ":" + ",".join(f"{k}={v}" for k, v in sorted(c.location.items()))
+
+
+def with_shape(e: tr.Evidence) -> fx.Candidate:
+    c = e.cand
+    shape = dict(e.shape)
+    shape["amp"] = e.amp
+    return fx.Candidate(c.type, dict(c.location), c.label, c.available, c.note, shape)
+
+
+def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
+                  spread: Sequence[float]) -> dict[str, Any]:
+    """The accepted effect's JSON entry: its parameters, and each declared parameter that was
+    re-adjusted with it (value before and after, relative change). Each uncertainty is the
+    Gauss-Newton sigma and the test-to-test scatter's standard error combined (fit.scatter:
+    the model-form part the first misses)."""
+    et = fx.by_type(res.cand.type)
+    params, readjusted = {}, {}
+    declared = before.parameters()
+    for n, v, s, sc, u in zip(res.names, res.values, res.sigma, spread, res.units,
+                              strict=True):
+        unc = {"uncertainty": math.hypot(s, sc) if math.isfinite(sc) else s,
+               "uncertainty_fit": s, "uncertainty_scatter": sc, "unit": u}
+        if n.endswith(ft.READJUSTED):
+            name = n[: -len(ft.READJUSTED)]
+            was = float(declared[name])
+            readjusted[name] = {"before": was, "value": v, **unc,
+                                "change_rel": (v - was) / was if was else math.nan}
+        else:
+            params[n] = {"value": v, **unc}
+    return {"type": res.cand.type, "location": dict(res.cand.location),
+            "label": res.cand.label, "law": et.law, "parameters": params,
+            "readjusted": readjusted, "reference": info["reference"],
+            "evidence": info["evidence"], "held_out_gain": info["held_gain"],
+            "delta_bic": info["delta_bic"]}
+@dataclass
+class Step:
+    """An accepted effect: the model before it, its fit's record, its index in the effects,
+    the round that accepted it."""
+    before: mdl.Model
+    info: dict[str, Any]
+    entry: int
+    round: int
+
+
+def backward(s: Session, steps: list[Step], cur: mdl.Model, cur_table: rs.ErrorTable,
+              effects: list[dict[str, Any]], prediction: str
+              ) -> tuple[mdl.Model, rs.ErrorTable]:
+    """Backward elimination: each accepted effect but the last, left out with the later ones
+    re-fitted in its place (from their values, with what they re-adjust); dropped when the
+    held-out error stays within half of min_gain of the full model's. An early effect can be
+    a stand-in for one found later (an appendage at the wrong DOF, then the right one)."""
+    k = 0
+    while k < len(steps) - 1:
+        trial = without(s, steps, k, prediction)
+        held_full = cur_table.total(s.held_names)
+        if trial is None or trial[1].total(s.held_names) > (1 + 0.5 * s.o.min_gain) * held_full:
+            if prediction == "open loop":  # the tests' initial states for cur again
+                initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
+            k += 1
+            continue
+        cur, cur_table, refits = trial
+        gone = steps[k]
+        msg = (f"{gone.info['candidate'].label} (round {gone.round}) left out: with the later "
+               f"effects re-fitted without it the held-out error is "
+               f"{cur_table.total(s.held_names) / held_full:.3f} x the full model's")
+        log.info(msg)
+        s.notes.append(msg)
+        del effects[gone.entry]
+        for st, (before, res) in zip(steps[k + 1:], refits, strict=True):
+            spread = ft.scatter(before, res, s.fit_t, s.chans, s.scales,
+                                st.info["readjusted"], workers=s.workers)
+            st.before, st.info, st.entry = before, {**st.info, "fit": res}, st.entry - 1
+            effects[st.entry] = effect_entry(res, st.info, before, spread)
+        del steps[k]
+    return cur, cur_table
+
+
+def without(s: Session, steps: Sequence[Step], k: int, prediction: str
+             ) -> tuple[mdl.Model, rs.ErrorTable, list[tuple[mdl.Model, ft.FitResult]]] | None:
+    """The model without step k's effect: the later effects re-fitted on the model before it.
+    (model, its error table, (model before, fit) of each re-fitted effect); None if a fit
+    fails."""
+    m = steps[k].before
+    refits = []
+    for st in steps[k + 1:]:
+        res: ft.FitResult = st.info["fit"]
+        own = [v for n, v in zip(res.names, res.values, strict=True)
+               if not n.endswith(ft.READJUSTED)]
+        try:
+            r = ft.fit(m, res.cand, own, s.fit_t, s.chans, s.scales, s.o.max_nfev,
+                       st.info["readjusted"])
+        except ConfigError as exc:
+            log.info("%s re-fitted without %s: %s", res.cand.label,
+                     steps[k].info["candidate"].label, exc)
+            return None
+        refits.append((m, r))
+        m = r.model
+        if prediction == "open loop":
+            initial.apply(m, s.evals, s.chans, s.scales, s.settle)
+    table, _ = s.table(m)
+    return m, table, refits
+
+

@@ -1,0 +1,165 @@
+"""One discover run's setup and records: its options, the tests and their split into
+fitting and held-out sets (Session), each round's record (Round) and the result
+(DiscoverResult)."""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from dynval import model as mdl
+from dynval.discover import noise as nz
+from dynval.discover import parallel
+from dynval.discover import residual as rs
+from dynval.discover import trace as tr
+from dynval.errors import ConfigError
+from dynval.io.recording import Recording
+
+
+@dataclass
+class Options:
+    max_effects: int = 3
+    top_k: int = 4
+    min_gain: float = 0.10
+    max_worse: float = 0.05  # a held-out test where the effect never acts moves by fit noise
+    significance_ratio: float = rs.SIGNIFICANCE_RATIO
+    noise: dict[str, float] | None = None  # stated noise RMS per channel (channel units)
+    max_nfev: int = 40
+    evidence_cut: float = 0.2  # fit only candidates with >= this share of the top evidence
+    uncertain: tuple[str, ...] = ()  # declared parameters to calibrate first and re-adjust
+    # re-adjust the declared stiffness, mass and damping at each candidate's location (and
+    # the modal damping) while it is fitted
+    readjust: bool = True
+    workers: int = 0  # processes for the candidate fits of a round; 0: every available core
+
+
+@dataclass
+class Round:
+    index: int
+    ratio: dict[str, float]
+    traits: dict[str, Any]
+    evidence: list[tr.Evidence]
+    fits: list[dict[str, Any]]
+    accepted: dict[str, Any] | None
+    decision: str
+    view: tr.ForceView | None = None
+    second: list[tr.Evidence] = field(default_factory=list)  # the output view's top picks
+
+
+@dataclass
+class DiscoverResult:
+    model0: mdl.Model
+    model: mdl.Model
+    tests: list[rs.TestData]
+    fit_names: list[str]
+    held_names: list[str]
+    chans: list[str]
+    scales: dict[str, float]
+    noise: dict[str, float]
+    before: rs.ErrorTable
+    after: rs.ErrorTable
+    res_before: dict[str, dict[str, np.ndarray]]
+    res_after: dict[str, dict[str, np.ndarray]]
+    rounds: list[Round]
+    effects: list[dict[str, Any]]
+    mahalanobis: dict[str, Any]
+    band_hz: tuple[float, float]
+    modes_hz: list[float]
+    notes: list[str] = field(default_factory=list)
+    timing_s: dict[str, float] = field(default_factory=dict)
+    calibration: dict[str, Any] = field(default_factory=dict)
+    noise_floors: dict[str, nz.Floor] = field(default_factory=dict)
+    unexplained: dict[str, Any] = field(default_factory=dict)  # traits of a residual left
+    prediction: str = "open loop"  # or "observer" (a drifting model: discover/drift.py)
+    open_loop_before: dict[str, float] = field(default_factory=dict)  # held-out, per channel
+
+
+# fewer tests than this: cross-validate over time segments of every test instead of
+# splitting the tests (two tests split by level leave one level out of the fit entirely)
+MIN_TESTS_FOR_TEST_SPLIT = 4
+
+
+def split(tests: Sequence[rs.TestData]) -> tuple[list[rs.TestData], list[rs.TestData], str]:
+    """Fitting and held-out sets, and a sentence saying how they were made."""
+    if len(tests) < MIN_TESTS_FOR_TEST_SPLIT:
+        fit, held = rs.segment_split(tests)
+        return fit, held, (
+            f"{len(tests)} test(s): cross-validation over time — each record is cut into "
+            f"{rs.SEGMENT_BLOCKS} blocks, the even ones fit and the odd ones are held out "
+            "(simulated over the whole record, so every block starts from its true state)")
+    order = sorted(tests, key=lambda t: (float(np.std(t.u)), t.name))
+    return order[0::2], order[1::2], (
+        f"{len(tests)} tests sorted by input RMS, dealt alternately to the fitting and "
+        "held-out sets")
+
+
+def settle_s(modes_hz: Sequence[float], zeta: float = 0.01) -> float:
+    """How long the structure rings after its input stops: 1 % of the amplitude left in the
+    lowest flexible mode at a light damping ratio (at most 5 s)."""
+    flex = [f for f in modes_hz if f > 0.1]
+    return min(5.0, math.log(100.0) / (2 * math.pi * min(flex) * zeta)) if flex else 5.0
+
+
+def bic(nsse: float, n: float, p: int) -> float:
+    return n * math.log(max(nsse, 1e-300) / n) + p * math.log(n)
+
+
+@dataclass
+class Session:
+    """What every stage of one discover run reads: the tests and their split, the channels
+    and their scales, the input band, the model's modes and the options."""
+
+    o: Options
+    tests: list[rs.TestData]
+    chans: list[str]
+    scales: dict[str, float]
+    fit_t: list[rs.TestData]
+    held_t: list[rs.TestData]
+    band: tuple[float, float]
+    modes_hz: list[float]
+    settle: int
+    notes: list[str] = field(default_factory=list)
+    # declared parameters an accepted effect re-adjusted: free already, so a later change of
+    # one is the re-adjustment going on (the final joint one), not a new effect
+    readjusted: set[str] = field(default_factory=set)
+
+    @property
+    def workers(self) -> int:
+        """Processes for independent fits (candidates, per-test refits)."""
+        return self.o.workers or parallel.available_workers()
+
+    @property
+    def evals(self) -> list[rs.TestData]:
+        return [*self.fit_t, *self.held_t]  # every test once, or every test's two views
+
+    @property
+    def fit_names(self) -> list[str]:
+        return [t.name for t in self.fit_t]
+
+    @property
+    def held_names(self) -> list[str]:
+        return [t.name for t in self.held_t]
+
+    def table(self, m: mdl.Model) -> tuple[rs.ErrorTable, dict[str, dict[str, np.ndarray]]]:
+        return rs.error_table(m, self.evals, self.chans, self.scales)
+
+
+def make_session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> Session:
+    tests = rs.prepare(m, recs)
+    chans = rs.common_channels(m, tests)
+    if not chans:
+        raise ConfigError("no model output is a column of every test")
+    fs_set = {round(t.fs_hz, 6) for t in tests}
+    if len(fs_set) != 1:
+        raise ConfigError(f"the tests have different sample rates: {sorted(fs_set)}")
+    fit_t, held_t, how = split(tests)
+    band = tr.input_band(tests)
+    modes_hz = [float(f) for f in mdl.natural_frequencies(m)]
+    settle = int(settle_s([f for f in modes_hz if f > 0.05 * band[0]]) * tests[0].fs_hz)
+    return Session(o, tests, chans, rs.channel_scales(tests, chans), fit_t, held_t, band,
+                    modes_hz, settle, [how])
+
+
