@@ -1,101 +1,14 @@
 /* The firmware loop without sockets. See sim_core.h. Stages per accepted sample, each
  * appending its frames to the output: features (dv_chan), AR residual (dv_ar, baseline fit),
- * observer (dv_model + dv_obs, driven by the force channel, one step per time index). */
+ * observer (dv_model + dv_obs, driven by the force channel, one step per time index: in
+ * sim_obs_stage.c). Here also the frame handling, the status frame and the input registers;
+ * the configuration and its holding registers are in sim_config.c. */
 #include "sim_core.h"
+#include "sim_priv.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-
-void sim_config_default(struct sim_config *cfg)
-{
-    memset(cfg, 0, sizeof *cfg);
-    cfg->n_chan = 5;
-    cfg->win_len = 256;
-    cfg->seg_len = 64;
-    cfg->n_seg = 64;
-    cfg->ar_order = 0;
-    cfg->outlier_x100 = 600;
-    cfg->resid_decim = 1;
-    cfg->force_chan = 0;
-    cfg->heartbeat_ms = 1000;
-    cfg->recording = 1;
-    cfg->model[SIM_MODEL_HOLD] = (float)DV_HOLD_CUBIC; /* the better hold, by default */
-    for (int i = 0; i < SIM_MAX_CHAN; i++) {
-        cfg->fs_hz[i] = 640;
-        cfg->lsb[i] = DV_CODEC_DEFAULT_LSB;
-    }
-}
-
-int sim_config_check(const struct sim_config *cfg)
-{
-    if (cfg->n_chan < 1 || cfg->n_chan > SIM_MAX_CHAN) {
-        return SIM_HR_N_CHAN;
-    }
-    if (cfg->win_len < 2) {
-        return SIM_HR_WIN_LEN;
-    }
-    if (cfg->seg_len < 2) {
-        return SIM_HR_SEG_LEN;
-    }
-    if (cfg->n_seg < 1 || cfg->n_seg > 4096) {
-        return SIM_HR_N_SEG;
-    }
-    if (cfg->ar_order > 32) {
-        return SIM_HR_AR_ORDER;
-    }
-    if (cfg->force_chan >= cfg->n_chan) {
-        return SIM_HR_FORCE_CHAN;
-    }
-    if (cfg->recording > 1) {
-        return SIM_HR_RECORDING;
-    }
-    for (int i = 0; i < SIM_MAX_CHAN; i++) {
-        if (!(cfg->lsb[i] > 0.0f) || !(cfg->lsb[i] <= SIM_LSB_MAX)) { /* NaN fails both */
-            return SIM_HR_LSB + 2 * i;
-        }
-        if (cfg->fs_hz[i] == 0) {
-            return SIM_HR_FS_CH + i;
-        }
-    }
-    for (int i = 0; i < SIM_N_MODEL; i++) {
-        if (!isfinite(cfg->model[i])) {
-            return SIM_HR_MODEL + 2 * i;
-        }
-    }
-    const float *m = cfg->model;
-    const float nd = m[SIM_MODEL_N_DOF];
-    if (nd < 0.0f || nd > (float)DV_MAX_DOF || nd != floorf(nd)) {
-        return SIM_HR_MODEL + 2 * SIM_MODEL_N_DOF;
-    }
-    const int n = (int)nd;
-    for (int i = 0; i < n; i++) {
-        if (!(m[SIM_MODEL_MASS + i] > 0.0f)) {
-            return SIM_HR_MODEL + 2 * (SIM_MODEL_MASS + i);
-        }
-        if (m[SIM_MODEL_K + i] < 0.0f) {
-            return SIM_HR_MODEL + 2 * (SIM_MODEL_K + i);
-        }
-        if (m[SIM_MODEL_ZETA + i] < 0.0f) {
-            return SIM_HR_MODEL + 2 * (SIM_MODEL_ZETA + i);
-        }
-    }
-    if (m[SIM_MODEL_Q] < 0.0f) {
-        return SIM_HR_MODEL + 2 * SIM_MODEL_Q;
-    }
-    if (m[SIM_MODEL_Q] > 0.0f && !(m[SIM_MODEL_R] > 0.0f)) {
-        return SIM_HR_MODEL + 2 * SIM_MODEL_R;
-    }
-    const float in = m[SIM_MODEL_INPUT_DOF];
-    if (in < 0.0f || in != floorf(in) || (n > 0 && in >= nd)) {
-        return SIM_HR_MODEL + 2 * SIM_MODEL_INPUT_DOF;
-    }
-    const float hold = m[SIM_MODEL_HOLD];
-    if (hold != (float)DV_HOLD_FOH && hold != (float)DV_HOLD_CUBIC) {
-        return SIM_HR_MODEL + 2 * SIM_MODEL_HOLD;
-    }
-    return -1;
-}
 
 static uint32_t sat_add(uint32_t a, uint32_t b)
 {
@@ -297,219 +210,6 @@ static void stage_ar(struct sim_core *c, unsigned ch, dv_real_t x, dv_status_t f
     dv_moments_reset(&a->mom);
 }
 
-/* ---- observer stage -------------------------------------------------------------------- */
-
-static void obs_free(struct sim_obs *o)
-{
-    free(o->mbuf);
-    free(o->obuf);
-    for (int i = 0; i < SIM_MAX_CHAN; i++) {
-        free(o->q[i]);
-        o->q[i] = NULL;
-    }
-    o->mbuf = o->obuf = NULL;
-    o->on = 0;
-}
-
-static void obs_restart(struct sim_obs *o)
-{
-    if (o->on) {
-        dv_obs_reset(&o->obs);
-    }
-    memset(o->qh, 0, sizeof o->qh);
-    memset(o->qn, 0, sizeof o->qn);
-    o->steps = 0;
-}
-
-/* (Re)build model and observer from the configuration; status says how it went. */
-static void obs_setup(struct sim_core *c)
-{
-    struct sim_obs *o = &c->obs;
-    const struct sim_config *cfg = &c->cfg;
-    obs_free(o);
-    obs_restart(o);
-    o->overrun = 0;
-    const float *p = cfg->model;
-    const unsigned n_dof = (unsigned)p[SIM_MODEL_N_DOF];
-    if (n_dof == 0) {
-        c->obs_status = SIM_STAGE_NOT_CONFIGURED;
-        return;
-    }
-    c->obs_status = SIM_STAGE_ERROR;
-    dv_model_desc_t d;
-    dv_model_desc_default(&d);
-    d.n_dof = (uint16_t)n_dof;
-    for (unsigned i = 0; i < n_dof; i++) {
-        d.mass_kg[i] = (dv_real_t)p[SIM_MODEL_MASS + i];
-        d.k_n_per_m[i] = (dv_real_t)p[SIM_MODEL_K + i];
-        d.zeta[i] = (dv_real_t)p[SIM_MODEL_ZETA + i];
-    }
-    d.damp_kind = DV_DAMP_MODAL;
-    d.input_kind = DV_INPUT_FORCE;
-    d.input_dof = (uint16_t)p[SIM_MODEL_INPUT_DOF];
-    d.input_hold = p[SIM_MODEL_HOLD] == (float)DV_HOLD_CUBIC ? DV_HOLD_CUBIC : DV_HOLD_FOH;
-    d.n_elem = 0;
-    /* measured channels: every channel but the force channel, in order, = acc of DOF 0.. */
-    uint16_t n_out = 0;
-    for (unsigned ch = 0; ch < cfg->n_chan && n_out < n_dof && n_out < DV_MAX_OUT; ch++) {
-        if (ch != cfg->force_chan) {
-            d.out[n_out].kind = DV_OUT_ACC;
-            d.out[n_out].index = n_out;
-            o->meas_ch[n_out] = (uint16_t)ch;
-            n_out++;
-        }
-    }
-    if (n_out == 0) {
-        return;
-    }
-    d.n_out = n_out;
-    o->n_out = n_out;
-    const dv_real_t dt = (dv_real_t)1 / (dv_real_t)cfg->fs_hz[cfg->force_chan];
-    const size_t ml = dv_model_buf_len(&d);
-    o->mbuf = ml ? malloc(ml * sizeof *o->mbuf) : NULL;
-    if (o->mbuf == NULL || dv_model_init(&o->model, &d, dt, o->mbuf, ml) != DV_OK) {
-        obs_free(o);
-        return;
-    }
-    dv_obs_noise_t nz;
-    memset(&nz, 0, sizeof nz);
-    for (unsigned i = 0; i < DV_MAX_DOF; i++) {
-        nz.q_force_n2[i] = (dv_real_t)p[SIM_MODEL_Q];
-    }
-    for (unsigned i = 0; i < DV_MAX_OUT; i++) {
-        nz.r_meas[i] = (dv_real_t)p[SIM_MODEL_R];
-    }
-    const size_t ol = dv_obs_buf_len(&o->model);
-    o->obuf = malloc(ol * sizeof *o->obuf);
-    if (o->obuf == NULL ||
-        dv_obs_init(&o->obs, &o->model, p[SIM_MODEL_Q] > 0.0f ? &nz : NULL, o->obuf, ol) !=
-            DV_OK) {
-        obs_free(o);
-        return;
-    }
-    for (int i = 0; i < SIM_MAX_CHAN; i++) {
-        o->q[i] = malloc(SIM_OBS_QCAP * sizeof *o->q[i]);
-        if (o->q[i] == NULL) {
-            obs_free(o);
-            return;
-        }
-    }
-    o->on = 1;
-    c->obs_status = SIM_STAGE_RUNNING;
-}
-
-static int obs_uses(const struct sim_core *c, unsigned ch)
-{
-    if (ch == c->cfg.force_chan) {
-        return 1;
-    }
-    for (unsigned j = 0; j < c->obs.n_out; j++) {
-        if (c->obs.meas_ch[j] == ch) {
-            return 1;
-        }
-    }
-    return 0;
-}
-
-static void obs_push(struct sim_obs *o, unsigned ch, dv_real_t x)
-{
-    if (o->qn[ch] == SIM_OBS_QCAP) { /* this channel ran far ahead: lose its oldest */
-        o->qh[ch] = (o->qh[ch] + 1u) % SIM_OBS_QCAP;
-        o->qn[ch]--;
-        o->overrun++;
-    }
-    o->q[ch][(o->qh[ch] + o->qn[ch]) % SIM_OBS_QCAP] = x;
-    o->qn[ch]++;
-}
-
-static dv_real_t obs_pop(struct sim_obs *o, unsigned ch)
-{
-    const dv_real_t x = o->q[ch][o->qh[ch]];
-    o->qh[ch] = (o->qh[ch] + 1u) % SIM_OBS_QCAP;
-    o->qn[ch]--;
-    return x;
-}
-
-/* Stage 3: queue the sample (NaN included: it holds its time slot); step the observer for
- * every time index all its channels have delivered; residual frames every resid_decim steps. */
-static void stage_observer(struct sim_core *c, unsigned ch, dv_real_t x, dv_can_frame_t *out,
-                           size_t *n)
-{
-    struct sim_obs *o = &c->obs;
-    if (!o->on || !obs_uses(c, ch)) {
-        return;
-    }
-    obs_push(o, ch, x);
-    const unsigned fc = c->cfg.force_chan;
-    for (;;) {
-        if (o->qn[fc] == 0) {
-            return;
-        }
-        for (unsigned j = 0; j < o->n_out; j++) {
-            if (o->qn[o->meas_ch[j]] == 0) {
-                return;
-            }
-        }
-        dv_real_t y[DV_MAX_OUT], r[DV_MAX_OUT];
-        const dv_real_t u = obs_pop(o, fc);
-        for (unsigned j = 0; j < o->n_out; j++) {
-            y[j] = obs_pop(o, o->meas_ch[j]);
-        }
-        const uint64_t n_pred = o->obs.n_pred;
-        (void)dv_obs_step(&o->obs, u, y); /* NaN u: held; NaN y: predicted only */
-        uint32_t step = o->steps++;
-        if (dv_obs_latency(&o->obs) > 0u) {
-            /* cubic hold: this call completes the previous accepted sample, whose residual
-             * goes out now, labelled with that sample's own step; nothing new when the input
-             * was refused (NaN) or on the first sample */
-            if ((o->obs.flags & DV_OBS_FLAG_BAD_INPUT) != 0u) {
-                continue;
-            }
-            const uint32_t done = o->pend_step;
-            o->pend_step = step;
-            if (o->obs.n_pred == n_pred) {
-                continue;
-            }
-            step = done;
-        }
-        if (dv_obs_get(&o->obs, NULL, r, DV_MAX_OUT) != DV_OK) {
-            continue;
-        }
-        const int emit = c->cfg.resid_decim != 0 && step % c->cfg.resid_decim == 0;
-        for (unsigned j = 0; j < o->n_out; j++) {
-            const unsigned mc = o->meas_ch[j];
-            if (!isfinite((float)r[j])) { /* a diverging model: counted, never sent */
-                c->n.nonfinite++;
-                continue;
-            }
-            c->ch[mc].last.obs_resid = (float)r[j];
-            if (!emit) {
-                continue;
-            }
-            if (*n >= SIM_CORE_MAX_OUT) {
-                c->n.tx_errors++;
-                continue;
-            }
-            dv_msg_t m;
-            m.kind = DV_MSG_RESID;
-            m.u.resid.channel = (uint8_t)mc;
-            m.u.resid.flags = o->obs.has_gain ? 1u : 0u;
-            m.u.resid.step = (uint16_t)(step & 0xFFFFu);
-            m.u.resid.value = (float)r[j];
-            dv_codec_encode(&m, &out[(*n)++]);
-        }
-    }
-}
-
-/* A sequence gap of @p lost frames: NaN placeholders keep the observer's channels aligned. */
-static void stage_observer_gap(struct sim_core *c, unsigned ch, uint32_t lost,
-                               dv_can_frame_t *out, size_t *n)
-{
-    for (uint32_t i = 0; i < lost * DV_CODEC_SAMPLES_PER_FRAME; i++) {
-        stage_observer(c, ch, (dv_real_t)NAN, out, n);
-    }
-}
-
 int sim_core_configure(struct sim_core *c, const struct sim_config *cfg)
 {
     if (sim_config_check(cfg) >= 0) {
@@ -529,7 +229,7 @@ int sim_core_configure(struct sim_core *c, const struct sim_config *cfg)
             }
         }
         c->ar_status = SIM_STAGE_NOT_CONFIGURED;
-        obs_setup(c);
+        sim_obs_setup(c);
         c->n.cfg_writes++;
         return 0;
     }
@@ -552,7 +252,7 @@ int sim_core_configure(struct sim_core *c, const struct sim_config *cfg)
     }
     c->cfg = *cfg;
     c->ar_status = SIM_STAGE_NOT_CONFIGURED; /* RUNNING once a baseline is fitted */
-    obs_setup(c);
+    sim_obs_setup(c);
     c->n.cfg_writes++;
     return 0;
 }
@@ -602,7 +302,7 @@ void sim_core_free(struct sim_core *c)
         c->ch[i].buf = NULL;
         ar_clear(&c->ch[i].ar);
     }
-    obs_free(&c->obs);
+    sim_obs_free(&c->obs);
 }
 
 /* Stage 1: the dv_chan feature set. Segment ends send the segment STD and the window
@@ -683,7 +383,7 @@ static void start_record(struct sim_core *c)
         nan_latest(&sc->last);
         ar_restart(&sc->ar);
     }
-    obs_restart(&c->obs);
+    sim_obs_restart(&c->obs);
 }
 
 static void clear_counters(struct sim_core *c)
@@ -722,13 +422,13 @@ static size_t handle_samples(struct sim_core *c, const dv_msg_samples_t *s, dv_c
     size_t n = 0;
     if (v == DV_SEQ_GAP) {
         dv_seq_get(&sc->seq, &after);
-        stage_observer_gap(c, s->channel, after.lost - before.lost, out, &n);
+        sim_obs_stage_gap(c, s->channel, after.lost - before.lost, out, &n);
     }
     for (unsigned i = 0; i < DV_CODEC_SAMPLES_PER_FRAME; i++) {
         const dv_real_t x = dv_codec_sample_value(s->raw[i], c->cfg.lsb[s->channel]);
         const dv_status_t st = stage_features(c, s->channel, x, out, &n);
         stage_ar(c, s->channel, x, st, out, &n);
-        stage_observer(c, s->channel, x, out, &n);
+        sim_obs_stage(c, s->channel, x, out, &n);
     }
     return n;
 }
@@ -797,7 +497,7 @@ size_t sim_core_handle(struct sim_core *c, const dv_can_frame_t *in, dv_can_fram
         c->ch[ch].enabled = (m.u.chcfg.flags & 1u) != 0u;
         ar_clear(&c->ch[ch].ar); /* new scaling: a new baseline */
         c->cfg = cfg;
-        obs_setup(c);
+        sim_obs_setup(c);
         c->n.cfg_writes++;
         return 0;
     }
@@ -881,27 +581,6 @@ size_t sim_core_tick(struct sim_core *c, uint64_t now_ns, dv_can_frame_t *out)
     return 1;
 }
 
-static void ir_u32(uint16_t *ir, int addr, uint32_t v)
-{
-    ir[addr] = (uint16_t)(v >> 16);
-    ir[addr + 1] = (uint16_t)(v & 0xFFFFu);
-}
-
-static void ir_f32(uint16_t *ir, int addr, float f)
-{
-    uint32_t u;
-    memcpy(&u, &f, 4);
-    ir_u32(ir, addr, u);
-}
-
-static float hr_f32(const uint16_t *hr, int addr)
-{
-    const uint32_t u = ((uint32_t)hr[addr] << 16) | hr[addr + 1];
-    float f;
-    memcpy(&f, &u, 4);
-    return f;
-}
-
 void sim_core_input_regs(const struct sim_core *c, uint16_t *ir)
 {
     memset(ir, 0, SIM_N_INPUT * sizeof *ir);
@@ -917,98 +596,55 @@ void sim_core_input_regs(const struct sim_core *c, uint16_t *ir)
     for (int i = 0; i < SIM_MAX_CHAN; i++) {
         nan = sat_add(nan, chan_nan(&c->ch[i]));
     }
-    ir_u32(ir, SIM_IR_RX_FRAMES, c->n.rx_frames);
-    ir_u32(ir, SIM_IR_TX_FRAMES, c->n.tx_frames);
-    ir_u32(ir, SIM_IR_DROPPED, c->n.dropped);
-    ir_u32(ir, SIM_IR_LOST, t.lost);
-    ir_u32(ir, SIM_IR_DUP, t.dup);
-    ir_u32(ir, SIM_IR_LATE, t.late);
-    ir_u32(ir, SIM_IR_STALE, t.stale);
-    ir_u32(ir, SIM_IR_BAD_DLC, c->n.bad_dlc);
-    ir_u32(ir, SIM_IR_UNKNOWN_ID, c->n.unknown_id);
-    ir_u32(ir, SIM_IR_NAN_SAMPLES, nan);
-    ir_u32(ir, SIM_IR_BAD_CHAN, c->n.bad_chan);
-    ir_u32(ir, SIM_IR_IGNORED, c->n.ignored);
-    ir_u32(ir, SIM_IR_BAD_CFG, c->n.bad_cfg);
-    ir_u32(ir, SIM_IR_SAMPLES, c->n.samples);
-    ir_u32(ir, SIM_IR_TX_ERRORS, c->n.tx_errors);
-    ir_u32(ir, SIM_IR_CFG_WRITES, c->n.cfg_writes);
-    ir_u32(ir, SIM_IR_OBS_STEPS, c->obs.steps);
-    ir_u32(ir, SIM_IR_OBS_OVERRUN, c->obs.overrun);
-    ir_u32(ir, SIM_IR_NONFINITE, c->n.nonfinite);
+    sim_put_u32(ir, SIM_IR_RX_FRAMES, c->n.rx_frames);
+    sim_put_u32(ir, SIM_IR_TX_FRAMES, c->n.tx_frames);
+    sim_put_u32(ir, SIM_IR_DROPPED, c->n.dropped);
+    sim_put_u32(ir, SIM_IR_LOST, t.lost);
+    sim_put_u32(ir, SIM_IR_DUP, t.dup);
+    sim_put_u32(ir, SIM_IR_LATE, t.late);
+    sim_put_u32(ir, SIM_IR_STALE, t.stale);
+    sim_put_u32(ir, SIM_IR_BAD_DLC, c->n.bad_dlc);
+    sim_put_u32(ir, SIM_IR_UNKNOWN_ID, c->n.unknown_id);
+    sim_put_u32(ir, SIM_IR_NAN_SAMPLES, nan);
+    sim_put_u32(ir, SIM_IR_BAD_CHAN, c->n.bad_chan);
+    sim_put_u32(ir, SIM_IR_IGNORED, c->n.ignored);
+    sim_put_u32(ir, SIM_IR_BAD_CFG, c->n.bad_cfg);
+    sim_put_u32(ir, SIM_IR_SAMPLES, c->n.samples);
+    sim_put_u32(ir, SIM_IR_TX_ERRORS, c->n.tx_errors);
+    sim_put_u32(ir, SIM_IR_CFG_WRITES, c->n.cfg_writes);
+    sim_put_u32(ir, SIM_IR_OBS_STEPS, c->obs.steps);
+    sim_put_u32(ir, SIM_IR_OBS_OVERRUN, c->obs.overrun);
+    sim_put_u32(ir, SIM_IR_NONFINITE, c->n.nonfinite);
     for (int i = 0; i < SIM_MAX_CHAN; i++) {
         const struct sim_chan *sc = &c->ch[i];
         const struct sim_latest *l = &sc->last;
         const int b = SIM_IR_CH(i);
         dv_seq_counts_t k;
         chan_counts(sc, &k);
-        ir_u32(ir, b + SIM_IR_CH_LOST, k.lost);
-        ir_u32(ir, b + SIM_IR_CH_DUP, k.dup);
-        ir_u32(ir, b + SIM_IR_CH_LATE, k.late);
-        ir_u32(ir, b + SIM_IR_CH_NAN, chan_nan(sc));
-        ir_u32(ir, b + SIM_IR_CH_SAMPLES, sc->samples);
-        ir_u32(ir, b + SIM_IR_CH_SEGMENTS, sc->segments);
-        ir_u32(ir, b + SIM_IR_CH_RECORDS, sc->records);
-        ir_f32(ir, b + SIM_IR_CH_SEG_STD, l->seg_std);
-        ir_f32(ir, b + SIM_IR_CH_WIN_MEAN, l->win_mean);
-        ir_f32(ir, b + SIM_IR_CH_WIN_STD, l->win_std);
-        ir_f32(ir, b + SIM_IR_CH_WIN_RMS, l->win_rms);
-        ir_f32(ir, b + SIM_IR_CH_WIN_PEAK, l->win_peak);
-        ir_f32(ir, b + SIM_IR_CH_REC_MEAN, l->rec_mean);
-        ir_f32(ir, b + SIM_IR_CH_REC_STD, l->rec_std);
-        ir_f32(ir, b + SIM_IR_CH_REC_RMS, l->rec_rms);
-        ir_f32(ir, b + SIM_IR_CH_REC_SKEW, l->rec_skew);
-        ir_f32(ir, b + SIM_IR_CH_REC_KURT, l->rec_kurt);
-        ir_f32(ir, b + SIM_IR_CH_REC_PEAK, l->rec_peak);
-        ir_f32(ir, b + SIM_IR_CH_REC_CREST, l->rec_crest);
-        ir_f32(ir, b + SIM_IR_CH_TM_ENERGY, l->tm_energy);
-        ir_f32(ir, b + SIM_IR_CH_TM_CTIME, l->tm_ctime);
-        ir_f32(ir, b + SIM_IR_CH_TM_RMSDUR, l->tm_rmsdur);
-        ir_f32(ir, b + SIM_IR_CH_AR_RESID, l->ar_resid);
-        ir_f32(ir, b + SIM_IR_CH_OBS_RESID, l->obs_resid);
-        ir_u32(ir, b + SIM_IR_CH_AR_OUTLIERS, sc->ar.last_outliers);
-    }
-}
-
-void sim_config_to_regs(const struct sim_config *cfg, uint16_t *hr)
-{
-    memset(hr, 0, SIM_N_HOLDING * sizeof *hr);
-    hr[SIM_HR_N_CHAN] = cfg->n_chan;
-    hr[SIM_HR_WIN_LEN] = cfg->win_len;
-    hr[SIM_HR_SEG_LEN] = cfg->seg_len;
-    hr[SIM_HR_N_SEG] = cfg->n_seg;
-    hr[SIM_HR_AR_ORDER] = cfg->ar_order;
-    hr[SIM_HR_OUTLIER_X100] = cfg->outlier_x100;
-    hr[SIM_HR_RESID_DECIM] = cfg->resid_decim;
-    hr[SIM_HR_FORCE_CHAN] = cfg->force_chan;
-    hr[SIM_HR_HEARTBEAT_MS] = cfg->heartbeat_ms;
-    hr[SIM_HR_RECORDING] = cfg->recording;
-    for (int i = 0; i < SIM_N_MODEL; i++) {
-        ir_f32(hr, SIM_HR_MODEL + 2 * i, cfg->model[i]);
-    }
-    for (int i = 0; i < SIM_MAX_CHAN; i++) {
-        ir_f32(hr, SIM_HR_LSB + 2 * i, cfg->lsb[i]);
-        hr[SIM_HR_FS_CH + i] = cfg->fs_hz[i];
-    }
-}
-
-void sim_config_from_regs(struct sim_config *cfg, const uint16_t *hr)
-{
-    cfg->n_chan = hr[SIM_HR_N_CHAN];
-    cfg->win_len = hr[SIM_HR_WIN_LEN];
-    cfg->seg_len = hr[SIM_HR_SEG_LEN];
-    cfg->n_seg = hr[SIM_HR_N_SEG];
-    cfg->ar_order = hr[SIM_HR_AR_ORDER];
-    cfg->outlier_x100 = hr[SIM_HR_OUTLIER_X100];
-    cfg->resid_decim = hr[SIM_HR_RESID_DECIM];
-    cfg->force_chan = hr[SIM_HR_FORCE_CHAN];
-    cfg->heartbeat_ms = hr[SIM_HR_HEARTBEAT_MS];
-    cfg->recording = hr[SIM_HR_RECORDING];
-    for (int i = 0; i < SIM_N_MODEL; i++) {
-        cfg->model[i] = hr_f32(hr, SIM_HR_MODEL + 2 * i);
-    }
-    for (int i = 0; i < SIM_MAX_CHAN; i++) {
-        cfg->lsb[i] = hr_f32(hr, SIM_HR_LSB + 2 * i);
-        cfg->fs_hz[i] = hr[SIM_HR_FS_CH + i];
+        sim_put_u32(ir, b + SIM_IR_CH_LOST, k.lost);
+        sim_put_u32(ir, b + SIM_IR_CH_DUP, k.dup);
+        sim_put_u32(ir, b + SIM_IR_CH_LATE, k.late);
+        sim_put_u32(ir, b + SIM_IR_CH_NAN, chan_nan(sc));
+        sim_put_u32(ir, b + SIM_IR_CH_SAMPLES, sc->samples);
+        sim_put_u32(ir, b + SIM_IR_CH_SEGMENTS, sc->segments);
+        sim_put_u32(ir, b + SIM_IR_CH_RECORDS, sc->records);
+        sim_put_f32(ir, b + SIM_IR_CH_SEG_STD, l->seg_std);
+        sim_put_f32(ir, b + SIM_IR_CH_WIN_MEAN, l->win_mean);
+        sim_put_f32(ir, b + SIM_IR_CH_WIN_STD, l->win_std);
+        sim_put_f32(ir, b + SIM_IR_CH_WIN_RMS, l->win_rms);
+        sim_put_f32(ir, b + SIM_IR_CH_WIN_PEAK, l->win_peak);
+        sim_put_f32(ir, b + SIM_IR_CH_REC_MEAN, l->rec_mean);
+        sim_put_f32(ir, b + SIM_IR_CH_REC_STD, l->rec_std);
+        sim_put_f32(ir, b + SIM_IR_CH_REC_RMS, l->rec_rms);
+        sim_put_f32(ir, b + SIM_IR_CH_REC_SKEW, l->rec_skew);
+        sim_put_f32(ir, b + SIM_IR_CH_REC_KURT, l->rec_kurt);
+        sim_put_f32(ir, b + SIM_IR_CH_REC_PEAK, l->rec_peak);
+        sim_put_f32(ir, b + SIM_IR_CH_REC_CREST, l->rec_crest);
+        sim_put_f32(ir, b + SIM_IR_CH_TM_ENERGY, l->tm_energy);
+        sim_put_f32(ir, b + SIM_IR_CH_TM_CTIME, l->tm_ctime);
+        sim_put_f32(ir, b + SIM_IR_CH_TM_RMSDUR, l->tm_rmsdur);
+        sim_put_f32(ir, b + SIM_IR_CH_AR_RESID, l->ar_resid);
+        sim_put_f32(ir, b + SIM_IR_CH_OBS_RESID, l->obs_resid);
+        sim_put_u32(ir, b + SIM_IR_CH_AR_OUTLIERS, sc->ar.last_outliers);
     }
 }

@@ -276,6 +276,60 @@ dv_status_t dv_mat_eig_real(const dv_mat_t *a, dv_real_t *wr, dv_real_t *wi, dv_
     }
 }
 
+/* ---- eigen-solution of a symmetric matrix (cyclic Jacobi) -------------------------- */
+
+/* Sum of squares of the strict upper triangle of a: what the Jacobi sweeps drive to zero. */
+static dv_real_t off_diag_sq(const dv_mat_t *a)
+{
+    const size_t n = a->rows;
+    dv_real_t off = DV_R(0.0);
+    for (size_t p = 0; p < n; p++) {
+        for (size_t q = p + 1; q < n; q++) {
+            off += EL(a, p, q) * EL(a, p, q);
+        }
+    }
+    return off;
+}
+
+/* One Jacobi rotation in the (p, q) plane: a = J^T a J zeroes a[p][q] (a no-op if it is
+ * zero already), and the eigenvector estimate v = v J. */
+static void jacobi_rotate(dv_mat_t *a, dv_mat_t *v, size_t p, size_t q)
+{
+    const size_t n = a->rows;
+    const dv_real_t apq = EL(a, p, q);
+    if (apq == DV_R(0.0)) {
+        return;
+    }
+    /* Rutishauser's stable rotation: t = sgn(theta) / (|theta| + sqrt(theta^2+1)) */
+    const dv_real_t theta = (EL(a, q, q) - EL(a, p, p)) / (DV_R(2.0) * apq);
+    dv_real_t t = DV_R(1.0) / (DV_FABS(theta) + DV_SQRT(theta * theta + DV_R(1.0)));
+    if (theta < DV_R(0.0)) {
+        t = -t;
+    }
+    const dv_real_t c = DV_R(1.0) / DV_SQRT(t * t + DV_R(1.0));
+    const dv_real_t sn = t * c;
+    for (size_t k = 0; k < n; k++) {
+        const dv_real_t akp = EL(a, k, p);
+        const dv_real_t akq = EL(a, k, q);
+        EL(a, k, p) = c * akp - sn * akq;
+        EL(a, k, q) = sn * akp + c * akq;
+    }
+    for (size_t k = 0; k < n; k++) {
+        const dv_real_t apk = EL(a, p, k);
+        const dv_real_t aqk = EL(a, q, k);
+        EL(a, p, k) = c * apk - sn * aqk;
+        EL(a, q, k) = sn * apk + c * aqk;
+    }
+    EL(a, p, q) = DV_R(0.0);
+    EL(a, q, p) = DV_R(0.0);
+    for (size_t k = 0; k < n; k++) {
+        const dv_real_t vkp = EL(v, k, p);
+        const dv_real_t vkq = EL(v, k, q);
+        EL(v, k, p) = c * vkp - sn * vkq;
+        EL(v, k, q) = sn * vkp + c * vkq;
+    }
+}
+
 dv_status_t dv_mat_eig_sym(const dv_mat_t *s, dv_real_t *w, dv_mat_t *v, dv_real_t *work,
                            size_t len)
 {
@@ -302,61 +356,20 @@ dv_status_t dv_mat_eig_sym(const dv_mat_t *s, dv_real_t *w, dv_mat_t *v, dv_real
     }
     bool converged = false;
     for (uint32_t sweep = 0; sweep < DV_MAT_JACOBI_MAX_SWEEPS && !converged; sweep++) {
-        dv_real_t off = DV_R(0.0);
-        for (size_t p = 0; p < n; p++) {
-            for (size_t q = p + 1; q < n; q++) {
-                off += EL(&a, p, q) * EL(&a, p, q);
-            }
-        }
+        const dv_real_t off = off_diag_sq(&a);
         if (off <= DV_REAL_EPS * DV_REAL_EPS * scale * scale * DV_R(1e-4) || scale == DV_R(0.0)) {
             converged = true;
             break;
         }
         for (size_t p = 0; p < n; p++) {
             for (size_t q = p + 1; q < n; q++) {
-                const dv_real_t apq = EL(&a, p, q);
-                if (apq == DV_R(0.0)) {
-                    continue;
-                }
-                /* Rutishauser's stable rotation: t = sgn(theta) / (|theta| + sqrt(theta^2+1)) */
-                const dv_real_t theta = (EL(&a, q, q) - EL(&a, p, p)) / (DV_R(2.0) * apq);
-                dv_real_t t = DV_R(1.0) / (DV_FABS(theta) + DV_SQRT(theta * theta + DV_R(1.0)));
-                if (theta < DV_R(0.0)) {
-                    t = -t;
-                }
-                const dv_real_t c = DV_R(1.0) / DV_SQRT(t * t + DV_R(1.0));
-                const dv_real_t sn = t * c;
-                for (size_t k = 0; k < n; k++) {
-                    const dv_real_t akp = EL(&a, k, p);
-                    const dv_real_t akq = EL(&a, k, q);
-                    EL(&a, k, p) = c * akp - sn * akq;
-                    EL(&a, k, q) = sn * akp + c * akq;
-                }
-                for (size_t k = 0; k < n; k++) {
-                    const dv_real_t apk = EL(&a, p, k);
-                    const dv_real_t aqk = EL(&a, q, k);
-                    EL(&a, p, k) = c * apk - sn * aqk;
-                    EL(&a, q, k) = sn * apk + c * aqk;
-                }
-                EL(&a, p, q) = DV_R(0.0);
-                EL(&a, q, p) = DV_R(0.0);
-                for (size_t k = 0; k < n; k++) {
-                    const dv_real_t vkp = EL(v, k, p);
-                    const dv_real_t vkq = EL(v, k, q);
-                    EL(v, k, p) = c * vkp - sn * vkq;
-                    EL(v, k, q) = sn * vkp + c * vkq;
-                }
+                jacobi_rotate(&a, v, p, q);
             }
         }
     }
     if (!converged) {
         /* one more test after the last sweep */
-        dv_real_t off = DV_R(0.0);
-        for (size_t p = 0; p < n; p++) {
-            for (size_t q = p + 1; q < n; q++) {
-                off += EL(&a, p, q) * EL(&a, p, q);
-            }
-        }
+        const dv_real_t off = off_diag_sq(&a);
         if (off > DV_REAL_EPS * scale * scale) {
             return DV_EUNSTABLE;
         }

@@ -21,7 +21,8 @@ for real in float double; do
 done
 "$CC" -std=c99 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
     -I"$ROOT/include" -I"$ROOT/firmware_sim" "$ROOT/tests/fuzz/fuzz_sim_core.c" \
-    "$ROOT/firmware_sim/sim_core.c" "$ROOT"/src/*.c -lm -o "$OUT/fuzz_sim_core"
+    "$ROOT/firmware_sim/sim_core.c" "$ROOT/firmware_sim/sim_obs_stage.c" \
+    "$ROOT/firmware_sim/sim_config.c" "$ROOT"/src/*.c -lm -o "$OUT/fuzz_sim_core"
 mkdir -p "$OUT/corpus_sim"
 # a seed: one valid frame of each kind, then a sample stream with a gap and a duplicate
 python3 - "$OUT/corpus/seed" <<'PY' 2>/dev/null || true

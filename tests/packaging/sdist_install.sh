@@ -35,7 +35,9 @@ pipq=(-m pip install -q --disable-pip-version-check)
 sdist=$(ls "$work"/dist/dynval-*.tar.gz)
 listing=$(tar tzf "$sdist")
 for f in csrc/CMakeLists.txt csrc/include/dynval/dv.h csrc/src/dv_moments.c \
-         csrc/firmware_sim/sim_core.c csrc/can/dynval.dbc CMakeLists.txt LICENSE; do
+         csrc/firmware_sim/sim_core.c csrc/firmware_sim/sim_obs_stage.c \
+         csrc/firmware_sim/sim_config.c csrc/firmware_sim/sim_priv.h csrc/can/dynval.dbc \
+         CMakeLists.txt LICENSE; do
     grep -q "^dynval-[^/]*/$f$" <<<"$listing" || { echo "sdist: $f missing"; exit 1; }
 done
 if grep -q '\.so$' <<<"$listing"; then echo "sdist: holds a built library"; exit 1; fi

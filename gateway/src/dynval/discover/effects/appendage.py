@@ -1,0 +1,94 @@
+"""The appendage effect: a secondary mass on a spring and a dashpot hanging from a DOF (a
+mode the declared model lacks), added as a new DOF."""
+from __future__ import annotations
+
+import importlib
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from dynval import model as mdl
+from dynval.discover.effects.base import (
+    Candidate,
+    EffectType,
+    Param,
+    States,
+    readjust_every_stiffness,
+)
+from dynval.model.structure import with_appendage
+
+_signal: Any = importlib.import_module("scipy.signal")
+
+
+def appendage_motion(a: np.ndarray, fs_hz: float, f_hz: float, zeta: float) -> np.ndarray:
+    """The acceleration of an appendage (f_hz, zeta on a fixed base) hanging from a DOF whose
+    acceleration is ``a``: the base-excitation transmissibility
+    (2 zeta w s + w^2) / (s^2 + 2 zeta w s + w^2), by the bilinear map warped to keep w."""
+    w = 2 * fs_hz * np.tan(np.pi * f_hz / fs_hz)
+    b, den = _signal.bilinear([2 * zeta * w, w * w], [1.0, 2 * zeta * w, w * w], fs_hz)
+    return np.asarray(_signal.lfilter(b, den, a))
+
+
+class Appendage(EffectType):
+    type = "appendage"
+    location_kind = "dof"
+    law = ("a secondary mass on a spring and a dashpot hanging from DOF j (a mode the model "
+           "lacks): fixed-base frequency f, damping ratio zeta, mass m_a; a new DOF joined by "
+           "a dv_model link")
+    simpler = ("mass_change",)  # an appendage far above the band moves with its DOF
+    _N_GRID = 28
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        return [{"dof": j} for j in range(1, m.n_dof + 1)]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"appendage, DOF {loc['dof']}"
+
+    @staticmethod
+    def _grid(st: States) -> np.ndarray:
+        lo = max(st.band_hz[0], st.band_hz[1] / 50.0, 1e-3)
+        hi = min(1.2 * st.band_hz[1], 0.45 * st.fs_hz)
+        return np.geomspace(0.7 * lo, hi, Appendage._N_GRID)
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        if st.fs_hz <= 0 or st.band_hz[1] <= 0:
+            return []
+        j = cand.location["dof"] - 1
+        grid = self._grid(st)
+        out = []
+        for f in grid:
+            b = np.zeros_like(st.a)
+            b[j] = st.hp(appendage_motion(st.a[j], st.fs_hz, float(f), 0.03))
+            out.append(({"f_hz": float(f), "f_lo": float(grid[0]), "f_hi": float(grid[-1]),
+                         "m_ref": float(st.mass[j])}, b))
+        return out
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        mj = m.masses_kg[cand.location["dof"] - 1]
+        f_lo = float(cand.shape.get("f_lo", 1.0))
+        f_hi = float(cand.shape.get("f_hi", 1e3))
+        return [Param("f_hz", "Hz", 0.7 * f_lo, 1.3 * f_hi, log=True),
+                Param("mass_kg", "kg", 1e-4 * mj, 2.0 * mj, log=True),
+                Param("zeta", "1", 1e-3, 0.5, log=True)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        p = self.params(m, cand)
+        f = float(cand.shape.get("f_hz", math.sqrt(p[0].lower * p[0].upper)))
+        ma = float(np.clip(abs(amp), 2 * p[1].lower, 0.5 * p[1].upper))
+        return [float(np.clip(f, p[0].lower * 1.01, p[0].upper * 0.99)), ma, 0.03]
+
+    def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
+                 ) -> tuple[str, ...]:
+        # as a mass change (a new mode moves every mode), with the DOF's own mass
+        return readjust_every_stiffness(m, band_hz, cand.location["dof"])
+
+    def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        f, ma, z = self.initial(m, cand, amp)
+        return [[f, ma, z], [f, ma, 0.1]]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        f, ma, z = (float(v) for v in values)
+        j = cand.location["dof"]
+        return with_appendage(m, j, ma, f, z, f"discovered appendage at DOF {j}")
