@@ -6,6 +6,7 @@
 #define _GNU_SOURCE
 #include "sim_modbus.h"
 
+#include <arpa/inet.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <netinet/in.h>
@@ -23,6 +24,11 @@ int sim_modbus_open(struct sim_modbus *m, const char *addr, int port, char *err,
     m->listen_fd = -1;
     for (int i = 0; i < SIM_MB_MAX_CLIENTS; i++) {
         m->clients[i].fd = -1;
+    }
+    struct in_addr ip;
+    if (inet_pton(AF_INET, addr, &ip) != 1) { /* libmodbus would bind INADDR_NONE quietly */
+        snprintf(err, err_len, "Modbus listen address '%s' is not an IPv4 address", addr);
+        return -1;
     }
     m->ctx = modbus_new_tcp(addr, port);
     if (m->ctx == NULL) {
