@@ -194,7 +194,7 @@ def test_sim_busy_port_and_bad_usage(sim, tmp_path):
     assert r.returncode == 4 and "busy" in r.stderr
     r = subprocess.run([str(E.SIM_BIN), "-w", "1"], capture_output=True, text=True, timeout=20)
     assert r.returncode == 2 and "usage" in r.stderr
-    r = subprocess.run([str(E.SIM_BIN), "-i", "none", "-a", "999.1.1.1", "-p", "0"],
+    r = subprocess.run([str(E.SIM_BIN), "-i", "none", "-a", "999.1.1.1", "-p", str(E.free_port())],
                        capture_output=True, text=True, timeout=20)
     assert r.returncode == 4 and "not an IPv4 address" in r.stderr
 
