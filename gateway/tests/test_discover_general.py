@@ -110,3 +110,19 @@ def test_generator_csv_keeps_channel_names(tmp_path: Path) -> None:
     gen.write_csv(rec, tmp_path / "t.csv")
     head = (tmp_path / "t.csv").read_text().splitlines()[0]
     assert head == "time_s,shaker_N,a1,floor2_acc_mps2"
+
+
+def test_no_evidence_view_fits_every_candidate(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A model no view can read (after an appendage adds an unmeasured DOF, say): every
+    candidate is fitted, a note says so, and the round goes on (it raised before)."""
+    from dynval.discover import trace as tr
+
+    for view in ("force_view", "output_view", "reaction_view"):
+        monkeypatch.setattr(tr, view, lambda *a, **k: None)
+    m = two(512.0)
+    recs = gen.generate(m, gen.Truth(k_scale={1: 0.85}), n_tests=4, n_samples=2048,
+                        fs_hz=512.0, seed=3, band_hz=(10.0, 180.0))
+    r = loop.discover(m, recs, loop.Options(max_effects=1))
+    assert any("no evidence view" in n for n in r.notes)
+    assert r.rounds[0].second == []
+    assert [(e["type"], e["location"]["story"]) for e in r.effects] == [("stiffness_change", 1)]

@@ -349,6 +349,7 @@ def _trace(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
         second = (_second_opinion(evidence, tr.score(other, cands, s.workers)) if other
                   else [])
     else:
+        second = []
         s.notes.append("no evidence view for this model (it needs an accelerometer on every "
                        "DOF, or the model's output view, or a reaction output): every "
                        "candidate is fitted instead")
