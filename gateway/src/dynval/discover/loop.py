@@ -36,7 +36,7 @@ from dynval import model as mdl
 from dynval.discover import drift as dr
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
-from dynval.discover import initial, parallel
+from dynval.discover import initial, parallel, segments
 from dynval.discover import noise as nz
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
@@ -236,12 +236,13 @@ def _session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> _Session:
     fs_set = {round(t.fs_hz, 6) for t in tests}
     if len(fs_set) != 1:
         raise ConfigError(f"the tests have different sample rates: {sorted(fs_set)}")
-    fit_t, held_t, how = split(tests)
     band = tr.input_band(tests)
     modes_hz = [float(f) for f in mdl.natural_frequencies(m)]
     settle = int(_settle_s([f for f in modes_hz if f > 0.05 * band[0]]) * tests[0].fs_hz)
+    tests, cut = segments.bound(tests, settle)  # long records: evenly spaced segments
+    fit_t, held_t, how = split(tests)
     return _Session(o, tests, chans, rs.channel_scales(tests, chans), fit_t, held_t, band,
-                    modes_hz, settle, [how])
+                    modes_hz, settle, [how, *cut])
 
 
 def _open_loop_or_observer(s: _Session, m: mdl.Model, before: rs.ErrorTable,
