@@ -21,6 +21,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from dynval.discover.residual import TestData
+from dynval.io.arrays import release_pages
 
 log = logging.getLogger(__name__)
 
@@ -56,6 +57,8 @@ def bound(tests: Sequence[TestData], settle: int) -> tuple[list[TestData], list[
             cut = slice(int(s), int(s) + length)
             out.append(TestData(f"{t.name} @{s / t.fs_hz:.1f}s", t.fs_hz, np.array(t.u[cut]),
                                 {c: np.array(v[cut]) for c, v in t.y.items()}))
+        for a in (t.u, *t.y.values()):
+            release_pages(a)
         notes.append(f"{t.name}: {t.u.size / t.fs_hz:,.0f} s long; discover used {starts.size} "
                      f"evenly spaced segments of {length} samples "
                      f"({100 * starts.size * length / t.u.size:.1f} %), each its own test with "
