@@ -1,5 +1,6 @@
 """discover on long records (issue 21): a test longer than the budget is fitted on evenly
-spaced segments, each its own test with its initial state estimated, and says so. The budget
+spaced segments, each its own test with its initial state estimated (every one after the
+first: the 4-DOF frame's 0.1 Hz mode moves through a whole segment), and says so. The budget
 is shrunk here so a 128 s record at 640 Hz is "long"."""
 from __future__ import annotations
 
@@ -46,6 +47,9 @@ def test_a_long_record_gives_the_effect_its_segments_give_and_says_so(
                          "samples (40.0 %), each its own test with its initial state estimated"
                          for r in recs]
     assert len(whole.tests) == 8  # 2 records x 4 segments, dealt to fitting and held out
+    moving = [n.split(":")[0] for n in whole.notes if "does not start at rest" in n]
+    assert sorted(moving) == sorted(f"{r.name} @{s:.1f}s" for r in recs
+                                    for s in (38.4, 76.8, 115.2))  # all but the first
     assert [e["type"] for e in whole.effects] == ["contact"]
     e = whole.effects[0]
     assert e["location"]["story"] == 4
@@ -53,7 +57,10 @@ def test_a_long_record_gives_the_effect_its_segments_give_and_says_so(
     by_hand = loop.discover(declared(), _cut(recs, np.array([0, 24576, 49152, 73728]), SEG))
     assert not any("evenly spaced segments" in n for n in by_hand.notes)
     assert [t.name for t in by_hand.tests] == [t.name for t in whole.tests]
+    # (cut by hand, a segment's initial state is estimated only where initial.py's guard
+    # lets it: the same effect, parameters within a few per cent)
     h = by_hand.effects[0]
-    assert h["location"] == e["location"]
+    assert h["type"] == "contact" and h["location"] == e["location"]
     for k, v in e["parameters"].items():
-        assert h["parameters"][k]["value"] == pytest.approx(v["value"], rel=1e-9), k
+        assert h["parameters"][k]["value"] == pytest.approx(v["value"], rel=0.05), k
+    assert whole.rounds[-1].decision.startswith("residual at the noise floor")

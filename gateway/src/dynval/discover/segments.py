@@ -4,9 +4,11 @@ discover simulates every test hundreds of times (each candidate's fit, its refer
 evidence views) and keeps residuals and initial-state bases per sample, so its time and
 memory grow with the record. A test longer than BUDGET_SAMPLES is replaced by at most
 BUDGET_SAMPLES / length evenly spaced segments (the first at the record's start, the last at
-its end), each a test of its own. A segment does not start at rest: discover/initial.py
-estimates its initial state, so each segment is at least twice the structure's settling
-time (the start window initial.py judges the estimate on, and as long again after it).
+its end), each a test of its own. A segment after the first does not start at rest:
+discover/initial.py estimates its initial state (always: a lightly restrained structure's
+slow mode moves through the whole segment, which initial.py's guard would take for an
+effect's residual), and each segment is at least twice the structure's settling time (the
+start window initial.py fits, and as long again after it).
 Every cut is a note in the result (and a warning in the log), never silent.
 
 The budget: the discover bench cases (10 tests x 8192 samples) take 15-70 s on two cores;
@@ -56,7 +58,7 @@ def bound(tests: Sequence[TestData], settle: int) -> tuple[list[TestData], list[
         for s in starts:
             cut = slice(int(s), int(s) + length)
             out.append(TestData(f"{t.name} @{s / t.fs_hz:.1f}s", t.fs_hz, np.array(t.u[cut]),
-                                {c: np.array(v[cut]) for c, v in t.y.items()}))
+                                {c: np.array(v[cut]) for c, v in t.y.items()}, moving=s > 0))
         for a in (t.u, *t.y.values()):
             release_pages(a)
         notes.append(f"{t.name}: {t.u.size / t.fs_hz:,.0f} s long; discover used {starts.size} "
