@@ -64,10 +64,10 @@ def replay_lines(seconds: float) -> list[str]:
 
 def logging_lines(hours: float, reps: int) -> list[str]:
     mw = B.mcap_write(60000, reps)
-    cs = B.logger_cpu_split()
     lg = B.log_1h(3600.0 * hours)  # before the bus runs: its RSS is the logger's alone
     bl = B.log_bus_16x5k(10.0)
     ba = B.log_bus_16x5k(10.0, paced=False)
+    cs = B.logger_cpu_split()  # last: its messages would raise the others' peak RSS
     d, r0 = mw["dynval_logger"], mw["mcap_raw_writer"]
     L = [f"## MCAP write (60000 sample frames, 5 x 2560 Hz; {time.strftime('%Y-%m-%d')}, "
          f"medians of {reps} alternating runs, each writer in a fresh process)", "",
@@ -96,8 +96,10 @@ def logging_lines(hours: float, reps: int) -> list[str]:
           f"{cs['put'] + cs['fields'] + cs['records']:.2f} us per frame: put, fields and "
           "records), so 5x needs a free core for the I/O thread and is out of reach while "
           "the host's other jobs take the cores; past it, the Python work per python-can "
-          "Message (put and reading its fields) is itself a third of the budget: a writer "
-          "in another process, fed arrays rather than Messages, is the next step.", "",
+          f"Message (put and reading its fields) is "
+          f"{100 * (cs['put'] + cs['fields']) / sum(cs.values()):.0f} % of the logger's "
+          "CPU: a writer in another process, fed arrays rather than Messages, is the next "
+          "step.", "",
           "dynval_logger is the path of `dynval log`: the bus reader's AsyncLog.put per "
           "python-can Message, the writer thread decoding blocks of 2048 frames with the C "
           "codec (dv_codec_decode_n, dv_seq_track_n, dv_codec_sample_values), four messages "
