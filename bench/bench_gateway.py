@@ -310,3 +310,63 @@ def log_1h(seconds: float = 3600.0, fs: int = 640, nch: int = 5) -> dict[str, fl
         size = p.stat().st_size
     return {"frames": float(n_frames), "wall_s": wall, "file_mb": size / 1e6,
             "rss_start_mb": rss0, "rss_at_10pct_mb": rss10, "rss_peak_mb": _rss_mb()}
+
+
+def logger_cpu_split(n: int = 61440, reps: int = 7) -> dict[str, float]:
+    """CPU time per frame (process time, the minimum of reps: the least disturbed by other
+    jobs) of each part of the logger, run one after the other in this thread: the reader's
+    AsyncLog.put, the writer thread's reading of the python-can Messages' fields
+    (AsyncLog._log without on_frames), its decoding and record building (McapLog.on_frames,
+    chunks not finished) and the I/O thread's finishing of chunks (BlockWriter._write_chunk:
+    lz4, CRC, message indexes, the write)."""
+    import can
+
+    from dynval.mcap_log import AsyncLog
+
+    frames = _frames(n)
+    msgs = [can.Message(timestamp=1.7e9 + k * 78125e-9, arbitration_id=cid, data=data,
+                        is_extended_id=False) for k, (cid, data) in enumerate(frames)]
+    blocks = [msgs[i:i + AsyncLog.BLOCK_FRAMES] for i in range(0, n, AsyncLog.BLOCK_FRAMES)]
+    chunks: list[tuple[Any, ...]] = []
+    out: dict[str, list[float]] = {"put": [], "fields": [], "records": [], "chunks": []}
+
+    class Sink:  # on_frames' stand-in: the fields' part alone
+        def on_frames(self, *a: Any) -> None:
+            pass
+
+    with tempfile.TemporaryDirectory(dir=os.environ.get("DV_BENCH_TMP")) as d:
+        for _ in range(reps):
+            w = AsyncLog.__new__(AsyncLog)
+            w.error, w._block, w._since = None, [], time.monotonic()
+            w.hand_off = lambda w=w: setattr(w, "_block", [])  # type: ignore[method-assign]
+            t0 = time.process_time()
+            for m in msgs:
+                w.put(m)
+            out["put"].append(time.process_time() - t0)
+            w.out = Sink()  # type: ignore[assignment]
+            t0 = time.process_time()
+            for b in blocks:
+                w._log(b)
+            out["fields"].append(time.process_time() - t0)
+            lg = McapLog(Path(d) / "split.mcap", channel_names=[f"c{i}" for i in range(5)])
+            lg.on_frame(0, *bus.encode_chcfg(0, 2560, 2.0 ** -10))
+            lg._drain()
+            lg._w.sync()
+            chunks.clear()
+            real = lg._w._write_chunk
+            lg._w._write_chunk = lambda p, i: chunks.append((p, i))  # type: ignore[method-assign]
+            w.out = lg
+            t_fields = out["fields"][-1]
+            t0 = time.process_time()
+            for b in blocks:
+                w._log(b)
+            lg._w.flush()
+            lg._w.sync()
+            out["records"].append(time.process_time() - t0 - t_fields)
+            t0 = time.process_time()
+            for p, i in chunks:
+                real(p, i)
+            out["chunks"].append(time.process_time() - t0)
+            lg._w._write_chunk = real  # type: ignore[method-assign]
+            lg.close()
+    return {k: min(v) / n * 1e6 for k, v in out.items()}

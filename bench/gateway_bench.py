@@ -67,6 +67,7 @@ def logging_lines(hours: float, reps: int) -> list[str]:
     lg = B.log_1h(3600.0 * hours)  # before the bus runs: its RSS is the logger's alone
     bl = B.log_bus_16x5k(10.0)
     ba = B.log_bus_16x5k(10.0, paced=False)
+    cs = B.logger_cpu_split()  # last: its messages would raise the others' peak RSS
     d, r0 = mw["dynval_logger"], mw["mcap_raw_writer"]
     L = [f"## MCAP write (60000 sample frames, 5 x 2560 Hz; {time.strftime('%Y-%m-%d')}, "
          f"medians of {reps} alternating runs, each writer in a fresh process)", "",
@@ -81,17 +82,24 @@ def logging_lines(hours: float, reps: int) -> list[str]:
           "0.19x on 2026-11-22: 13105 vs 69471 frames/s).", "",
           f"Per frame the logger writes {d['messages'] / 60000:.0f} messages where the raw "
           f"writer writes 1: {d['messages_per_s'] / r0['messages_per_s']:.1f}x its "
-          f"messages/s and {d['mb_per_s'] / r0['mb_per_s']:.1f}x its MB/s. Where the time "
-          "goes (cProfile of the writer thread's work in one thread, 60000 frames, "
-          "2026-11-27): about 2.8 us per frame decoding and building the records "
-          "(Python and numpy calls per block of 2048 frames), about 5 us per frame finishing "
-          "chunks (lz4, joining the records, CRC, message indexes, writing). The I/O thread "
-          "runs beside the writer thread (compression and writes release the GIL) only when "
-          "a core is free; this host had a load average of 5 to 12 on 2 cores during these "
-          "measurements (2026-11-27). Not reached "
-          "here: 5x would need the records and message indexes built in compiled code (one "
-          "call per block) or fewer messages per frame (Foxglove plots need one message per "
-          "sample).", "",
+          f"messages/s and {d['mb_per_s'] / r0['mb_per_s']:.1f}x its MB/s.", "",
+          "Where the time goes (bench_gateway.logger_cpu_split: CPU time per frame of each "
+          "part run alone in one thread, the minimum of 7 runs of 61440 frames): "
+          f"the reader's AsyncLog.put {cs['put']:.2f} us, the writer thread reading the "
+          f"python-can Messages' fields {cs['fields']:.2f} us, decoding and building the "
+          f"records {cs['records']:.2f} us, the I/O thread finishing chunks (lz4, CRC, "
+          f"message indexes, write) {cs['chunks']:.2f} us: "
+          f"{sum(cs.values()):.2f} us in all, against "
+          f"{1e6 / r0['frames_per_s']:.2f} us per frame for the raw writer "
+          f"({r0['frames_per_s'] * sum(cs.values()) / 1e6:.2f} of its time). Everything "
+          "but lz4, the CRC and the write holds the GIL (more than "
+          f"{cs['put'] + cs['fields'] + cs['records']:.2f} us per frame: put, fields and "
+          "records), so 5x needs a free core for the I/O thread and is out of reach while "
+          "the host's other jobs take the cores; past it, the Python work per python-can "
+          f"Message (put and reading its fields) is "
+          f"{100 * (cs['put'] + cs['fields']) / sum(cs.values()):.0f} % of the logger's "
+          "CPU: a writer in another process, fed arrays rather than Messages, is the next "
+          "step.", "",
           "dynval_logger is the path of `dynval log`: the bus reader's AsyncLog.put per "
           "python-can Message, the writer thread decoding blocks of 2048 frames with the C "
           "codec (dv_codec_decode_n, dv_seq_track_n, dv_codec_sample_values), four messages "

@@ -58,8 +58,12 @@ def test_blocks_are_the_whole_record_bit_for_bit(m: mdl.Model, r: int) -> None:
     assert float(np.std(want[:, 3])) > 1.0  # a real response (m/s^2), not zeros
 
 
-def test_batch_in_blocks_is_one_run_per_set() -> None:
-    """simulate_batch runs each set in blocks of simulate's BLOCK samples (two here)."""
+@pytest.mark.parametrize("once_bytes", [64 << 20, 0])
+def test_batch_in_blocks_is_one_run_per_set(monkeypatch: pytest.MonkeyPatch,
+                                            once_bytes: int) -> None:
+    """simulate_batch runs each set in blocks of simulate's BLOCK samples (two here), the
+    input interpolated once or (a long record: 0 bytes here) per block for each set."""
+    monkeypatch.setattr(mdl.simulation, "INTERPOLATE_ONCE_BYTES", once_bytes)
     u = _force(70_000)
     sets = [{"k2": 3.9e5}, {"zeta2": 0.02, "e1.gap_m": 2e-5}]
     for m, r in ((dataclasses.replace(MODEL, elements=(BUMPER,)), 4),

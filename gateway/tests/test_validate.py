@@ -212,6 +212,49 @@ def test_sweep_processes_equal_inline_and_direct(nominal: mdl.Model,
         rel=1e-12)
 
 
+def test_workers_read_the_records_from_mapped_files(nominal: mdl.Model,
+                                                   linear_tests: list[Recording],
+                                                   tmp_path: Path) -> None:
+    """Issue 21: a worker gets the job without its records (a few kB, not the records' bytes
+    per worker) and maps them from .npy files; the chunk's numbers are the same."""
+    import pickle
+
+    job = _small_job(nominal, linear_tests)
+    sets = doe.as_sets(LIN_RANGES, doe.latin_hypercube(LIN_RANGES, 3, 0))
+    light, files = doe._to_files(job, str(tmp_path))
+    assert len(pickle.dumps(light)) < 20_000 < 2 * 8 * linear_tests[0].n_samples
+    assert len(pickle.dumps(job)) > 2 * 8 * linear_tests[0].n_samples
+    got = doe._chunk_run_mapped(light, files, sets)
+    want = doe._chunk_run(job, sets)
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_array_equal(g, w)
+    assert np.isfinite(got[1]).all()
+
+
+def test_report_overlays_are_the_records_first_samples(
+        nominal: mdl.Model, linear_tests: list[Recording], monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 21: the report's time histories keep the first OVERLAY_SAMPLES of each record,
+    not an hour-long test's whole predictions; the nominal one is the whole prediction's
+    start, the verdict's numbers unchanged."""
+    tests = linear_tests[:4]
+    whole, _ = study.validate(nominal, tests, "std@acc4", LIN_RANGES, runs=4,
+                              runner=doe.Runner(workers=1))
+    monkeypatch.setattr(study, "OVERLAY_SAMPLES", 1000)
+    res, art = study.validate(nominal, tests, "std@acc4", LIN_RANGES, runs=4,
+                              runner=doe.Runner(workers=1))
+    assert res["nominal"] == whole["nominal"] and res["doe"] == whole["doe"]
+    assert sorted(art.overlays) == ["best run", "measured", "nominal", "worst run"]
+    assert all(d["acc4_mps2"].shape == (1000,) for d in art.overlays.values())
+    u = tests[0].channel("force_N").data
+    y = meas.simulate(nominal, u, 640.0)["acc4_mps2"]
+    # (the model cut to the channels the features read: the same to rounding)
+    np.testing.assert_allclose(art.overlays["nominal"]["acc4_mps2"], y[:1000], rtol=1e-9,
+                               atol=1e-12 * float(np.max(np.abs(y))))
+    np.testing.assert_array_equal(art.overlays["measured"]["acc4_mps2"],
+                                  tests[0].channel("acc4_mps2").data[:1000])
+    assert art.overlay_record_s == pytest.approx(tests[0].n_samples / 640.0)
+
+
 def test_sweep_of_a_long_record_runs_a_few_sets_at_a_time(
         nominal: mdl.Model, linear_tests: list[Recording], monkeypatch: pytest.MonkeyPatch) -> None:
     """Issue 21: simulate_batch gets at most BATCH_BYTES of records (one set of this test

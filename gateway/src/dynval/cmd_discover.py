@@ -130,17 +130,20 @@ def _preflight(m: Any, rec: Recording) -> None:
     import numpy as np
 
     from dynval import model as mdl
+    from dynval.io.arrays import release_pages
 
     where = rec.source or rec.name
     if rec.n_samples < MIN_SAMPLES:
         raise InputFileError(where, f"discover needs at least {MIN_SAMPLES} samples, found "
                              f"{rec.n_samples}")
     for c in rec.channels:
-        big = np.flatnonzero(np.abs(c.data) > MAX_ABS)
-        if big.size:
-            raise InputFileError(where, f"channel {c.name}: sample {int(big[0])} is "
-                                 f"{c.data[big[0]]:.3g}, beyond what discover's least squares "
-                                 f"take (|x| <= {MAX_ABS:g}); rescale the channel")
+        for a in range(0, c.data.size, 1 << 20):  # a long record: a block at a time
+            big = np.flatnonzero(np.abs(c.data[a:a + (1 << 20)]) > MAX_ABS)
+            if big.size:
+                raise InputFileError(where, f"channel {c.name}: sample {a + int(big[0])} is "
+                                     f"{c.data[a + big[0]]:.3g}, beyond what discover's least "
+                                     f"squares take (|x| <= {MAX_ABS:g}); rescale the channel")
+        release_pages(c.data)  # a memory-mapped record: its pages go once checked
     u = rec.channel(mdl.input_channel(m, rec)).data
     if not np.any(np.nan_to_num(u) != 0):
         raise InputFileError(where, "the input channel is zero throughout (an ambient or "

@@ -366,10 +366,11 @@ class McapLog:
 
     def _raw(self, f: _Frames, clock: np.ndarray) -> None:
         """/can/raw: every frame as received (grouped by length: one layout per length)."""
-        for n in np.unique(f.dlc).tolist():
-            sel = np.flatnonzero(f.dlc == n)
+        one = f.n > 0 and bool((f.dlc == f.dlc[0]).all())  # the usual block: views, no copies
+        for n in ([int(f.dlc[0])] if one else np.unique(f.dlc).tolist()):
+            sel: Any = slice(None) if one else np.flatnonzero(f.dlc == n)
             width = min(int(n), 8)
-            b = self._block(T_RAW, "CanFrame", sel.size, clock[sel], f.t[sel],
+            b = self._block(T_RAW, "CanFrame", f.n if one else sel.size, clock[sel], f.t[sel],
                             bytes_len=width)
             b["id"] = f.ids[sel] & ~np.uint32(bus.EFF_FLAG)
             b["extended"] = (f.ids[sel] & np.uint32(bus.EFF_FLAG)) != 0
@@ -453,8 +454,9 @@ class McapLog:
         last = self._seq.last.copy()
         verdict, k = self._seq.track(ch, s["seq"])
         accepted = verdict <= 1  # ok, gap
-        chans, counts = np.unique(ch, return_counts=True)
-        for c, n in zip(chans.tolist(), counts.tolist(), strict=True):
+        counts = np.bincount(ch, minlength=bus.SeqBank.N)
+        for c in np.flatnonzero(counts).tolist():
+            n = int(counts[c])
             self._seen.add(c)
             topic = T_SAMPLES + self.channel_name(c)
             if not self._sample_cid[c]:
@@ -598,9 +600,11 @@ class AsyncLog:
         does per frame; the writer thread reads the messages' fields)."""
         if self.error is not None:
             raise self.error
-        self._block.append(m)
-        if len(self._block) >= self.BLOCK_FRAMES or (
-                len(self._block) & 63 == 0 and time.monotonic() - self._since > self.BLOCK_S):
+        b = self._block
+        b.append(m)
+        n = len(b)
+        if n >= self.BLOCK_FRAMES or (n & 63 == 0 and time.monotonic() - self._since >
+                                      self.BLOCK_S):
             self.hand_off()
 
     def hand_off(self) -> None:
@@ -637,17 +641,16 @@ class AsyncLog:
     def _log(self, block: list[Any]) -> None:
         """A block of python-can Messages into the log (each field read in one C-level pass);
         error frames become events."""
-        n = len(block)
-        err = np.fromiter(map(_IS_ERROR, block), bool, n)
-        errors = [block[i] for i in np.flatnonzero(err).tolist()]
+        errors = [m for m in block if m.is_error_frame] if any(map(_IS_ERROR, block)) else []
         if errors:
             block = [m for m in block if not m.is_error_frame]
-            n = len(block)
+        n = len(block)
         if n:
             t = np.fromiter(map(_TIMESTAMP, block), np.float64, n)
             t[t == 0] = time.time()  # an interface without timestamps: the receive time
             ids = np.fromiter(map(_ID, block), np.uint32, n)
-            ids[np.fromiter(map(_EXTENDED, block), bool, n)] |= np.uint32(bus.EFF_FLAG)
+            if any(map(_EXTENDED, block)):  # (one pass without an array: usually none)
+                ids[np.fromiter(map(_EXTENDED, block), bool, n)] |= np.uint32(bus.EFF_FLAG)
             self.out.on_frames(*frame_arrays((t * 1e9).astype(np.int64), ids,
                                              list(map(_DATA, block))))
         for m in errors:

@@ -3,8 +3,9 @@ Message records (header fields + a fixed-layout payload, see mcap_schema), writt
 tobytes() per block instead of one Python call per message. The `mcap` package's Writer costs
 about 10 us per message; a logger at bus rate writes a million messages per second.
 
-Everything else (Header, Schema, Channel, Chunk, ChunkIndex, Metadata, Statistics, summary,
-Footer) is serialised by the `mcap` package's own record classes. The file is what mcap's
+Chunk and MessageIndex records are packed here (struct and numpy, no copy through mcap's
+RecordBuilder); everything else (Header, Schema, Channel, ChunkIndex, Metadata, Statistics,
+summary, Footer) is serialised by the `mcap` package's own record classes. The file is what mcap's
 Writer makes: compressed chunks with CRCs, a MessageIndex per channel after each chunk (the
 indexed readers of mcap and Foxglove need them), the summary with chunk and metadata indexes.
 Schema and Channel records go straight to the file (before the chunk that first uses them),
@@ -28,7 +29,6 @@ from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (
     Channel,
-    Chunk,
     ChunkIndex,
     DataEnd,
     Footer,
@@ -46,6 +46,9 @@ HEADER_FIELDS: list[tuple[str, str]] = [("_op", "u1"), ("_len", "<u8"), ("_chan"
                                         ("_seq", "<u4"), ("_log", "<u8"), ("_pub", "<u8")]
 HEADER_BYTES = 31
 _MSG_HEAD = struct.Struct("<BQHIQQ")
+# a Chunk record up to its compression string; a MessageIndex record up to its pairs
+_CHUNK_HEAD = struct.Struct("<BQQQQII")
+_INDEX_HEAD = struct.Struct("<BQHI")
 
 
 @cache
@@ -233,6 +236,8 @@ class BlockWriter:
 
     def _write_chunk(self, pieces: list[bytes],
                      index: list[tuple[Any, np.ndarray, np.ndarray]]) -> None:
+        """The Chunk record and its MessageIndex records, packed here (struct, numpy) and
+        written in one piece: no copy through mcap's RecordBuilder."""
         data = b"".join(pieces)
         packed = self._compress(data) if self._compress is not None else data
         n = [log.size for _, log, _ in index]
@@ -243,11 +248,12 @@ class BlockWriter:
         t0, t1 = int(log.min()), int(log.max())
         self._span[0] = t0 if self._span[0] < 0 else min(self._span[0], t0)
         self._span[1] = max(self._span[1], t1)
-        rb = RecordBuilder()
-        Chunk(compression=self._kind, data=packed, message_start_time=t0,
-              message_end_time=t1, uncompressed_crc=zlib.crc32(data),
-              uncompressed_size=len(data)).write(rb)
-        chunk_len = rb.count
+        kind = self._kind.encode()
+        head = _CHUNK_HEAD.pack(Opcode.CHUNK, _CHUNK_HEAD.size - 9 + len(kind) + 8 + len(packed),
+                                t0, t1, len(data), zlib.crc32(data), len(kind))
+        parts: list[Any] = [head, kind, struct.pack("<Q", len(packed)), packed]
+        chunk_len = len(head) + len(kind) + 8 + len(packed)
+        pos = chunk_len
         offsets: dict[int, int] = {}
         order = np.argsort(chan, kind="stable")  # per channel, in file order
         chans, starts, counts = np.unique(chan[order], return_index=True, return_counts=True)
@@ -255,20 +261,19 @@ class BlockWriter:
             pairs = np.empty((k, 2), "<u8")
             sel = order[a:a + k]
             pairs[:, 0], pairs[:, 1] = log[sel], off[sel]
-            offsets[cid] = rb.count
-            rb.write(struct.pack("<BQHI", Opcode.MESSAGE_INDEX, 2 + 4 + pairs.nbytes, cid,
-                                 pairs.nbytes))
-            rb.write(pairs.tobytes())
+            offsets[cid] = pos
+            parts += [_INDEX_HEAD.pack(Opcode.MESSAGE_INDEX, 2 + 4 + pairs.nbytes, cid,
+                                       pairs.nbytes), pairs]
+            pos += _INDEX_HEAD.size + pairs.nbytes
             self._counts[cid] += k
-        out: bytes = rb.end()  # type: ignore[no-untyped-call]
         start = int(self._s.tell())
         self._chunk_idx.append(ChunkIndex(
             message_start_time=t0, message_end_time=t1, chunk_start_offset=start,
             chunk_length=chunk_len,
             message_index_offsets={c: start + o for c, o in offsets.items()},
-            message_index_length=len(out) - chunk_len, compression=self._kind,
+            message_index_length=pos - chunk_len, compression=self._kind,
             compressed_size=len(packed), uncompressed_size=len(data)))
-        self._s.write(out)
+        self._s.write(b"".join(parts))
 
     def finish(self) -> None:
         """The last chunk, DataEnd, the summary (schemas, channels, statistics, chunk and

@@ -70,7 +70,8 @@ def estimate(m: mdl.Model, t: TestData, chans: Sequence[str], scales: dict[str, 
     before = float(r[head] @ r[head])
     left = r[head] - a[head] @ x0
     reduction = 1.0 - float(left @ left) / before if before > 0 else 0.0
-    if reduction < MIN_REDUCTION or reduction < LATE_FACTOR * _late_share(a, r, n, w, len(chans)):
+    if not t.moving and (reduction < MIN_REDUCTION or
+                         reduction < LATE_FACTOR * _late_share(a, r, n, w, len(chans))):
         return None
     outs = {c: basis[:, j, :] @ x0 for j, c in enumerate(m.outputs)}
     return Start(x0, outs, reduction)

@@ -54,6 +54,9 @@ class TestData:
     # predict with the core's observer (one step ahead, steady-state Kalman gain) instead of
     # open loop: a model that drifts (discover/drift.py); None: open loop
     observer: Observer | None = None
+    # cut from the middle of a run (segments.py): moving at its start, so its initial state is
+    # estimated even where a slow mode's free motion lasts the whole record (initial.py)
+    moving: bool = False
     # the input interpolated per oversampling factor, once per test (input_for)
     _prepared: dict[int, mdl.PreparedInput] = field(default_factory=dict, init=False,
                                                     repr=False, compare=False)
@@ -89,7 +92,8 @@ def segment_split(tests: Sequence[TestData], blocks: int = SEGMENT_BLOCKS
     for t in tests:
         idx = (np.arange(t.u.size) * blocks) // max(t.u.size, 1)
         for out, parity, tag in ((fit, 0, "fitting blocks"), (held, 1, "held-out blocks")):
-            out.append(TestData(f"{t.name} [{tag}]", t.fs_hz, t.u, t.y, idx % 2 == parity))
+            out.append(TestData(f"{t.name} [{tag}]", t.fs_hz, t.u, t.y, idx % 2 == parity,
+                                moving=t.moving))
     return fit, held
 
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from dynval import model as mdl
 from dynval.discover import noise as nz
-from dynval.discover import parallel
+from dynval.discover import parallel, segments
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
 from dynval.errors import ConfigError
@@ -155,11 +155,12 @@ def make_session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> Session
     fs_set = {round(t.fs_hz, 6) for t in tests}
     if len(fs_set) != 1:
         raise ConfigError(f"the tests have different sample rates: {sorted(fs_set)}")
-    fit_t, held_t, how = split(tests)
     band = tr.input_band(tests)
     modes_hz = [float(f) for f in mdl.natural_frequencies(m)]
     settle = int(settle_s([f for f in modes_hz if f > 0.05 * band[0]]) * tests[0].fs_hz)
+    tests, cut = segments.bound(tests, settle)  # long records: evenly spaced segments
+    fit_t, held_t, how = split(tests)
     return Session(o, tests, chans, rs.channel_scales(tests, chans), fit_t, held_t, band,
-                    modes_hz, settle, [how])
+                   modes_hz, settle, [how, *cut])
 
 

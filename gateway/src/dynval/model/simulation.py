@@ -386,6 +386,9 @@ def prepare_input(m: Model, force_or_motion: Any, oversample: int | None = None
 
 # input samples per block of a simulation (its memory: block x oversample x outputs doubles)
 BLOCK = 1 << 16
+# simulate_batch interpolates an input once when it takes at most this much interpolated, a
+# longer one block by block for each set (an hour at 2 kHz x 4 is 230 MB in every worker)
+INTERPOLATE_ONCE_BYTES = 64 << 20
 
 
 def simulate(m: Model, force_or_motion: Any, fs_hz: float, *,
@@ -535,8 +538,17 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     if not fs_hz > 0:
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
     r = oversample_factor(m, oversample)
-    u = _prepare_input(force_or_motion, r)
-    n = u.size // r
+    a = _core.as_doubles(force_or_motion)
+    _check_input(a, r)
+    n = a.size
+    if r > 1 and n * r * 8 > INTERPOLATE_ONCE_BYTES:  # per block, for each set
+        def fine(i: int, j: int) -> np.ndarray:
+            return _fine_block(a, r, i // r, j // r)
+    else:
+        u = interpolate_input(a, r)
+
+        def fine(i: int, j: int) -> np.ndarray:
+            return u[i:j]
     core = _Core(m, 1.0 / (fs_hz * r))
     base = _core.ffi.new("dv_model_desc_t *")
     _fill_desc(base, m)
@@ -544,10 +556,11 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     setters = _desc_setters(m)
     out = np.empty((len(param_sets), n, core.no))
     blk = BLOCK * r
-    late = m.interpolation == "cubic" and u.size > blk  # see simulate_blocks
-    if late and not all(np.isfinite(u[i:i + blk]).all() for i in range(0, u.size, blk)):
-        blk, late = u.size, False
-    work = np.empty((min(u.size, blk), core.no)) if r > 1 or late else None
+    late = m.interpolation == "cubic" and n * r > blk  # see simulate_blocks
+    # (a band-limited input is complete: _check_input; held samples are the core's, r = 1)
+    if late and r == 1 and not all(np.isfinite(a[i:i + blk]).all() for i in range(0, n, blk)):
+        blk, late = n * r, False
+    work = np.empty((min(n * r, blk), core.no)) if r > 1 or late else None
     for i, ps in enumerate(param_sets):
         _core.ffi.memmove(core.desc, base, size)
         if all(name in setters for name in ps):
@@ -565,7 +578,7 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
             core.build(m, refill=False)
         except ConfigError as exc:
             raise ConfigError(f"parameter set {i} {dict(ps)}: {exc}") from None
-        st = _run_blocks(core, u, out[i], r, blk, work, late)
+        st = _run_blocks(core, fine, n * r, out[i], r, blk, work, late)
         if st < 0 and st != _core.lib.DV_ENUMERIC:
             _core.check(st, "dv_obs_simulate")
         if on_progress is not None:
@@ -579,15 +592,16 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     return out
 
 
-def _run_blocks(core: _Core, u: np.ndarray, y: np.ndarray, r: int, blk: int,
-                work: np.ndarray | None, late: bool) -> int:
-    """The fine input u from rest into y (every r-th step's outputs), blk steps at a time
-    through `work` (blk x outputs; None for r = 1 without `late`: straight into y); the worst
-    status. late: the cubic hold's core gives step k at the call of step k + 1 (realigned
-    here, the last step completed by dv_obs_flush as dv_obs_simulate does)."""
+def _run_blocks(core: _Core, fine: Callable[[int, int], np.ndarray], size: int, y: np.ndarray,
+                r: int, blk: int, work: np.ndarray | None, late: bool) -> int:
+    """The fine input (fine(i, j): its steps i..j-1, size steps) from rest into y (every r-th
+    step's outputs), blk steps at a time through `work` (blk x outputs; None for r = 1
+    without `late`: straight into y); the worst status. late: the cubic hold's core gives
+    step k at the call of step k + 1 (realigned here, the last step completed by dv_obs_flush
+    as dv_obs_simulate does)."""
     worst = 0
-    for a in range(0, u.size, blk):
-        uf = u[a:a + blk]
+    for a in range(0, size, blk):
+        uf = fine(a, min(a + blk, size))
         dst = y[a:a + uf.size] if work is None else work[:uf.size]
         st = core.run(uf, dst) if a == 0 and not late else core.cont(uf, dst)
         if st < 0 and (worst >= 0 or worst == _core.lib.DV_ENUMERIC):  # the first real error

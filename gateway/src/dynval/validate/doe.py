@@ -17,6 +17,7 @@ import itertools
 import logging
 import math
 import os
+import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -169,16 +170,25 @@ class SweepResult:
         return np.asarray(np.sqrt(np.mean(r * r, axis=1)))
 
 
+# samples per partial sum in rmse_eq47 (its temporaries are a chunk, not the record)
+_RMSE_CHUNK = 1 << 16
+
+
 def rmse_eq47(pred: np.ndarray, meas: np.ndarray) -> float:
     """R_k = sqrt(mean((x^N - x^E)^2)) (eq. 47), over finite samples."""
-    e = np.asarray(pred) - np.asarray(meas)
-    e = e[np.isfinite(e)]
-    return float(np.sqrt(np.mean(e * e))) if e.size else math.nan
+    p, q = np.asarray(pred), np.asarray(meas)
+    sums, k = [], 0
+    for a in range(0, p.size, _RMSE_CHUNK):
+        e = p[a:a + _RMSE_CHUNK] - q[a:a + _RMSE_CHUNK]
+        e = e[np.isfinite(e)]
+        sums.append(float(e @ e))
+        k += e.size
+    return math.sqrt(math.fsum(sums) / k) if k else math.nan
 
 
-# bytes of simulated records one simulate_batch call returns (a long record's sets are run a
-# few at a time; a test of the usual length runs a whole chunk at once)
-BATCH_BYTES = 256 << 20
+# bytes of simulated records one simulate_batch call returns (a long record's sets are run
+# one at a time; a test of the usual length runs a whole chunk at once)
+BATCH_BYTES = 64 << 20
 
 
 def _chunk_run(job: SweepJob, sets: list[dict[str, float]]
@@ -208,6 +218,26 @@ def _chunk_run(job: SweepJob, sets: list[dict[str, float]]
                                                      strict=True)):
                         rmse[i, j] = rmse_eq47(y[c], ref)
     return feats, rmse, failed
+
+
+def _chunk_run_mapped(job: SweepJob, files: tuple[tuple[str, ...], tuple[str, ...]],
+                      sets: list[dict[str, float]]) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """_chunk_run in a worker process, its forces and RMSE references read from .npy files
+    (memory-mapped: the workers share the pages instead of each unpickling a copy)."""
+    forces, refs = (tuple(np.load(f, mmap_mode="r") for f in fs) for fs in files)
+    return _chunk_run(dataclasses.replace(job, forces=forces, rmse_refs=refs), sets)
+
+
+def _to_files(job: SweepJob, where: str) -> tuple[SweepJob, tuple[tuple[str, ...],
+                                                                  tuple[str, ...]]]:
+    """The job without its records, and the .npy files in `where` holding them."""
+    names: list[list[str]] = [[], []]
+    for kind, arrays in enumerate((job.forces, job.rmse_refs)):
+        for i, a in enumerate(arrays):
+            names[kind].append(os.path.join(where, f"{kind}_{i}.npy"))
+            np.save(names[kind][-1], a)
+    return (dataclasses.replace(job, forces=(), rmse_refs=()),
+            (tuple(names[0]), tuple(names[1])))
 
 
 def _simulate_sets(job: SweepJob, u: np.ndarray, sets: list[dict[str, float]], s0: int,
@@ -321,9 +351,12 @@ class Runner:
         elif self.kind == "processes":
             if self._pool is None:
                 self._pool = cf.ProcessPoolExecutor(max_workers=self.workers)
-            futs = {self._pool.submit(_chunk_run, job, sets_l[b[0]:b[1]]): b for b in bounds}
-            for fu in cf.as_completed(futs):
-                take(futs[fu], fu.result())
+            with tempfile.TemporaryDirectory(prefix="dynval-sweep-") as tmp:
+                light, files = _to_files(job, tmp)
+                futs = {self._pool.submit(_chunk_run_mapped, light, files, sets_l[b[0]:b[1]]): b
+                        for b in bounds}
+                for fu in cf.as_completed(futs):
+                    take(futs[fu], fu.result())
         else:
             client = self._dask()
             distributed = importlib.import_module("dask.distributed")

@@ -65,7 +65,9 @@ def add_noise(y: Mapping[str, np.ndarray], noise: Noise, u: np.ndarray, stream: 
     input, a new one for other tests) and on stream (separate draws for separate uses)."""
     if not noise:
         return dict(y)
-    h = hashlib.blake2b(np.ascontiguousarray(u, dtype=np.float64).tobytes(), digest_size=8)
+    # the bytes hashed in place (a copy of an hour-long input is 57 MB)
+    h = hashlib.blake2b(np.ascontiguousarray(u, dtype=np.float64).data.cast("B"),
+                        digest_size=8)
     rng = np.random.default_rng([NOISE_SEED, stream, int.from_bytes(h.digest(), "little")])
     out = {}
     for c in sorted(y):

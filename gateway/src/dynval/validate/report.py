@@ -290,8 +290,10 @@ def figures(a: Artifacts) -> list[tuple[str, str]]:
         n = a.overlays["measured"][a.overlay_channel].size
         i0, w = _overlay_window(a, n, 0.6)
         test = f" of test {a.overlay_test}" if a.overlay_test else ""
+        first = (f" (these figures: its first {n / a.fs_hz:g} s of {a.overlay_record_s:g} s)"
+                 if a.overlay_record_s > n / a.fs_hz else "")
         out.append((f"Measured vs simulated time histories{test}: {w / a.fs_hz:.3g} s from "
-                    f"{i0 / a.fs_hz:.2f} s of {n / a.fs_hz:g} s, every sample drawn",
+                    f"{i0 / a.fs_hz:.2f} s of {n / a.fs_hz:g} s, every sample drawn{first}",
                     _png(plot_overlay(a))))
         out.append((f"Power spectral densities (Welch){test}", _png(plot_psd(a))))
         out += _catalogue_figures(a, test)

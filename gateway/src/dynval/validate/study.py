@@ -96,17 +96,29 @@ def experiment_features(s: Setup, recs: Sequence[Recording]) -> np.ndarray:
     return np.array([s.features.extract(_data(r), s.fs_hz) for r in recs])
 
 
+# samples of each record the report's time-history and spectrum figures get (the first ones):
+# an hour-long test's predictions are not kept whole for a 0.6 s window
+OVERLAY_SAMPLES = 1 << 17
+
+
+def _excerpt(a: np.ndarray) -> np.ndarray:
+    return np.array(a[:OVERLAY_SAMPLES])
+
+
 def _model_on_tests(s: Setup, m: mdl.Model, recs: Sequence[Recording], first: int = 0
-                    ) -> tuple[np.ndarray, np.ndarray, list[dict[str, np.ndarray]]]:
+                    ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """Features (as measured: with the sensor noise of s.recs[first + k], measurement.
-    add_noise) and RMSE per RMSE channel of model m driven by each test's force."""
+    add_noise) and RMSE per RMSE channel of model m driven by each test's force, and the
+    excerpt (_excerpt) of each test's prediction of the first RMSE channel."""
+    need = list(dict.fromkeys([*s.features.channels, *s.rmse_channels]))
+    cut = dataclasses.replace(m, outputs={c: m.outputs[c] for c in need})  # a faster core run
     feats, rmse, preds = [], [], []
     for r, nz in zip(recs, s.noise[first:first + len(recs)], strict=True):
         u = r.channel(s.input_channel).data
-        y = meas.simulate(m, u, s.fs_hz)
+        y = meas.simulate(cut, u, s.fs_hz)
         feats.append(s.features.extract(meas.add_noise(y, nz, u), s.fs_hz, u))
         rmse.append([doe.rmse_eq47(y[c], r.channel(c).data) for c in s.rmse_channels])
-        preds.append(y)
+        preds.append(_excerpt(y[s.rmse_channels[0]]))
     return np.array(feats), np.array(rmse), preds
 
 
@@ -169,6 +181,7 @@ class Artifacts:
     overlay_test: str = ""
     feature_names: list[str] = field(default_factory=list)  # the spec's, for their figures
     overlay_input: np.ndarray | None = None  # the overlay test's input (FRF figures)
+    overlay_record_s: float = 0.0  # the overlay test's length (the overlays: its first part)
     checks: list[chk.Outcome] = field(default_factory=list)  # linearity / reciprocity
     input_unit: str = "N"
 
@@ -229,12 +242,13 @@ def validate(m: mdl.Model, recs: Sequence[Recording], spec: str,
     res["units"] = _label(art, s, ranges)
     art.overlay_test = ref.name
     art.feature_names = [n for t in s.features.terms for n in t.names]
-    art.overlay_input = ref.channel(s.input_channel).data
+    art.overlay_input = _excerpt(ref.channel(s.input_channel).data)
+    art.overlay_record_s = ref.n_samples / s.fs_hz
     art.input_unit = ref.channel(s.input_channel).unit or lb.SI_UNIT.get(m.input.kind, "")
     ch0 = s.rmse_channels[0]
     art.overlay_channel = ch0
-    art.overlays["measured"] = {ch0: ref.channel(ch0).data}
-    art.overlays["nominal"] = {ch0: preds[ref_test][ch0]}
+    art.overlays["measured"] = {ch0: _excerpt(ref.channel(ch0).data)}
+    art.overlays["nominal"] = {ch0: preds[ref_test]}
     if ranges:
         own = runner is None
         rn = runner or doe.Runner()
@@ -275,7 +289,7 @@ def validate(m: mdl.Model, recs: Sequence[Recording], spec: str,
                              ("worst run", worst[0] if worst else None)):
                 if idx is not None:
                     y = doe.simulate_one(full, doe.as_sets(ranges, x[idx:idx + 1])[0],
-                                         ref.channel(s.input_channel).data, s.fs_hz)
+                                         art.overlay_input, s.fs_hz)  # the excerpt only
                     art.overlays[lab] = {ch0: y[ch0]}
         finally:
             if own:
@@ -382,7 +396,8 @@ def calibrate(m: mdl.Model, recs: Sequence[Recording], spec: str,
         art.d_model, art.d_heldout_exp = d_cal, d_hx
         ch0 = s.rmse_channels[0]
         art.overlay_channel = ch0
-        art.overlays = {"measured": {ch0: held[0].channel(ch0).data},
-                        "calibrated": {ch0: p_cal[0][ch0]}, "nominal": {ch0: p_nom[0][ch0]}}
+        art.overlays = {"measured": {ch0: _excerpt(held[0].channel(ch0).data)},
+                        "calibrated": {ch0: p_cal[0]}, "nominal": {ch0: p_nom[0]}}
+        art.overlay_record_s = held[0].n_samples / s.fs_hz
         res["consistency"]["overlay_test"] = art.overlay_test = held[0].name
     return res, art, m_cal
