@@ -225,8 +225,10 @@ def stop_signals() -> Iterator[threading.Event]:
         requested.set()
         log.info("%s: stopping at the next safe point", signal.Signals(signum).name)
 
+    main = threading.current_thread() is threading.main_thread()  # only there (cli.main in
+    # a thread, as a test or an embedding application runs it, keeps the process's handlers)
     old = {sig: signal.signal(sig, _ask) for sig in (signal.SIGINT, signal.SIGTERM)
-           if signal.getsignal(sig) is not signal.SIG_IGN}  # a background job's stays ignored
+           if main and signal.getsignal(sig) is not signal.SIG_IGN}  # background: ignored
     try:
         yield requested
     finally:
