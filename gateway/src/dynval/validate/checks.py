@@ -130,10 +130,10 @@ def _simulated(m: mdl.Model, recs: Sequence[Recording], inp: str, chans: Sequenc
     between excitation levels when the noise does not scale with them)."""
     fs = recs[0].fs_hz
     out = []
-    for r in recs:
+    for k, r in enumerate(recs):  # a draw per test, also for tests with equal forces
         nz = meas.noise_levels(noise_spec, m, [r], list(chans), inp)[0]
         u = r.channel(inp).data
-        out.append(meas.add_noise(meas.simulate(m, u, fs), nz, u, stream))
+        out.append(meas.add_noise(meas.simulate(m, u, fs), nz, u, 1_000_000 * stream + k))
     return out
 
 

@@ -118,17 +118,21 @@ class SweepJob:
     rmse_refs: tuple[np.ndarray, ...] = ()
     # sensor noise RMS per channel on the features, per force (its test's)
     noise: tuple[tuple[tuple[str, float], ...], ...] = ()
+    # per force, its test's number: the noise draw's stream (tests with the same force, a
+    # hammer's pulse, must not share one draw: a common draw reads as a bias)
+    streams: tuple[int, ...] = ()
 
 
 def make_job(m: mdl.Model, forces: Sequence[np.ndarray], fs_hz: float, features: FeatureSet,
              *, oversample: int | None = None, rmse_refs: Mapping[str, np.ndarray] | None = None,
-             noise: Sequence[Mapping[str, float]] | None = None) -> SweepJob:
+             noise: Sequence[Mapping[str, float]] | None = None,
+             streams: Sequence[int] | None = None) -> SweepJob:
     """A job whose model predicts only the channels the features and RMSE read (fewer
     outputs: a faster core run), with the validation input hold (measurement.py; oversample
     None: measurement.OVERSAMPLE). rmse_refs: channel -> the measured record that forces[0]
     drove (eq. 47 reference). noise: per force, the sensor noise RMS per channel of its test,
     added before the features (measurement.add_noise: the draw of a force is the one its test
-    gets in validation)."""
+    gets in validation). streams: per force, its test's number (default 0, 1, ...)."""
     if noise is not None and len(noise) != len(forces):
         raise ConfigError(f"sweep: {len(noise)} noise levels for {len(forces)} forces")
     refs = dict(rmse_refs or {})
@@ -143,7 +147,8 @@ def make_job(m: mdl.Model, forces: Sequence[np.ndarray], fs_hz: float, features:
                     fs_hz, features, meas.OVERSAMPLE if oversample is None else oversample,
                     tuple(refs),
                     tuple(np.ascontiguousarray(v, dtype=np.float64) for v in refs.values()),
-                    tuple(tuple(sorted(n.items())) for n in noise or ()))
+                    tuple(tuple(sorted(n.items())) for n in noise or ()),
+                    tuple(streams) if streams is not None else tuple(range(len(forces))))
 
 
 @dataclass
@@ -212,7 +217,9 @@ def _chunk_run(job: SweepJob, sets: list[dict[str, float]]
                     continue
                 y = {c: ys[i - s0, :, j] for j, c in enumerate(chans)}
                 nz = dict(job.noise[fi]) if job.noise else {}
-                feats[i, fi] = job.features.extract(meas.add_noise(y, nz, u), job.fs_hz, u)
+                stream = job.streams[fi] if job.streams else fi
+                feats[i, fi] = job.features.extract(meas.add_noise(y, nz, u, stream),
+                                                    job.fs_hz, u)
                 if fi == 0:
                     for j, (c, ref) in enumerate(zip(job.rmse_channels, job.rmse_refs,
                                                      strict=True)):

@@ -61,8 +61,9 @@ def simulate(m: mdl.Model, u: np.ndarray, fs_hz: float,
 def add_noise(y: Mapping[str, np.ndarray], noise: Noise, u: np.ndarray, stream: int = 0
               ) -> dict[str, np.ndarray]:
     """y with white Gaussian sensor noise of the given RMS per channel; the draw depends only
-    on the input u that drove y (the same for every parameter set driven by that test's
-    input, a new one for other tests) and on stream (separate draws for separate uses)."""
+    on the input u that drove y and on stream (the test's number, or a separate use): the same
+    for every parameter set driven by that test, a new one for other tests even when their
+    inputs are equal (hammer pulses: one shared draw reads as a bias in the paired test)."""
     if not noise:
         return dict(y)
     # the bytes hashed in place (a copy of an hour-long input is 57 MB)

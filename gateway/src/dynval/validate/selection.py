@@ -50,10 +50,10 @@ class Ranked:
 
 def _features_of(s: Setup, m: mdl.Model) -> np.ndarray:
     out = []
-    for r, nz in zip(s.recs, s.noise, strict=True):
+    for k, (r, nz) in enumerate(zip(s.recs, s.noise, strict=True)):
         u = r.channel(s.input_channel).data
         y = meas.simulate(m, u, s.fs_hz)
-        out.append(s.features.extract(meas.add_noise(y, nz, u), s.fs_hz, u))
+        out.append(s.features.extract(meas.add_noise(y, nz, u, k), s.fs_hz, u))
     return np.array(out)
 
 

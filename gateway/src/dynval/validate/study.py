@@ -113,10 +113,10 @@ def _model_on_tests(s: Setup, m: mdl.Model, recs: Sequence[Recording], first: in
     need = list(dict.fromkeys([*s.features.channels, *s.rmse_channels]))
     cut = dataclasses.replace(m, outputs={c: m.outputs[c] for c in need})  # a faster core run
     feats, rmse, preds = [], [], []
-    for r, nz in zip(recs, s.noise[first:first + len(recs)], strict=True):
+    for k, (r, nz) in enumerate(zip(recs, s.noise[first:first + len(recs)], strict=True)):
         u = r.channel(s.input_channel).data
         y = meas.simulate(cut, u, s.fs_hz)
-        feats.append(s.features.extract(meas.add_noise(y, nz, u), s.fs_hz, u))
+        feats.append(s.features.extract(meas.add_noise(y, nz, u, first + k), s.fs_hz, u))
         rmse.append([doe.rmse_eq47(y[c], r.channel(c).data) for c in s.rmse_channels])
         preds.append(_excerpt(y[s.rmse_channels[0]]))
     return np.array(feats), np.array(rmse), preds
@@ -200,7 +200,7 @@ def _sweep(s: Setup, runner: doe.Runner, ranges: Sequence[doe.ParamRange], x: np
     ref = s.recs[test]
     refs = {c: ref.channel(c).data for c in s.rmse_channels} if rmse else None
     job = doe.make_job(s.model, [ref.channel(s.input_channel).data], s.fs_hz, s.features,
-                       rmse_refs=refs, noise=[s.noise[test]])
+                       rmse_refs=refs, noise=[s.noise[test]], streams=[test])
     return runner.run(job, doe.as_sets(ranges, x), on_progress=progress)
 
 
