@@ -3,7 +3,6 @@ reference (Judge), the rivals and siblings worth fitting too, the winner (best_o
 each accepted effect's entry, and the backward elimination after the rounds."""
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 from collections.abc import Sequence
@@ -84,12 +83,12 @@ def siblings(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
     start = {START + n: v for n, v in zip(win.names, win.values, strict=True)
              if not n.endswith(ft.READJUSTED)}
     out = []
-    for f in list(rd.fits):
+    for f in rd.fits:
         c: fx.Candidate = f["candidate"]
         if (c.type == win.cand.type and c.location != win.cand.location
                 and not any(k.startswith(START) for k in c.shape)):
-            out.append(tr.Evidence(dataclasses.replace(c, shape={**c.shape, **start}),
-                                   f["evidence"], float(c.shape.get("amp", 0.0)),
+            # with_shape() makes the candidate from the evidence's shape: the start goes there
+            out.append(tr.Evidence(c, f["evidence"], float(c.shape.get("amp", 0.0)),
                                    {**c.shape, **start}))
     return out
 
