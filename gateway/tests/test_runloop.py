@@ -7,12 +7,14 @@ import re
 import shutil
 import struct
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from dynval import bus, cli, contract, features, mcap_log, runloop
+from dynval.cmd_inspect import inspect
 from dynval.io import read_test
 from dynval.io.mcapfile import iter_messages
 from dynval.io.recording import Channel, Recording
@@ -197,3 +199,27 @@ def test_refused_frames_are_named_after_the_firmware_counter_that_counts_them():
             assert grew == {mcap_log.refused_event(status)}
     finally:
         core.close()
+
+
+@pytest.mark.skipif(not DATA.is_dir(), reason="bundled data missing")
+def test_a_firmware_behind_the_replay_is_waited_for(tmp_path, monkeypatch):
+    # a loaded host: the firmware thread stalls (1.2 s, then 0.5 s) while it works through
+    # the --asap replay's backlog, so heartbeats come and the bus goes quiet before it has
+    # handled the status request; every residual must still be logged (one stop at a
+    # heartbeat lost a third of them, with rc 0 and "lost 0")
+    handle = runloop.SimCore.handle
+    seen = {"n": 0}
+
+    def slow(self, can_id, data):
+        seen["n"] += 1
+        if seen["n"] in (2000, 2001):
+            time.sleep(1.2 if seen["n"] == 2000 else 0.5)
+        return handle(self, can_id, data)
+
+    monkeypatch.setattr(runloop.SimCore, "handle", slow)
+    assert cli.main(["-q", "run", str(DATA / "test_low_01.csv"), "--bus", "virtual", "--asap",
+                     "-o", str(tmp_path)]) == 0
+    r = inspect(tmp_path / "clean_test_low_01.mcap")
+    assert seen["n"] > 2001
+    assert r["topics"]["/dv/residuals"]["count"] == 4 * 8191
+    assert r["topics"]["/dv/features"]["count"] == 3300

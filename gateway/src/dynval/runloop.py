@@ -200,6 +200,11 @@ class SimCore:
             self.core = None
 
 
+def _is_status_request(m: Any) -> bool:
+    return (m.arbitration_id == bus.ID_CTRL and not m.is_extended_id and len(m.data) > 0
+            and m.data[0] == bus.CTRL_STATUS)
+
+
 class InProcessFirmware:
     """A thread running SimCore on a python-can bus (frames in, result frames out)."""
 
@@ -211,6 +216,9 @@ class InProcessFirmware:
         self._can = can
         self._stop = threading.Event()
         self.error: BaseException | None = None
+        # set once the status request is handled: every frame before it has been handled
+        # and its results are on the bus (the virtual bus queues a sent frame at once)
+        self.answered = threading.Event()
         self.thread = threading.Thread(target=self._run, name="dv-firmware", daemon=True)
         self.thread.start()
 
@@ -225,6 +233,8 @@ class InProcessFirmware:
                 for cid, data in outs:
                     self.bus.send(can.Message(arbitration_id=cid, data=data,
                                               is_extended_id=False))
+                if m is not None and _is_status_request(m):
+                    self.answered.set()
         except BaseException as exc:  # reported by stop()
             self.error = exc
 
@@ -388,10 +398,13 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
             tx.send(can.Message(arbitration_id=bus.ID_CTRL,
                                 data=bus.encode_ctrl(bus.CTRL_STATUS, record_id)[1],
                                 is_extended_id=False))
-            _wait_for_status(state, stop, rec.name)
-            while time.monotonic() - state.last_rx < QUIET_S:  # a heartbeat may race it
-                stop_point(stop)
-                time.sleep(0.05)
+            if isinstance(fw, InProcessFirmware):
+                _wait_for_answer(fw, state, stop, rec.name)
+            else:
+                _wait_for_status(state, stop, rec.name)
+                while time.monotonic() - state.last_rx < QUIET_S:  # a heartbeat may race it
+                    stop_point(stop)
+                    time.sleep(0.05)
         finally:
             done.set()
             t.join(timeout=30)
@@ -419,6 +432,22 @@ def _wait_for_status(st: _LoggerState, stop: threading.Event, name: str) -> None
     while not st.status.wait(timeout=0.05):
         stop_point(stop)
         if time.monotonic() > t_end:
+            log.warning("%s: no DV_STATUS answer within %.0f s; results may be incomplete",
+                        name, STATUS_WAIT_S)
+            return
+
+
+def _wait_for_answer(fw: InProcessFirmware, st: _LoggerState, stop: threading.Event,
+                     name: str) -> None:
+    """Until the in-process firmware has handled the status request (then all its results are
+    in the logger's queue, which the logger reads to the end before it closes), not until a
+    DV_STATUS frame comes: a firmware thread behind the replay on a loaded host sends
+    heartbeats while it still works through the backlog, and stopping at one lost a third of
+    the residuals without a word."""
+    t_end = time.monotonic() + STATUS_WAIT_S
+    while not fw.answered.wait(timeout=0.05):
+        stop_point(stop)
+        if time.monotonic() > t_end or st.error is not None or fw.error is not None:
             log.warning("%s: no DV_STATUS answer within %.0f s; results may be incomplete",
                         name, STATUS_WAIT_S)
             return
@@ -459,9 +488,12 @@ def _logger_loop(rx: Any, logger: McapLog, stop: threading.Event, st: _LoggerSta
     w: AsyncLog | None = None
     try:
         w = AsyncLog(logger)
-        while not stop.is_set():
-            m = rx.recv(timeout=0.05)
+        while True:
+            # after stop, what is already on the bus is read before the log closes
+            m = rx.recv(timeout=0.0 if stop.is_set() else 0.05)
             if m is None:
+                if stop.is_set():
+                    break
                 w.hand_off()
                 continue
             st.last_rx = time.monotonic()
