@@ -20,6 +20,13 @@ validate-error-rates.md has the numbers):
   independent between studies of different tests. A draw fixed by the test's index alone was
   the same in every study, a shared offset of the simulated features that made a right model
   fail cep_env@acc4 on 5 of 40 clean harmonic studies (1 of 40 with a draw per study).
+
+One bias no simulation can remove: an aliased input. A hammer's force recorded through an
+anti-alias filter that is not far down above fs/2 (the generator's default 8th-order
+Butterworth at 0.4 fs: -44 dB at 0.75 fs) carries power folded onto the modes that the
+structure never received; the response (no content up there) is not aliased, so a right
+model predicts its amplitude 0.08 % off and decay_y0@acc4 rejected it in 31 of 100 clean
+studies (5 of 100 recorded alias-free; bench/RESULTS.catalogue.md).
 """
 from __future__ import annotations
 
