@@ -118,74 +118,30 @@ def input_band(u: np.ndarray, fs_hz: float) -> tuple[float, float]:
                                                              f.size - 1)])
 
 
-def input_noise_gain(m: mdl.Model, n: int, fs_hz: float, chans: Sequence[str]
-                     ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """(f, |G_c(f)|^2): the model's power gain from its input to each channel at the noise
-    estimate's Welch bins (nperseg min(1024, n)), from its response to one impulse (an eighth
-    into n samples: the interpolation's leading half is not cut; a seven-eighths tail to decay)."""
-    imp = np.zeros(n)
-    imp[n // 8] = 1.0
-    y = simulate(m, imp, fs_hz)
-    f = np.fft.rfftfreq(min(1024, n), 1.0 / fs_hz)
-    fine = np.fft.rfftfreq(n, 1.0 / fs_hz)
-    return f, {c: np.interp(f, fine, np.abs(np.fft.rfft(y[c])) ** 2) for c in chans}
-
-
-def _sensor_noise(res: Mapping[str, np.ndarray], u: np.ndarray, fs_hz: float,
-                  band: tuple[float, float], gain: tuple[np.ndarray, Mapping[str, np.ndarray]]
-                  ) -> dict[str, float]:
-    """Each channel's output-sensor noise RMS from a right model's residual res (measured
-    minus the model driven by the measured input u). Outside the input band that residual's
-    PSD is the output sensor's white level N_c plus the input sensor's noise through the
-    model, N_u |G_c|^2, which the simulation (driven by the same u) already carries: both are
-    fitted by least squares over the out-of-band bins (above 2 bins, the segment mean's; up
-    to the anti-alias corner; N_c per channel, N_u shared) and N_c is the white noise the
-    simulation adds (with the residual's mains hum, discover.noise). Bin means, not medians:
-    the median of a Welch PSD reads white noise ~0.8 % low. Without enough bins, the whole
-    residual's out-of-band level (discover.noise.spectral)."""
-    nz: Any = importlib.import_module("dynval.discover.noise")
-    sig = importlib.import_module("scipy.signal")
-    lo, hi = band
-    f, g2 = gain
-    ps = {c: sig.welch(x, fs=fs_hz, nperseg=min(1024, x.size))[1] for c, x in res.items()}
-    use = (f > 2.5 * f[1]) & ((f < lo) | ((f > hi) & (f <= nz.AA_CORNER * fs_hz)))
-    k = int(np.count_nonzero(use))
-    if k < 3 * (len(ps) + 1):
-        return {c: float(nz.spectral([x], fs_hz, band, [u]).rms) for c, x in res.items()}
-    a = np.zeros((k * len(ps), len(ps) + 1))
-    for j, c in enumerate(ps):
-        a[j * k:(j + 1) * k, j] = 1.0
-        a[j * k:(j + 1) * k, -1] = g2[c][use]
-    level = np.linalg.lstsq(a, np.concatenate([p[use] for p in ps.values()]), rcond=None)[0]
-    out = {}
-    for j, c in enumerate(ps):
-        hum, _ = nz.mains_hum([res[c]], [u], fs_hz)
-        out[c] = math.sqrt(max(float(level[j]), 0.0) * fs_hz / 2 + hum)
-    return out
-
-
 def estimate_noise(m: mdl.Model, recs: Sequence[Recording], chans: Sequence[str],
                    input_channel: str) -> list[dict[str, float]]:
     """Each test's sensor-noise RMS per channel from the model's residual outside the input
-    band (_sensor_noise: where the model's errors are small whatever it lacks), less the
-    input sensor's noise the model carries into it. Test by test: a noise that scales with
-    the excitation level is followed, and an estimate's error differs between tests, so the
-    paired test sees it as scatter (one estimate for all tests, 0.93-1.08 x the true noise,
-    was a shared offset: coh@acc3,acc4 rejected a right model in 4 of 20 clean studies, 2 of
-    20 test by test). The whole residual's out-of-band level (discover.noise.spectral)
-    counted the input's noise too and read the output noise of the generator's random tests
-    (1 % noise on force and accelerations) 1.4-2.0 % high less its medians' 0.4-1.1 % low:
-    the simulated coherence came out low (coh@acc3,acc4's paired t +0.09 / +0.56 on average
-    over 40 clean studies); _sensor_noise reads it within 0.5 %."""
+    band (dynval.discover.noise.spectral: where the model's errors are small whatever it
+    lacks). Test by test: a noise that scales with the excitation level is followed, and an
+    estimate's error differs between tests, so the paired test sees it as scatter (one
+    estimate for all tests, 0.93-1.08 x the true noise, was a shared offset: coh@acc3,acc4
+    rejected a right model in 4 of 20 clean studies, 2 of 20 test by test). Known bias: the
+    residual outside the band also holds the input sensor's noise through the model, which
+    the simulation (driven by the recorded input) carries already; on the generator's random
+    tests (1 % noise on force and accelerations) it reads the output noise 1.4-2.0 % high,
+    less its medians' 0.4-1.1 % low, and coh@acc3,acc4 (sensitive to 1 %) rejects a right
+    model in 9 of 100 clean studies (bench/RESULTS.modal-frf.md). A least-squares white level
+    with that part fitted and left out reads 0.996 x the truth, but also reads a wrong
+    model's out-of-band error as noise (1.9 x on bumper tests): not used."""
+    nz: Any = importlib.import_module("dynval.discover.noise")
     fs = recs[0].fs_hz
     band = input_band(np.concatenate([r.channel(input_channel).data for r in recs]), fs)
-    gain = input_noise_gain(m, recs[0].n_samples, fs, chans)
     out: list[dict[str, float]] = []
     for r in recs:
         u = r.channel(input_channel).data
         pred = simulate(m, u, fs)
-        out.append(_sensor_noise({c: r.channel(c).data - pred[c] for c in chans}, u, fs, band,
-                                 gain))
+        out.append({c: float(nz.spectral([r.channel(c).data - pred[c]], fs, band, [u]).rms)
+                    for c in chans})
     for c in chans:
         v = np.array([n[c] for n in out])
         log.info("sensor noise of %s: %.4g (%.4g-%.4g over %d tests; %.2f %% of its RMS)", c,
