@@ -8,12 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.signal as sig
 import scipy.stats as st
 
 from dynval import model as mdl
 from dynval import synth
 from dynval.catalogue import waveform as wf
 from dynval.errors import ConfigError
+from dynval.validate import measurement as meas
 from dynval.validate import montecarlo as mc
 from dynval.validate.featvec import parse
 
@@ -95,6 +97,45 @@ def test_bumper_shortens_the_impact_response_and_grammar_terms_read_it(
     assert np.all(np.abs(out[False][:, 0] - 0.57) < 0.04)
     assert np.all(out[True][:, 1] < out[False][:, 1] - 0.4)
     assert np.all(out[True][:, 2] > out[False][:, 2] * 1.2)
+
+
+def test_daq_filters_the_generator_offers() -> None:
+    """The default DAQ (Butterworth 8 at 0.4 fs) is only 44 dB down at 0.75 fs, where a
+    hammer's force still has power; the alias-free one is flat to 0.45 fs and 100 dB down
+    from 0.55 fs."""
+    fs, ff = 320.0, 320.0 * mc.FINE
+    probe = [0.3 * fs, 0.45 * fs, 0.55 * fs, 0.75 * fs]
+    db = {k: 20 * np.log10(np.abs(sig.sosfreqz(synth.daq_filter(k, fs, ff), probe, fs=ff)[1]))
+          for k in synth.DAQ_KINDS}
+    assert db["butter8"][3] == pytest.approx(-43.7, abs=0.5)
+    assert db["alias-free"][:2] == pytest.approx([0.0, 0.0], abs=0.011)
+    assert np.all(db["alias-free"][2:] < -100.0)
+    with pytest.raises(ConfigError, match="alias-free"):
+        synth.daq_filter("brickwall", fs, ff)
+
+
+def test_an_aliased_hammer_force_biases_a_right_models_amplitude(shared_data: Path) -> None:
+    """Noise-free hammer test (300 N at floor 1, 320 Hz): the right model driven by the
+    recorded force against the recorded top floor. The default DAQ lets the 4 ms pulse's
+    power above 0.75 fs fold onto the modes, so the prediction's envelope amplitude y0 and RMS
+    are 0.08 % low (measured +8.1e-4, +8.3e-4), about two standard errors of a 10-test paired
+    residual at 1 % sensor noise: decay_y0 rejected the right model in 8 of 20 clean studies.
+    Alias-free, 1.2e-4 and 1.0e-4 (the validation's input hold); the decay rate hardly
+    differs either way (2.1e-4, 0.4e-4)."""
+    m = mdl.load(shared_data / "synthetic" / "lanl4dof-clean" / "declared_model.json")
+    m = dataclasses.replace(m, input=mdl.Input("force", 2, "force_N"))
+    bias = {}
+    for daq in synth.DAQ_KINDS:
+        r = synth.generate(m, synth.Truth(), n_tests=1, levels_n_rms=(300.0,), fs_hz=320.0,
+                           n_samples=1024, excitation=synth.Hammer(), fine=mc.FINE,
+                           noise=0.0, daq=daq)[0]
+        x = r.channel("acc4_mps2").data
+        y = meas.simulate(m, r.channel("force_N").data, 320.0)["acc4_mps2"]
+        (y0x, ax), (y0y, ay) = wf.decay_fit(x, 320.0), wf.decay_fit(y, 320.0)
+        bias[daq] = np.array([y0x / y0y, np.std(x) / np.std(y), ax / ay]) - 1.0
+    assert np.all((bias["butter8"][:2] > 6e-4) & (bias["butter8"][:2] < 1e-3))
+    assert np.all(np.abs(bias["alias-free"]) < 2e-4)
+    assert abs(bias["butter8"][2]) < 3e-4
 
 
 def test_grammar_names_and_the_reference_they_compare_with() -> None:
