@@ -60,7 +60,8 @@ def test_an_effect_a_later_one_made_redundant_is_left_out(
     s.held_error = {1.0: 1.0, 2.0: 0.5, 3.0: 0.1, 4.0: without}
     refits: list[tuple[mdl.Model, Any]] = []
 
-    def refit(m: mdl.Model, cand: fx.Candidate, init: list[float], *a: Any) -> ft.FitResult:
+    def refit(m: mdl.Model, cand: fx.Candidate, init: list[float], *a: Any,
+              **k: Any) -> ft.FitResult:
         refits.append((m, init))
         return _fit(cand, alone, 34.0)
 

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
 import pytest
+from scipy.optimize._numdiff import approx_derivative
 from test_discover_drift import carriage
 
 from dynval import model as mdl
 from dynval import synth as gen
+from dynval.discover import fit as ft
 from dynval.discover import loop, parallel, report
 
 
@@ -48,3 +51,30 @@ def test_discover_gives_the_same_report_on_one_and_on_two_processes() -> None:
         docs.append(doc)
     assert docs[0]["effects"] and docs[0]["effects"][0]["type"] == "friction"
     assert docs[0] == docs[1]
+
+
+def _pids_inside(x: int) -> list[int]:
+    return [pid for pid, _ in parallel.ordered_map(_pid_and_square, [x, x + 1], 2)]
+
+
+def test_a_map_inside_a_workers_task_runs_in_that_worker() -> None:
+    # two cores are already busy with the outer map: the inner one must not fork again
+    for inner in parallel.ordered_map(_pids_inside, [1, 2, 3], 2):
+        assert len(set(inner)) == 1 and inner[0] != os.getpid()
+
+
+def _curved(z: np.ndarray) -> np.ndarray:
+    return np.array([np.sin(3 * z[0]) * z[1], np.exp(z[1]) - z[0] ** 2, z[0] * z[1] * z[2]])
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_forward_jacobian_is_scipys_two_point_scheme(workers: int) -> None:
+    # the same columns as scipy's '2-point' differences with diff_step 1e-3 inside [0, 1]: at 0,
+    # inside, and a backward step at the upper bound (z[2] = 0.9995)
+    z = np.array([0.3, 0.0, 0.9995])
+    fun, jac = ft.forward_jacobian(_curved, workers)
+    f0 = fun(z)
+    ref = approx_derivative(_curved, z, method="2-point", rel_step=1e-3, f0=f0,
+                            bounds=(0.0, 1.0))
+    assert np.array_equal(jac(z), ref)
+    assert not np.array_equal(jac(z), approx_derivative(_curved, z, method="3-point"))

@@ -17,7 +17,7 @@ import importlib
 import logging
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -147,11 +147,62 @@ def screen(m: mdl.Model, cand: fx.Candidate, starts: Sequence[Sequence[float]],
     return [st for _, st in scored[:keep]] or [list(starts[0])]
 
 
-def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence[TestData],
-        chans: Sequence[str], scales: dict[str, float], max_nfev: int = 40,
-        uncertain: Sequence[str] = ()) -> FitResult:
-    """Fit the candidate's parameters, and with them the declared parameters named in
-    ``uncertain`` (re-adjusted jointly, so an effect they had absorbed can show)."""
+DIFF_STEP = 1e-3  # forward-difference step relative to the [0, 1] coordinate's value
+
+
+def forward_jacobian(fun: Callable[[np.ndarray], np.ndarray], workers: int
+                     ) -> tuple[Callable[[np.ndarray], np.ndarray],
+                                Callable[[np.ndarray], np.ndarray]]:
+    """(fun remembering its last point, the Jacobian of fun) for least_squares on [0, 1]:
+    scipy's '2-point' differences with rel_step DIFF_STEP (step DIFF_STEP x z, sqrt(eps) at
+    z = 0, backward where it would leave the bounds), the same columns, but on up to
+    ``workers`` processes instead of one after the other. The value at the point itself is the
+    first's last one (least_squares evaluates fun there just before the Jacobian) when the
+    point is the same."""
+    last: dict[str, np.ndarray] = {}
+
+    def remembering(z: np.ndarray) -> np.ndarray:
+        f = fun(z)
+        last["z"], last["f"] = z.copy(), f
+        return f
+
+    def jac(z: np.ndarray) -> np.ndarray:
+        f0 = last["f"] if "z" in last and np.array_equal(last["z"], z) else fun(z)
+        h = DIFF_STEP * z
+        h = np.where((z + h) - z == 0, math.sqrt(np.finfo(float).eps), h)
+        h = np.where(z + h > 1.0, -h, h)
+        steps = []
+        for i in range(z.size):
+            zi = z.copy()
+            zi[i] = z[i] + h[i]
+            steps.append(zi)
+        cols = parallel.ordered_map(fun, steps, workers)
+        return np.column_stack([(c - f0) / (zi[i] - z[i])
+                                for i, (c, zi) in enumerate(zip(cols, steps, strict=True))])
+
+    return remembering, jac
+
+
+@dataclass
+class Problem:
+    """A candidate's least-squares problem in [0, 1] coordinates: the residual fun(z), the
+    start z0, the parameters (the effect's, then the re-adjusted declared ones) and the model
+    of a parameter vector."""
+
+    fun: Callable[[np.ndarray], np.ndarray]
+    z0: np.ndarray
+    params: list[fx.Param]
+    n_effect: int
+    build: Callable[[list[float]], mdl.Model]
+
+    def values(self, z: np.ndarray) -> list[float]:
+        return [_to_value(p, float(zi)) for p, zi in zip(self.params, z, strict=True)]
+
+
+def problem(m: mdl.Model, cand: fx.Candidate, init: Sequence[float],
+            tests: Sequence[TestData], chans: Sequence[str], scales: dict[str, float],
+            uncertain: Sequence[str] = ()) -> Problem:
+    """The fit's problem (see fit)."""
     et = fx.by_type(cand.type)
     ps = et.params(m, cand)
     xs = uncertain_params(m, uncertain)
@@ -163,9 +214,6 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
     n_res = sum(t.n for t in tests for c in chans)
     npar = len(ps)
 
-    def values(z: np.ndarray) -> list[float]:
-        return [_to_value(p, float(zi)) for p, zi in zip(ps_all, z, strict=True)]
-
     def build(v: list[float]) -> mdl.Model:
         base = m.with_params({p.name: x for p, x in zip(xs, v[npar:], strict=True)}) if xs \
             else m
@@ -173,7 +221,7 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
 
     def fun(z: np.ndarray) -> np.ndarray:
         try:
-            mm = build(values(z))
+            mm = build(pb.values(z))
         except Exception as exc:  # a refused parameter set (validation): penalise
             log.debug("%s: %s", cand.label, exc)
             return np.full(n_res, _PENALTY / math.sqrt(n_res))
@@ -182,10 +230,40 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
             return np.full(n_res, _PENALTY / math.sqrt(n_res))
         return r
 
-    sol = least_squares(fun, z0, bounds=(0.0, 1.0), method="trf", diff_step=1e-3,
-                        x_scale=1.0, max_nfev=max_nfev, xtol=1e-6, ftol=1e-8)
-    vals = values(sol.x)
-    mm = build(vals)
+    pb = Problem(fun, z0, ps_all, npar, build)  # fun reads pb.values: made before its call
+    return pb
+
+
+def first_order_gain(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
+                     chans: Sequence[str], scales: dict[str, float], workers: int = 1) -> float:
+    """The share of the tests' normalised SSE one Gauss-Newton step on the declared
+    parameters ``names`` would remove (the residual's projection on the Jacobian's columns;
+    bounds ignored): a screen costing one Jacobian, before a fit costing several."""
+    pb = problem(m, fx.NONE.candidates(m)[0], [], tests, chans, scales, names)
+    fun_at, jac = forward_jacobian(pb.fun, workers)
+    r0 = fun_at(pb.z0)
+    rr = float(r0 @ r0)
+    if rr <= 0:
+        return 0.0
+    j = jac(pb.z0)
+    step, *_ = np.linalg.lstsq(j, -r0, rcond=None)
+    fitted = r0 + j @ step
+    return max(0.0, 1.0 - float(fitted @ fitted) / rr)
+
+
+def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence[TestData],
+        chans: Sequence[str], scales: dict[str, float], max_nfev: int = 40,
+        uncertain: Sequence[str] = (), workers: int = 1) -> FitResult:
+    """Fit the candidate's parameters, and with them the declared parameters named in
+    ``uncertain`` (re-adjusted jointly, so an effect they had absorbed can show). The
+    Jacobian's columns run on up to ``workers`` processes (the same numbers on any count)."""
+    pb = problem(m, cand, init, tests, chans, scales, uncertain)
+    ps_all = pb.params
+    fun_at, jac = forward_jacobian(pb.fun, workers)
+    sol = least_squares(fun_at, pb.z0, jac=jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0,
+                        max_nfev=max_nfev, xtol=1e-6, ftol=1e-8)
+    vals = pb.values(sol.x)
+    mm = pb.build(vals)
     r = sol.fun
     nsse = float(np.sum(r * r))
     factor = n_eff_factor(r)
@@ -200,7 +278,8 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
             sig[i] = float(abs(dvdz) * math.sqrt(max(cov_z[i, i], 0.0)))
     except (np.linalg.LinAlgError, ValueError):
         pass
-    names = [p.name for p in ps] + [f"{p.name}{READJUSTED}" for p in xs]
+    names = ([p.name for p in ps_all[:pb.n_effect]]
+             + [f"{p.name}{READJUSTED}" for p in ps_all[pb.n_effect:]])
     units = [p.unit for p in ps_all]
     return FitResult(cand, names, units, vals, sig, mm, nsse, int(sol.nfev), bool(sol.success),
                      str(sol.message), factor)

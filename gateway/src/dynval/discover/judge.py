@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,7 +24,8 @@ log = logging.getLogger(__name__)
 def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model,
           cur_table: rs.ErrorTable, accepted: set[str]) -> dict[str, Any] | None:
     """Fit and judge the pool; the accepted fit with the lowest held-out error."""
-    judge = Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band)
+    judge = Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band,
+                  s.workers)
     best = judge_all(s, rd, judge, pool, None)
     rivals = nonlinear_rivals(rd, best, accepted)
     if rivals:
@@ -40,28 +41,31 @@ def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model
         log.info("round %d: %d other place(s) of %s re-fitted from its values", rd.index,
                  len(sibs), best["candidate"].label if best else "")
         best = judge_all(s, rd, judge, sibs, best)
-    return simplest_nested(best, rd.fits, s.o.min_gain)
+    return simplest_nested(best, rd.fits, s.o.min_gain, judge.confirm)
 
 
 def judge_all(s: Session, rd: Round, judge: Judge, evs: list[tr.Evidence],
                best: dict[str, Any] | None) -> dict[str, Any] | None:
     """Fit ``evs`` on every core (their references first: candidates share them), add them to
-    the round's fits; the accepted fit with the lowest held-out error, ``best`` included."""
+    the round's fits; the accepted fit with the lowest held-out error, ``best`` included (the
+    gains are against each candidate's own reference, which differs with what it
+    re-adjusts). Only a fit that would win is checked against its warm reference
+    (Judge.confirm, which can only reject): the same winner for a fraction of the fits."""
     names = list(dict.fromkeys(judge.readjusted(with_shape(e)) for e in evs))
     judge.known(names, parallel.ordered_map(judge.reference, names, s.workers))
-    for info in parallel.ordered_map(judge.candidate, evs, s.workers):
-        if info is None:
-            continue
-        rd.fits.append(info)
+    new = [i for i in parallel.ordered_map(judge.candidate, evs, s.workers) if i is not None]
+    rd.fits.extend(new)
+    for info in sorted((i for i in new if i["accepted"]), key=lambda i: i["nsse_held_after"]):
+        if best is not None and info["nsse_held_after"] >= best["nsse_held_after"]:
+            break
+        if judge.confirm(info):
+            best = info
+            break
+    for info in new:
         log.info("round %d: %s: held-out gain %.3f, worst test %+.3f, dBIC %.1f -> %s",
                  rd.index, info["candidate"].label, info["held_gain"],
                  info["held_worst_test_change"], info["delta_bic"],
                  "accept" if info["accepted"] else "reject")
-        # the lowest held-out error wins (the gains are against each candidate's own
-        # reference, which differs with what it re-adjusts)
-        if info["accepted"] and (best is None
-                                 or info["nsse_held_after"] < best["nsse_held_after"]):
-            best = info
     return best
 
 
@@ -126,16 +130,18 @@ def nested_in(simple: fx.Candidate, rich: fx.Candidate) -> bool:
 
 
 def simplest_nested(best: dict[str, Any] | None, fits: Sequence[dict[str, Any]],
-                     min_gain: float) -> dict[str, Any] | None:
-    """The best fit, or an accepted special case of it with fewer parameters (nested_in)
-    unless the richer one lowers the held-out error by at least half of min_gain more: a
-    spurious offset, or an appendage standing in for a mass, must not win on a tie."""
+                    min_gain: float, confirm: Callable[[dict[str, Any]], bool]
+                    ) -> dict[str, Any] | None:
+    """The best fit, or an accepted (``confirm``) special case of it with fewer parameters
+    (nested_in) unless the richer one lowers the held-out error by at least half of min_gain
+    more: a spurious offset, or an appendage standing in for a mass, must not win on a tie."""
     if best is None:
         return None
     simpler = [info for info in fits
                if info["accepted"] and nested_in(info["candidate"], best["candidate"])
                and len(info["fit"].values) < len(best["fit"].values)
-               and best["nsse_held_after"] > (1 - 0.5 * min_gain) * info["nsse_held_after"]]
+               and best["nsse_held_after"] > (1 - 0.5 * min_gain) * info["nsse_held_after"]
+               and confirm(info)]
     return min(simpler, key=lambda i: i["nsse_held_after"]) if simpler else best
 
 
@@ -146,8 +152,9 @@ class Judge:
 
     def __init__(self, cur: mdl.Model, cur_table: rs.ErrorTable, fit_t: list[rs.TestData],
                  held_t: list[rs.TestData], chans: list[str], scales: dict[str, float],
-                 o: Options, band: tuple[float, float]) -> None:
+                 o: Options, band: tuple[float, float], workers: int = 1) -> None:
         self.cur, self.cur_table = cur, cur_table
+        self.workers = workers  # for the fits done here (confirm), not in a round's workers
         self.fit_t, self.held_t, self.chans, self.scales, self.o = fit_t, held_t, chans, scales, o
         self.band = band
         self.fit_names = [t.name for t in fit_t]
@@ -206,25 +213,37 @@ class Judge:
             return None
         _, ref_table, ref_p = self.reference(names)
         tab, _ = rs.error_table(res.model, self.held_t, self.chans, self.scales)
-        verdict = self._verdict(res, tab, ref_table, ref_p)
-        if verdict[-1] and names:
-            # the re-adjustment alone, from where the candidate's fit left it: a reference
-            # fitted from the current model can stop short (a rough objective), and the
-            # gain of re-adjusting must not count as the effect's
-            warm = self.warm_reference(res, names)
+        info = {"candidate": cand, "evidence": e.r2, "fit": res, "readjusted": names,
+                "table": tab, "confirmed": not names,
+                "reference": ("the current model with " + ", ".join(names) +
+                              " re-adjusted, no effect") if ref_p else "the current model"}
+        self._judged(info, ref_table, ref_p)
+        return info
+
+    def _judged(self, info: dict[str, Any], ref_table: rs.ErrorTable, ref_p: int) -> None:
+        gain, worst, dbic, held_before, nsse_fit_before, ok = self._verdict(
+            info["fit"], info["table"], ref_table, ref_p)
+        info.update(held_gain=gain, held_worst_test_change=worst, delta_bic=dbic, accepted=ok,
+                    nsse_fit_before=nsse_fit_before, nsse_fit_after=info["fit"].nsse_fit,
+                    nsse_held_before=held_before,
+                    nsse_held_after=info["table"].total(self.held_names))
+
+    def confirm(self, info: dict[str, Any]) -> bool:
+        """Whether an accepted fit stays accepted against its warm reference: the
+        re-adjustment alone, from where the candidate's fit left it (a reference fitted from
+        the current model can stop short on a rough objective, and the gain of re-adjusting
+        must not count as the effect's). Done once per fit, for the fits that would win."""
+        if info["accepted"] and not info["confirmed"]:
+            names = info["readjusted"]
+            _, ref_table, _ = self.reference(names)
+            warm = self.warm_reference(info["fit"], names)
             if warm is not None and (warm.total(self.held_names)
                                      < ref_table.total(self.held_names)):
-                ref_table, ref_p = warm, len(names)
-                verdict = self._verdict(res, tab, ref_table, ref_p)
-        gain, worst, dbic, held_before, nsse_fit_before, ok = verdict
-        held_after = tab.total(self.held_names)
-        return {"candidate": cand, "evidence": e.r2, "fit": res, "held_gain": gain,
-                "readjusted": names,
-                "held_worst_test_change": worst, "delta_bic": dbic, "accepted": ok,
-                "reference": ("the current model with " + ", ".join(names) +
-                              " re-adjusted, no effect") if ref_p else "the current model",
-                "nsse_fit_before": nsse_fit_before, "nsse_fit_after": res.nsse_fit,
-                "nsse_held_before": held_before, "nsse_held_after": held_after}
+                self._judged(info, warm, len(names))
+                info["reference"] = ("the current model with " + ", ".join(names) +
+                                     " re-adjusted from the candidate's values, no effect")
+        info["confirmed"] = True
+        return bool(info["accepted"])
 
     def warm_reference(self, res: ft.FitResult, names: tuple[str, ...]
                        ) -> rs.ErrorTable | None:
@@ -235,7 +254,8 @@ class Judge:
                   if n.endswith(ft.READJUSTED)}
         try:
             cal = ft.fit(self.cur.with_params(fitted), fx.NONE.candidates(self.cur)[0], [],
-                         self.fit_t, self.chans, self.scales, self.o.max_nfev, names)
+                         self.fit_t, self.chans, self.scales, self.o.max_nfev, names,
+                         workers=self.workers)
         except ConfigError as exc:
             log.info("re-adjusting %s alone (warm) failed: %s", ", ".join(names), exc)
             return None
@@ -352,7 +372,7 @@ def without(s: Session, steps: Sequence[Step], k: int, prediction: str
                if not n.endswith(ft.READJUSTED)]
         try:
             r = ft.fit(m, res.cand, own, s.fit_t, s.chans, s.scales, s.o.max_nfev,
-                       st.info["readjusted"])
+                       st.info["readjusted"], workers=s.workers)
         except ConfigError as exc:
             log.info("%s re-fitted without %s: %s", res.cand.label,
                      steps[k].info["candidate"].label, exc)

@@ -19,6 +19,7 @@ R = TypeVar("R")
 
 # the work of the pool being run; set before the fork, read by the workers
 _WORK: tuple[Callable[[Any], Any], Sequence[Any]] | None = None
+_IN_WORKER = False  # set in a forked worker: a map inside a task runs serially (2 cores, not 4)
 
 
 def available_workers() -> int:
@@ -30,17 +31,20 @@ def available_workers() -> int:
 
 
 def _run(i: int) -> Any:
+    global _IN_WORKER
     assert _WORK is not None, "a worker without work (not forked from ordered_map)"
+    _IN_WORKER = True
     fn, items = _WORK
     return fn(items[i])
 
 
 def ordered_map(fn: Callable[[T], R], items: Sequence[T], workers: int) -> list[R]:
     """[fn(x) for x in items], on up to ``workers`` forked processes. An exception in a task
-    is raised here, as the serial loop would raise it."""
+    is raised here, as the serial loop would raise it. Inside a task of another map it runs
+    serially (the outer map already uses the cores)."""
     global _WORK
     n = min(workers, len(items))
-    if n <= 1 or "fork" not in mp.get_all_start_methods():
+    if n <= 1 or _IN_WORKER or "fork" not in mp.get_all_start_methods():
         return [fn(x) for x in items]
     _WORK = (fn, items)
     try:

@@ -56,7 +56,7 @@ def _evidence_list(rd: Any) -> list[dict[str, Any]]:
                         "held_out_gain": _f(info["held_gain"]),
                         "held_out_worst_test_change": _f(info["held_worst_test_change"]),
                         "delta_bic": _f(info["delta_bic"]), "accepted": info["accepted"],
-                        "n_evaluations": res.nfev}
+                        "reference": info["reference"], "n_evaluations": res.nfev}
         out.append(d)
     return out
 

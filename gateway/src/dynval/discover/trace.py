@@ -448,11 +448,17 @@ def score(view: ForceView, cands: Sequence[fx.Candidate], workers: int = 1
             if plain:
                 r2 = amp * amp * bb / ff
             else:
-                br = bv - q @ (q.T @ bv)
-                brr = float(br @ br)
+                # the basis with the nuisance span taken out, br = bv - Q Q'bv, is not formed
+                # (one product of Q less): br.f_res = bv.f_res as f_res is orthogonal to Q, and
+                # |br|^2 = |bv|^2 - |Q'bv|^2, computed directly where that difference cancels
+                qb = q.T @ bv
+                brr = bb - float(qb @ qb)
+                if brr <= 1e-6 * bb:
+                    br = bv - q @ qb
+                    brr = float(br @ br)
                 if brr <= 1e-12 * bb:
                     continue
-                r2 = float(br @ f_res) ** 2 / brr / fr
+                r2 = float(bv @ f_res) ** 2 / brr / fr
             if r2 > best.r2:
                 best = Evidence(cand, r2, amp, dict(shape))
         best.shape.update(fx.by_type(cand.type).motion_scales(view.states, cand))

@@ -490,6 +490,8 @@ def _check_finite(m: Model, u: np.ndarray, y: np.ndarray, dt: float, start: int,
     """A prediction that is not finite where the input is (a diverged simulation) is a
     ConfigError naming the element (or the linear part) that makes it diverge. u, y: the block
     of steps start.. of a record of `total` steps; prefix(k): its first k steps' input."""
+    if np.isfinite(y).all():  # the usual case, 25x cheaper than the row-wise test below
+        return
     bad = ~np.isfinite(y).all(axis=1) & np.isfinite(u)
     if not bad.any():
         return
