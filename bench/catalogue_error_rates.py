@@ -39,6 +39,9 @@ MODEL = (Path(__file__).resolve().parents[1].parent / "shared" / "data" / "synth
 TYPES = {
     "random 12 N RMS, 640 Hz x 8192": (None, 640.0, 8192, 12.0, 1,
                                        ("ks", "ad", "acf_corr", "srs_peak", "srs_rms")),
+    # the bumper closes 16-26 times in a 12 N RMS record, ~260 times at 24 N RMS
+    "random 24 N RMS, 640 Hz x 8192": (None, 640.0, 8192, 24.0, 1,
+                                       ("ks", "ad", "acf_corr", "srs_peak", "srs_rms")),
     "sine 54 Hz 7 N RMS, 2560 Hz x 8192": (synth.Sine(54.0, lead_s=0.0), 2560.0, 8192, 7.0, 1,
                                            ("thd", "cep_env", "holder_min")),
     "hammer 300 N at floor 1, 320 Hz x 1024": (synth.Hammer(), 320.0, 1024, 300.0, 2,
