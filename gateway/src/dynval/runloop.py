@@ -399,9 +399,13 @@ def run_test(rec: Recording, out: Path, choice: BusChoice, *, model: Any = None,
                                 data=bus.encode_ctrl(bus.CTRL_STATUS, record_id)[1],
                                 is_extended_id=False))
             if isinstance(fw, InProcessFirmware):
-                _wait_for_answer(fw, state, stop, rec.name)
+                # the firmware thread says when it has handled the request (then all its
+                # results are queued for the logger): a heartbeat from a thread still behind
+                # the replay on a loaded host lost a third of the residuals without a word
+                _wait_for_answer(fw.answered, lambda: fw.error is not None
+                                 or state.error is not None, stop, rec.name)
             else:
-                _wait_for_status(state, stop, rec.name)
+                _wait_for_answer(state.status, lambda: False, stop, rec.name)
                 while time.monotonic() - state.last_rx < QUIET_S:  # a heartbeat may race it
                     stop_point(stop)
                     time.sleep(0.05)
@@ -427,27 +431,14 @@ STATUS_WAIT_S = 120.0  # the firmware's answer to the status request after a rep
 STALL_S = 5.0  # a logger without progress for this long is not waited for (it reports why)
 
 
-def _wait_for_status(st: _LoggerState, stop: threading.Event, name: str) -> None:
+def _wait_for_answer(answered: threading.Event, failed: Callable[[], bool],
+                     stop: threading.Event, name: str) -> None:
+    """Until ``answered`` (the firmware's answer to the status request) is set, ``failed()``
+    (a thread died) or STATUS_WAIT_S pass, this last with a warning."""
     t_end = time.monotonic() + STATUS_WAIT_S
-    while not st.status.wait(timeout=0.05):
+    while not answered.wait(timeout=0.05):
         stop_point(stop)
-        if time.monotonic() > t_end:
-            log.warning("%s: no DV_STATUS answer within %.0f s; results may be incomplete",
-                        name, STATUS_WAIT_S)
-            return
-
-
-def _wait_for_answer(fw: InProcessFirmware, st: _LoggerState, stop: threading.Event,
-                     name: str) -> None:
-    """Until the in-process firmware has handled the status request (then all its results are
-    in the logger's queue, which the logger reads to the end before it closes), not until a
-    DV_STATUS frame comes: a firmware thread behind the replay on a loaded host sends
-    heartbeats while it still works through the backlog, and stopping at one lost a third of
-    the residuals without a word."""
-    t_end = time.monotonic() + STATUS_WAIT_S
-    while not fw.answered.wait(timeout=0.05):
-        stop_point(stop)
-        if time.monotonic() > t_end or st.error is not None or fw.error is not None:
+        if time.monotonic() > t_end or failed():
             log.warning("%s: no DV_STATUS answer within %.0f s; results may be incomplete",
                         name, STATUS_WAIT_S)
             return

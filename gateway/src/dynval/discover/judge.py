@@ -215,8 +215,7 @@ class Judge:
         tab, _ = rs.error_table(res.model, self.held_t, self.chans, self.scales)
         info = {"candidate": cand, "evidence": e.r2, "fit": res, "readjusted": names,
                 "table": tab, "confirmed": not names,
-                "reference": ("the current model with " + ", ".join(names) +
-                              " re-adjusted, no effect") if ref_p else "the current model"}
+                "reference": _reference_label(names, "") if ref_p else "the current model"}
         self._judged(info, ref_table, ref_p)
         return info
 
@@ -240,8 +239,7 @@ class Judge:
             if warm is not None and (warm.total(self.held_names)
                                      < ref_table.total(self.held_names)):
                 self._judged(info, warm, len(names))
-                info["reference"] = ("the current model with " + ", ".join(names) +
-                                     " re-adjusted from the candidate's values, no effect")
+                info["reference"] = _reference_label(names, " from the candidate's values")
         info["confirmed"] = True
         return bool(info["accepted"])
 
@@ -278,6 +276,10 @@ class Judge:
                 - bic(nsse_fit_before, n_eff, ref_p))
         ok = gain >= self.o.min_gain and worst <= self.o.max_worse and dbic < 0
         return gain, worst, dbic, held_before, nsse_fit_before, ok
+
+
+def _reference_label(names: Sequence[str], start: str) -> str:
+    return f"the current model with {', '.join(names)} re-adjusted{start}, no effect"
 
 
 def cand_key(c: fx.Candidate) -> str:
