@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import re
 import shutil
 import statistics
 import subprocess
@@ -115,18 +116,33 @@ def _run(exe: Path, *args: str) -> str:
     return subprocess.run([str(exe), *args], check=True, capture_output=True, text=True).stdout
 
 
-def _time_cases(exes: dict[str, Path]) -> dict[tuple[str, str], tuple[float, str]]:
+def _instructions(exe: Path, case: str, units: int) -> float | None:
+    """Instructions per unit under callgrind, as run.py counts dynval's: (3 reps - 1 rep) / 2."""
+    if shutil.which("valgrind") is None:
+        return None
+    counts = []
+    for reps in (1, 3):
+        r = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
+                            str(exe), case, str(reps)], capture_output=True, text=True)
+        m = re.search(r"Collected : (\d+)", r.stderr)
+        if r.returncode != 0 or m is None:
+            return None
+        counts.append(int(m.group(1)))
+    return (counts[1] - counts[0]) / (2 * units)
+
+
+def _time_cases(exes: dict[str, Path]) -> dict[tuple[str, str], tuple[float, str, int]]:
     """Median over PROCS processes (in rounds over the cases, as run.py) of each case's ns."""
     cases = [*FFT_CASES, FRF_CASE]
     ns: dict[tuple[str, str], list[float]] = {}
-    unit: dict[tuple[str, str], str] = {}
+    unit: dict[tuple[str, str], tuple[str, int]] = {}
     for _ in range(PROCS):
         for real, exe in exes.items():
             for case in cases:
                 fields = dict(kv.split("=", 1) for kv in _run(exe, case, str(REPS)).split())
                 ns.setdefault((real, case), []).append(float(fields["ns"]))
-                unit[(real, case)] = fields["unit"]
-    return {k: (statistics.median(v), unit[k]) for k, v in ns.items()}
+                unit[(real, case)] = (fields["unit"], int(fields["units"]))
+    return {k: (statistics.median(v), *unit[k]) for k, v in ns.items()}
 
 
 def _cmsis_rows() -> list[Row]:
@@ -138,7 +154,7 @@ def _cmsis_rows() -> list[Row]:
         return []
     timed = _time_cases(exes)
     rows: list[Row] = []
-    for (real, case), (ns, unit) in timed.items():
+    for (real, case), (ns, unit, units) in timed.items():
         sfx = "f64" if real == "double" else "f32"
         if case in FFT_CASES:
             chk = dict(kv.split("=", 1) for kv in _run(exes[real], "--check", case).split())
@@ -148,7 +164,11 @@ def _cmsis_rows() -> list[Row]:
         else:
             what = (f"plain C block Welch around CMSIS-DSP arm_rfft_fast_{sfx} (same window and "
                     f"averages, segments read in place: no ring, no NaN check)")
-        rows.append({"case": case, "real": real, "what": what, "ns": ns, "unit": unit})
+        row: Row = {"case": case, "real": real, "what": what, "ns": ns, "unit": unit}
+        instr = _instructions(exes[real], case, units)
+        if instr is not None:  # run.py prints float keys after the ratio: ", instr X"
+            row["instr"] = instr
+        rows.append(row)
     return rows
 
 
