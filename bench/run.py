@@ -199,10 +199,13 @@ def main() -> int:
                        f"{r['ns_max']:.2f}] /{r['unit']} | {instr} | {bound} | {tdesc} | {met} |")
             if tgt and tgt.get("note") and met != "yes":
                 notes.append(f"- {r['case']} ({r['real']}): {tgt['note']}")
-            for c in comps.get(r["case"], []) if r["real"] == "double" else []:
+            # a comparison row names its precision ("real"); rows without one are double's
+            same_real = [c for c in comps.get(r["case"], [])
+                         if c.get("real", "double") == r["real"]]
+            for c in same_real:
                 extra = "".join(f", {k} {v:.3g}" for k, v in c.items()
                                 if k not in ("case", "what", "ns", "unit") and isinstance(v, float))
-                out.append(f"| ↳ comparison: {c['what']} | double | {c['ns']:.2f} /{c['unit']}"
+                out.append(f"| ↳ comparison: {c['what']} | {r['real']} | {c['ns']:.2f} /{c['unit']}"
                            f" | | | dynval is {c['ns'] / r['ns']:.3g}x as fast{extra} | |")
         out.append("")
         if notes:
