@@ -351,7 +351,7 @@ def _trace(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
         # the loop stops here: no candidate will be fitted, the scoring (two views' worth,
         # 5 s of a 6-DOF case) would only fill a table nobody reads (round 1's is kept: it
         # shows why "no effect")
-        return Round(rnd, ratio, tr.describe(evs, sps), [], [], None, "", view)
+        return Round(rnd, ratio, tr.describe(evs, sps), [], [], None, "", view, noise=noise)
     cands = fx.catalogue(cur, quiet=rnd > 1)
     if view is not None:
         evidence = tr.score(view, cands, s.workers)
@@ -374,7 +374,8 @@ def _trace(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
     noise_share = float(np.mean([min(1.0, 1.0 / max(r, 1e-12) ** 2) for r in ratio.values()]))
     evidence.append(tr.Evidence(fx.NONE.candidates(cur)[0], noise_share, 0.0))
     evidence.sort(key=lambda e: -e.r2)
-    return Round(rnd, ratio, tr.describe(evs, sps), evidence, [], None, "", view, second)
+    return Round(rnd, ratio, tr.describe(evs, sps), evidence, [], None, "", view, second,
+                 noise)
 
 
 def _second_opinion(first: list[tr.Evidence], second: list[tr.Evidence],

@@ -47,6 +47,7 @@ class Round:
     decision: str
     view: tr.ForceView | None = None
     second: list[tr.Evidence] = field(default_factory=list)  # the output view's top picks
+    noise: dict[str, float] = field(default_factory=dict)  # the floor judged against, per channel
 
 
 @dataclass

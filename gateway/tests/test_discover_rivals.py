@@ -1,0 +1,76 @@
+"""discover's rivals of a linear change (judge.rivals_to_fit): when a stiffness or damping
+change would win a round, each nonlinear element type's best-placed candidate is fitted too,
+unless the change already leaves the held-out residual within RIVALS_FLOOR_RATIO of the noise
+floor on every channel (pooled over the held-out tests, as the significance test pools). The
+tables are stand-ins; the fits behind them are covered by the discover cases."""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pytest
+
+from dynval.discover import effects as fx
+from dynval.discover import judge, session
+from dynval.discover import residual as rs
+from dynval.discover import trace as tr
+
+HELD = ["h1", "h2"]
+NOISE = {"a1": 0.1, "a2": 0.2}
+
+
+def _session(monkeypatch: pytest.MonkeyPatch) -> session.Session:
+    monkeypatch.setattr(session.Session, "held_names", property(lambda self: HELD))
+    return session.Session(session.Options(workers=1), [], list(NOISE), {"a1": 1.0, "a2": 1.0},
+                           [], [], (1.0, 100.0), [], 0)
+
+
+def _round() -> session.Round:
+    ev = [tr.Evidence(fx.Candidate(t, {"between": [0, 1]}, f"{t}, story 1", True), 0.5, 1.0)
+          for t in ("cubic_stiffness", "friction", "stiffness_change")]
+    return session.Round(1, {}, {}, ev, [], None, "", noise=dict(NOISE))
+
+
+def _best(kind: str, ratios: dict[str, tuple[float, float]]) -> dict[str, Any]:
+    """A would-be winner whose held-out RMSE is ratios[channel][test] x the channel's floor."""
+    rmse = {h: {c: r[i] * NOISE[c] for c, r in ratios.items()} for i, h in enumerate(HELD)}
+    return {"candidate": fx.Candidate(kind, {"between": [0, 1]}, f"{kind}, story 1", True),
+            "table": rs.ErrorTable(rmse, {h: 1.0 for h in HELD})}
+
+
+def test_a_change_at_the_floor_has_no_rivals_fitted(monkeypatch: pytest.MonkeyPatch) -> None:
+    s = _session(monkeypatch)
+    # a1: one held-out test at 1.16 x, the other at 1.0 x: pooled sqrt((1 + 1.16^2) / 2) = 1.083
+    best = _best("stiffness_change", {"a1": (1.0, 1.16), "a2": (1.05, 1.05)})
+    assert judge.left_over_floor(s, _round(), best) == pytest.approx(
+        math.sqrt((1 + 1.16 ** 2) / 2), rel=1e-12)
+    assert judge.rivals_to_fit(s, _round(), best, set()) == []
+    assert "within 1.08 x the noise floor" in s.notes[-1]
+    assert "more than 15%" in s.notes[-1]  # 1 - 1 / 1.083^2 = 0.147
+    assert "(2) are not fitted" in s.notes[-1]
+
+
+def test_a_change_above_the_floor_has_its_rivals_fitted(monkeypatch: pytest.MonkeyPatch
+                                                         ) -> None:
+    s = _session(monkeypatch)
+    best = _best("damping_change", {"a1": (1.0, 1.0), "a2": (1.1, 1.2)})  # a2 pooled 1.150
+    got = judge.rivals_to_fit(s, _round(), best, set())
+    assert sorted(e.cand.type for e in got) == ["cubic_stiffness", "friction"]
+    assert "fitted too (2)" in s.notes[-1]
+    # a rival accepted in an earlier round is not fitted again
+    done = {judge.cand_key(_round().evidence[1].cand)}
+    assert [e.cand.type for e in judge.rivals_to_fit(s, _round(), best, done)] == [
+        "cubic_stiffness"]
+
+
+def test_a_nonlinear_winner_and_a_channel_without_a_floor(monkeypatch: pytest.MonkeyPatch
+                                                           ) -> None:
+    s = _session(monkeypatch)
+    assert judge.rivals_to_fit(s, _round(), _best("cubic_stiffness", {
+        "a1": (3.0, 3.0), "a2": (3.0, 3.0)}), set()) == []
+    assert not s.notes  # nothing to decide: no note
+    rd = _round()
+    rd.noise["a2"] = 0.0  # no floor: the change is never taken to be at it
+    best = _best("stiffness_change", {"a1": (1.0, 1.0), "a2": (1.0, 1.0)})
+    assert judge.left_over_floor(s, rd, best) == math.inf
+    assert len(judge.rivals_to_fit(s, rd, best, set())) == 2
