@@ -1,6 +1,6 @@
 /**
  * @file dv_fft.h
- * @brief Small in-place radix-2 complex FFT with caller-owned twiddles (kissfft's lenmem idea).
+ * @brief Small in-place radix-4 complex FFT with caller-owned twiddles (kissfft's lenmem idea).
  *
  * X[k] = sum_m x[m] exp(-2 pi i k m / n), unscaled, for n a power of two. Data are interleaved
  * complex: x[2m] real part, x[2m + 1] imaginary part. A real n-point transform runs as an
