@@ -98,7 +98,11 @@ def to_json(r: DiscoverResult, model_path: str = "", model_out: str = "",
             verdict += (" (a residual above the noise floor remains: "
                         f"{r.unexplained['summary']})")
     elif at_floor:
-        verdict = "no effect: the declared model explains the tests to the noise floor"
+        # the worst channel's figure with it: "at the floor" means under the significance
+        # ratio, and a reader must see how far under (a small effect at 1.4 x reads the same)
+        worst = max(last.ratio.values()) if last is not None and last.ratio else math.nan
+        verdict = ("no effect: the declared model explains the tests to the noise floor "
+                   f"(worst channel {worst:.3g} x its floor)")
     else:
         worst = max(last.ratio.values()) if last is not None and last.ratio else math.nan
         verdict = ("no effect in the library improves the held-out tests significantly, but "
