@@ -2,17 +2,21 @@
 serial loop's, bit for bit, in the same order, and a worker's exception reaches the caller."""
 from __future__ import annotations
 
+import logging
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.optimize._numdiff import approx_derivative
 from test_discover_drift import carriage
 
+from dynval import cli
 from dynval import model as mdl
 from dynval import synth as gen
 from dynval.discover import fit as ft
 from dynval.discover import loop, parallel, report
+from dynval.errors import ConfigError
 
 
 def _pid_and_square(x: int) -> tuple[int, int]:
@@ -39,6 +43,26 @@ def test_one_worker_runs_here() -> None:
 def test_a_workers_exception_is_raised_to_the_caller() -> None:
     with pytest.raises(ValueError, match="three"):
         parallel.ordered_map(_fails_on_three, list(range(6)), 2)
+
+
+def test_the_workers_variable_sets_the_processes(monkeypatch: pytest.MonkeyPatch,
+                                                 caplog: pytest.LogCaptureFixture,
+                                                 shared_data: Path) -> None:
+    monkeypatch.delenv(parallel.WORKERS_ENV, raising=False)
+    cores = parallel.available_workers()
+    assert cores == len(os.sched_getaffinity(0))
+    monkeypatch.setenv(parallel.WORKERS_ENV, " 3 ")
+    assert parallel.available_workers() == 3
+    for bad in ("0", "-1", "two", "1.5"):
+        monkeypatch.setenv(parallel.WORKERS_ENV, bad)
+        with pytest.raises(ConfigError, match=f"DYNVAL_WORKERS='{bad}': expected a positive"):
+            parallel.available_workers()
+    # the command line: one line naming the variable, exit 2
+    monkeypatch.setenv(parallel.WORKERS_ENV, "none")
+    folder = shared_data / "synthetic" / "lanl4dof-bumper"
+    rc = cli.main(["-q", "discover", str(folder / "declared_model.json"), str(folder)])
+    err = [r.getMessage() for r in caplog.records if r.levelno >= logging.ERROR]
+    assert rc == 2 and len(err) == 1 and "DYNVAL_WORKERS='none'" in err[0], err
 
 
 def test_discover_gives_the_same_report_on_one_and_on_two_processes() -> None:

@@ -10,19 +10,26 @@ ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 OUT=${2:-$ROOT/build/fuzz}
 CC=${FUZZ_CC:-clang}
 mkdir -p "$OUT/corpus"
-for real in float double; do
-    def=""; [ "$real" = double ] && def="-DDV_REAL_DOUBLE"
-    "$CC" -std=c99 -g -O1 $def -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
-        -I"$ROOT/include" "$ROOT/tests/fuzz/fuzz_codec.c" "$ROOT/src/dv_codec.c" \
-        "$ROOT/src/dv_common.c" -lm -o "$OUT/fuzz_codec_$real"
-    "$CC" -std=c99 -g -O1 $def -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
-        -I"$ROOT/include" "$ROOT/tests/fuzz/fuzz_features.c" "$ROOT"/src/*.c -lm \
-        -o "$OUT/fuzz_features_$real"
-done
-"$CC" -std=c99 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all \
-    -I"$ROOT/include" -I"$ROOT/firmware_sim" "$ROOT/tests/fuzz/fuzz_sim_core.c" \
-    "$ROOT/firmware_sim/sim_core.c" "$ROOT/firmware_sim/sim_obs_stage.c" \
-    "$ROOT/firmware_sim/sim_config.c" "$ROOT"/src/*.c -lm -o "$OUT/fuzz_sim_core"
+FLAGS="-std=c99 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all"
+# the five targets are built two at a time (2 cores): each is one clang over the library
+build() { # target, extra flags and sources...
+    t=$1; shift
+    # shellcheck disable=SC2086
+    "$CC" $FLAGS -I"$ROOT/include" "$@" -lm -o "$OUT/fuzz_$t" >"$OUT/build_$t.log" 2>&1 \
+        || { cat "$OUT/build_$t.log"; return 1; }
+}
+SIM="$ROOT/firmware_sim"
+build codec_float "$ROOT/tests/fuzz/fuzz_codec.c" "$ROOT/src/dv_codec.c" "$ROOT/src/dv_common.c" &
+b1=$!
+build codec_double -DDV_REAL_DOUBLE "$ROOT/tests/fuzz/fuzz_codec.c" "$ROOT/src/dv_codec.c" \
+    "$ROOT/src/dv_common.c"
+wait "$b1"
+build features_float "$ROOT/tests/fuzz/fuzz_features.c" "$ROOT"/src/*.c &
+b1=$!
+build features_double -DDV_REAL_DOUBLE "$ROOT/tests/fuzz/fuzz_features.c" "$ROOT"/src/*.c
+wait "$b1"
+build sim_core -I"$SIM" "$ROOT/tests/fuzz/fuzz_sim_core.c" "$SIM/sim_core.c" \
+    "$SIM/sim_obs_stage.c" "$SIM/sim_config.c" "$ROOT"/src/*.c
 mkdir -p "$OUT/corpus_sim"
 # a seed: one valid frame of each kind, then a sample stream with a gap and a duplicate
 python3 - "$OUT/corpus/seed" <<'PY' 2>/dev/null || true
@@ -37,14 +44,23 @@ open(sys.argv[1], "wb").write(recs)
 PY
 mkdir -p "$OUT/corpus_feat_float" "$OUT/corpus_feat_double"
 third=$(( (SECS + 4) / 5 ))
-rc=0
-for t in codec_float codec_double features_float features_double sim_core; do
-    r=0
+# two targets at a time (2 cores), each for its share of the time
+fuzz() { # target
+    t=$1
     corpus="$OUT/corpus"; [ "$t" = sim_core ] && corpus="$OUT/corpus_sim"
     case $t in features_*) corpus="$OUT/corpus_feat_${t#features_}" ;; esac
     [ "$t" = sim_core ] && cp "$OUT/corpus/seed" "$corpus/" 2>/dev/null
+    r=0
     "$OUT/fuzz_$t" -max_total_time="$third" -max_len=1300 -print_final_stats=1 \
         -artifact_prefix="$OUT/" "$corpus" >"$OUT/fuzz_$t.log" 2>&1 || r=$?
+    echo "$r" >"$OUT/fuzz_$t.rc"
+}
+fuzz codec_float & p1=$!; fuzz codec_double; wait "$p1"
+fuzz features_float & p1=$!; fuzz features_double; wait "$p1"
+fuzz sim_core
+rc=0
+for t in codec_float codec_double features_float features_double sim_core; do
+    r=$(cat "$OUT/fuzz_$t.rc")
     grep -E '^(Done|stat::number_of_executed_units)|ERROR|SUMMARY' "$OUT/fuzz_$t.log" || true
     echo "fuzz_$t: exit $r (log $OUT/fuzz_$t.log)"
     [ "$r" -eq 0 ] || rc=$r

@@ -50,8 +50,8 @@ def add_parser(sub: Any) -> None:
                         "effects (default: re-adjust those at each candidate's location and "
                         "the modal damping, as a best-linear declared model needs)")
     p.add_argument("--workers", type=nonnegative_int, default=0, metavar="N",
-                   help="processes for the candidate fits (default: every available core; "
-                        "the results do not depend on it)")
+                   help="processes for the candidate fits (default: $DYNVAL_WORKERS, else every "
+                        "available core; the results do not depend on it)")
     add_test_options(p)
     p.set_defaults(run=run)
 
