@@ -13,10 +13,9 @@ of data (8192 samples of a lightly damped 2-mode process, AR(60)).
 from __future__ import annotations
 
 import logging
-import time
-from collections.abc import Callable
 
 import numpy as np
+from measure import median_ns  # bench/ is on the path (run.py's folder)
 from scipy import linalg, signal
 
 N, P = 8192, 60
@@ -28,17 +27,6 @@ def _data() -> np.ndarray:
     y = signal.lfilter([1.0], [1.0, -1.8, 0.95], u)
     z = signal.lfilter([1.0], [1.0, -0.6, 0.9], u)
     return y + z + 0.05 * u
-
-
-def _median_ns(fn: Callable[[], object], units: int, reps: int, warm: int = 3) -> float:
-    for _ in range(warm):
-        fn()
-    t = []
-    for _ in range(reps):
-        t0 = time.perf_counter_ns()
-        fn()
-        t.append((time.perf_counter_ns() - t0) / units)
-    return float(np.median(t))
 
 
 def _levinson(x: np.ndarray, p: int) -> np.ndarray:
@@ -74,7 +62,7 @@ def _cmsis(taps: np.ndarray, xc: np.ndarray) -> list[dict]:
         return np.asarray(dsp.arm_fir_f64(inst, xc))
 
     err = float(np.max(np.abs(fir() - signal.lfilter(taps, [1.0], xc))))
-    ns = _median_ns(fir, N, 101)
+    ns = median_ns(fir, N, 101)
     what = f"CMSIS-DSP arm_fir_f64 over the record (cmsisdsp {dsp.__version__}, max |diff| {err:.1e})"
     return [{"case": c, "what": what, "ns": ns, "unit": "sample"}
             for c in ("ar60_resid_sample", "ar60_resid_block")]
@@ -97,16 +85,16 @@ def compare() -> list[dict]:
     out = _cmsis(taps, xc)
     return out + [
         {"case": "ar60_resid_sample", "what": "scipy lfilter over the record (the issue's figure)",
-         "ns": _median_ns(block, N, 201), "unit": "sample"},
+         "ns": median_ns(block, N, 201), "unit": "sample"},
         {"case": "ar60_resid_sample", "what": "scipy lfilter, one call per sample with zi",
-         "ns": _median_ns(per_sample, 512, 7, warm=1), "unit": "sample"},
+         "ns": median_ns(per_sample, 512, 7, warm=1), "unit": "sample"},
         {"case": "ar60_resid_block", "what": "scipy lfilter over the record (61-tap FIR)",
-         "ns": _median_ns(block, N, 201), "unit": "sample"},
+         "ns": median_ns(block, N, 201), "unit": "sample"},
         {"case": "ar60_levinson_fit_8192",
          "what": "numpy lags (np.dot per lag) + scipy solve_toeplitz",
-         "ns": _median_ns(lambda: _levinson(x, P), 1, 101), "unit": "fit"},
+         "ns": median_ns(lambda: _levinson(x, P), 1, 101), "unit": "fit"},
         {"case": "ar60_burg_fit_8192", "what": "plain numpy Burg (vectorised per order)",
-         "ns": _median_ns(lambda: _burg(x, P), 1, 51), "unit": "fit"},
+         "ns": median_ns(lambda: _burg(x, P), 1, 51), "unit": "fit"},
     ]
 
 

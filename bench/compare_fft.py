@@ -18,17 +18,15 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import re
 import shutil
 import statistics
 import subprocess
 import tarfile
-import time
 import urllib.request
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from measure import instructions, median_ns  # bench/ is on the path (run.py's folder)
 from scipy import fft as sfft
 from scipy import signal
 
@@ -116,21 +114,6 @@ def _run(exe: Path, *args: str) -> str:
     return subprocess.run([str(exe), *args], check=True, capture_output=True, text=True).stdout
 
 
-def _instructions(exe: Path, case: str, units: int) -> float | None:
-    """Instructions per unit under callgrind, as run.py counts dynval's: (3 reps - 1 rep) / 2."""
-    if shutil.which("valgrind") is None:
-        return None
-    counts = []
-    for reps in (1, 3):
-        r = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
-                            str(exe), case, str(reps)], capture_output=True, text=True)
-        m = re.search(r"Collected : (\d+)", r.stderr)
-        if r.returncode != 0 or m is None:
-            return None
-        counts.append(int(m.group(1)))
-    return (counts[1] - counts[0]) / (2 * units)
-
-
 def _time_cases(exes: dict[str, Path]) -> dict[tuple[str, str], tuple[float, str, int]]:
     """Median over PROCS processes (in rounds over the cases, as run.py) of each case's ns."""
     cases = [*FFT_CASES, FRF_CASE]
@@ -165,22 +148,11 @@ def _cmsis_rows() -> list[Row]:
             what = (f"plain C block Welch around CMSIS-DSP arm_rfft_fast_{sfx} (same window and "
                     f"averages, segments read in place: no ring, no NaN check)")
         row: Row = {"case": case, "real": real, "what": what, "ns": ns, "unit": unit}
-        instr = _instructions(exes[real], case, units)
+        instr = instructions(exes[real], case, units)
         if instr is not None:  # run.py prints float keys after the ratio: ", instr X"
             row["instr"] = instr
         rows.append(row)
     return rows
-
-
-def _median_ns(fn: Callable[[], object], units: int, reps: int, warm: int = 3) -> float:
-    for _ in range(warm):
-        fn()
-    t = []
-    for _ in range(reps):
-        t0 = time.perf_counter_ns()
-        fn()
-        t.append((time.perf_counter_ns() - t0) / units)
-    return float(np.median(t))
 
 
 def _python_rows() -> list[Row]:
@@ -200,7 +172,7 @@ def _python_rows() -> list[Row]:
                     sfft.rfft(x)
 
             for name, fn in (("numpy.fft.rfft", run_np), ("scipy.fft.rfft", run_sp)):
-                rows.append({"case": case, "real": real, "ns": _median_ns(fn, batch, 101),
+                rows.append({"case": case, "real": real, "ns": median_ns(fn, batch, 101),
                              "unit": "transform",
                              "what": f"{name} on a {np.dtype(dt).name} array, one call per "
                                      f"transform (Python call overhead included)"})
@@ -213,7 +185,7 @@ def _python_rows() -> list[Row]:
         signal.welch(u, **kw)
         signal.welch(y, **kw)
 
-    rows.append({"case": FRF_CASE, "real": "double", "ns": _median_ns(welch, u.size, 31),
+    rows.append({"case": FRF_CASE, "real": "double", "ns": median_ns(welch, u.size, 31),
                  "unit": "sample",
                  "what": "scipy.signal csd + 2 welch over the whole record (not streaming)"})
     return rows

@@ -23,11 +23,12 @@ import logging
 import os
 import platform
 import re
-import shutil
 import statistics
 import subprocess
 import sys
 from pathlib import Path
+
+from measure import instructions  # bench/ is the script's folder
 
 ROOT = Path(__file__).resolve().parent.parent
 BENCH = ROOT / "bench"
@@ -53,21 +54,6 @@ def run_case(exe: Path, case: str, reps: int) -> tuple[int, str, float]:
     if m is None:
         raise RuntimeError(f"{exe.name} {case}: no result line in {out!r}")
     return int(m.group(2)), m.group(3), float(m.group(4))
-
-
-def instructions(exe: Path, case: str, units: int) -> float | None:
-    if shutil.which("valgrind") is None:
-        return None
-    counts = []
-    for reps in (1, 3):
-        r = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
-                            str(exe), case, str(reps)], capture_output=True, text=True)
-        m = re.search(r"Collected : (\d+)", r.stderr)
-        if r.returncode != 0 or m is None:
-            return None
-        counts.append(int(m.group(1)))
-    # the bench runs one warm-up plus REPS timed runs: the difference is 2 runs of the case
-    return (counts[1] - counts[0]) / (2 * units)
 
 
 def clock_ghz(bdir: Path) -> float:
