@@ -127,9 +127,8 @@ def left_over_floor(s: Session, rd: Round, best: dict[str, Any] | None) -> float
     floor."""
     if best is None:
         return math.inf
-    pooled = best["table"].pooled(s.held_names, s.chans)
-    return max((pooled[c] / rd.noise[c] if rd.noise.get(c, 0.0) > 0 else math.inf
-                for c in s.chans), default=math.inf)
+    return max(best["table"].over_noise(s.held_names, s.chans, rd.noise).values(),
+               default=math.inf)
 
 
 def nonlinear_rivals(rd: Round, best: dict[str, Any] | None, accepted: set[str]

@@ -66,12 +66,6 @@ log = logging.getLogger(__name__)
 _threadpoolctl: Any = importlib.import_module("threadpoolctl")
 
 
-def _ratio(et: rs.ErrorTable, names: Sequence[str], chans: Sequence[str],
-           noise: dict[str, float]) -> dict[str, float]:
-    pooled = et.pooled(names, chans)
-    return {c: pooled[c] / noise[c] if noise[c] > 0 else math.inf for c in chans}
-
-
 def _mahal(m0: mdl.Model, m1: mdl.Model, tests: Sequence[rs.TestData],
            chans: Sequence[str], band: tuple[float, float],
            noise: dict[str, float]) -> dict[str, Any]:
@@ -341,7 +335,7 @@ def _trace(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
     fs = s.tests[0].fs_hz
     # significance over every test (or block): a residual only the held-out tests show is
     # still a residual the model leaves
-    ratio = _ratio(cur_table, s.fit_names + s.held_names, s.chans, noise)
+    ratio = cur_table.over_noise(s.fit_names + s.held_names, s.chans, noise)
     _, res_cur = rs.error_table(cur, s.fit_t, s.chans, s.scales)
     evs = [tr.events(r[c], fs) for r in res_cur.values() for c in s.chans]
     sps = [tr.spectrum(r[c], fs, s.modes_hz, s.band) for r in res_cur.values() for c in s.chans]
@@ -532,7 +526,7 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
         rd.decision = f"accepted {res_b.cand.label}"
     cur, cur_table = backward(s, steps, cur, cur_table, effects, prediction)
     after, res_after = s.table(cur)
-    left = _ratio(after, s.fit_names + s.held_names, s.chans, noise)
+    left = after.over_noise(s.fit_names + s.held_names, s.chans, noise)
     unexp = (ux.characterise(s.evals, res_after, s.chans, noise, s.modes_hz)
              if any(r > o.significance_ratio for r in left.values()) else {})
     mah = _mahal(m, cur, s.tests, s.chans, s.band, noise)

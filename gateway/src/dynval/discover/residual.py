@@ -161,6 +161,12 @@ class ErrorTable:
             out[c] = float(math.sqrt(sum(v) / len(v))) if v else math.nan
         return out
 
+    def over_noise(self, tests: Sequence[str], chans: Sequence[str],
+                   noise: dict[str, float]) -> dict[str, float]:
+        """Pooled RMSE over the noise floor per channel (inf where a channel has no floor)."""
+        pooled = self.pooled(tests, chans)
+        return {c: pooled[c] / noise[c] if noise.get(c, 0.0) > 0 else math.inf for c in chans}
+
     def total(self, tests: Sequence[str]) -> float:
         return float(sum(self.nsse[t] for t in tests))
 
