@@ -47,10 +47,9 @@ static int run_frf(void)
     return REC;
 }
 
-typedef int (*bench_fn)(void);
 static const struct {
     const char *name, *unit;
-    bench_fn fn;
+    bench_units_fn fn;
 } CASES[] = {
     {"fft_real_256", "transform", run_fft256},
     {"fft_real_1024", "transform", run_fft1024},
@@ -58,21 +57,6 @@ static const struct {
     {"frf_welch_1024_sample", "sample", run_frf},
 };
 enum { NCASES = sizeof CASES / sizeof CASES[0] };
-
-/* Input: unit-variance noise (the transform's speed does not depend on it); the FRF's output is
- * a two-tap filter of the input plus noise, so that the coherence is neither 0 nor 1. */
-static void make_data(void)
-{
-    uint64_t seed = 4242;
-    for (int i = 0; i < NMAX; i++) in[i] = (dv_real_t)bench_noise(&seed);
-    double prev = 0.0;
-    for (int i = 0; i < REC; i++) {
-        const double ui = bench_noise(&seed);
-        u[i] = (dv_real_t)ui;
-        y[i] = (dv_real_t)(0.8 * ui + 0.5 * prev + 0.1 * bench_noise(&seed));
-        prev = ui;
-    }
-}
 
 int main(int argc, char **argv)
 {
@@ -92,25 +76,11 @@ int main(int argc, char **argv)
     }
     int reps = atoi(argv[2]);
     if (reps < 1 || reps > 100000) reps = 1;
-    make_data();
+    BENCH_FFT_DATA(dv_real_t, in, NMAX, u, y, REC);
     for (int c = 0; c < NCASES; c++) {
-        if (strcmp(argv[1], CASES[c].name) != 0) continue;
-        double *t = malloc(sizeof(double) * (size_t)reps);
-        int units = CASES[c].fn(); /* warm-up (and the plan) */
-        if (units == 0 || t == NULL) {
-            fprintf(stderr, "%s: setup failed\n", CASES[c].name);
-            free(t);
-            return 1;
+        if (strcmp(argv[1], CASES[c].name) == 0) {
+            return bench_time_units(CASES[c].name, CASES[c].unit, CASES[c].fn, reps);
         }
-        for (int r = 0; r < reps; r++) {
-            double t0 = bench_now_ns();
-            CASES[c].fn();
-            t[r] = (bench_now_ns() - t0) / units;
-        }
-        printf("case=%s units=%d unit=%s ns=%.3f\n", CASES[c].name, units, CASES[c].unit,
-               bench_median(t, reps));
-        free(t);
-        return 0;
     }
     fprintf(stderr, "unknown case %s\n", argv[1]);
     return 2;

@@ -95,10 +95,9 @@ static int run_frf(void)
     return REC;
 }
 
-typedef int (*bench_fn)(void);
 static const struct {
     const char *name, *unit;
-    bench_fn fn;
+    bench_units_fn fn;
     uint32_t n;
 } CASES[] = {
     {"fft_real_256", "transform", run_fft256, 256u},
@@ -108,18 +107,10 @@ static const struct {
 };
 enum { NCASES = sizeof CASES / sizeof CASES[0] };
 
-/* bench_fft.c's data (the same seed and generator). */
+/* bench_fft.c's data (bench_util.h), and the periodic Hann window of the Welch loop. */
 static void make_data(void)
 {
-    uint64_t seed = 4242;
-    for (int i = 0; i < NMAX; i++) in[i] = (cm_real_t)bench_noise(&seed);
-    double prev = 0.0;
-    for (int i = 0; i < REC; i++) {
-        const double ui = bench_noise(&seed);
-        u[i] = (cm_real_t)ui;
-        y[i] = (cm_real_t)(0.8 * ui + 0.5 * prev + 0.1 * bench_noise(&seed));
-        prev = ui;
-    }
+    BENCH_FFT_DATA(cm_real_t, in, NMAX, u, y, REC);
     for (int m = 0; m < SEG; m++) win[m] = (cm_real_t)(0.5 - 0.5 * cos(6.283185307179586 * m / SEG));
 }
 
@@ -159,22 +150,7 @@ int main(int argc, char **argv)
     for (int c = 0; c < NCASES; c++) {
         if (strcmp(name, CASES[c].name) != 0) continue;
         if (want_check) return check(CASES[c].n);
-        double *t = malloc(sizeof(double) * (size_t)reps);
-        int units = CASES[c].fn(); /* warm-up (and the plan) */
-        if (units == 0 || t == NULL) {
-            fprintf(stderr, "%s: setup failed\n", name);
-            free(t);
-            return 1;
-        }
-        for (int r = 0; r < reps; r++) {
-            double t0 = bench_now_ns();
-            CASES[c].fn();
-            t[r] = (bench_now_ns() - t0) / units;
-        }
-        printf("case=%s units=%d unit=%s ns=%.3f\n", name, units, CASES[c].unit,
-               bench_median(t, reps));
-        free(t);
-        return 0;
+        return bench_time_units(name, CASES[c].unit, CASES[c].fn, reps);
     }
     fprintf(stderr, "unknown case %s\n", name);
     return 2;
