@@ -12,6 +12,7 @@ channel's held-out RMSE halves and ends within 1.5 x its noise floor."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -265,18 +266,45 @@ def brfd_declared(recs: list[Any]) -> mdl.Model:
         "simulation": {"input_interpolation": "foh", "oversample": 1}})
 
 
+def hand_coulomb_fit(recs: list[Any]) -> float:
+    """A hand-made physical fit as a user would make it: F = k x + c v + Fc tanh(v / v0) + F0
+    by least squares on the even time blocks (v0 on a grid), pooled RMSE on the odd blocks
+    (kip): the same blocks discover holds out with fewer than four tests."""
+    rows = []
+    for r in recs:
+        x = r.channel("displacement").data
+        v = np.gradient(x) * r.fs_hz
+        even = (np.arange(x.size) * rs.SEGMENT_BLOCKS // x.size) % 2 == 0
+        rows.append((x, v, r.channel("friction_force").data, even))
+    best = math.inf
+    for v0 in np.geomspace(1e-3, 10.0, 40):
+        cols = [(np.column_stack([x, v, np.tanh(v / v0), np.ones_like(x)]), f, even)
+                for x, v, f, even in rows]
+        p = np.linalg.lstsq(np.concatenate([a[e] for a, _, e in cols]),
+                            np.concatenate([f[e] for _, f, e in cols]), rcond=None)[0]
+        mse = [np.mean((a[~e] @ p - f[~e]) ** 2) for a, f, e in cols]
+        best = min(best, math.sqrt(float(np.mean(mse))))
+    return best
+
+
 def test_discover_brfd_finds_stick_slip_friction(shared_data: Path) -> None:
+    """Real measured rig, default options (no expert flags): the declared model is the
+    best linear spring-damper, so k1 and beta must be re-adjusted by default."""
     folder = shared_data / "real" / "friction-damper-brfd" / "dataset-2" / \
         "characterization datasets"
     recs = [read_test(folder / f"{n}.json") for n in BRFD]
     m = brfd_declared(recs)
-    r = loop.discover(m, recs, loop.Options(uncertain=("k1", "beta")))
+    r = loop.discover(m, recs, loop.Options())
     top = r.rounds[0].evidence[0]
     assert top.cand.type in ("stick_slip", "friction") and top.cand.location["between"] == [0, 1]
-    assert r.effects[0]["type"] == "stick_slip"
+    e = only_effect(r)
+    assert e["type"] == "stick_slip" and set(e["readjusted"]) >= {"k1"}
     before = r.before.pooled(r.held_names, r.chans)["friction_force"]
     after = r.after.pooled(r.held_names, r.chans)["friction_force"]
-    assert after < 0.7 * before  # measured: 0.55 -> 0.23 NRMSE on the held-out 0.5 Hz test
+    # measured: 1.013 -> 0.532 kip held out, floor 0.500 (periods), hand fit 0.96
+    assert after < 0.6 * before
+    assert after < 1.15 * r.noise["friction_force"]
+    assert after < 0.7 * hand_coulomb_fit(recs)
 
 
 def test_cli_discover_bad_model_exits_2(tmp_path: Path) -> None:
