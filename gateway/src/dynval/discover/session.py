@@ -126,6 +126,10 @@ class Session:
     # declared parameters an accepted effect re-adjusted: free already, so a later change of
     # one is the re-adjustment going on (the final joint one), not a new effect
     readjusted: set[str] = field(default_factory=set)
+    # the model parameters (e<i>.<name>) of the elements accepted effects added and fitted:
+    # re-adjusted with the declared ones, since they moved together (a best-linear model)
+    # (their entry in the effects list and their name there)
+    effect_params: dict[str, tuple[int, str]] = field(default_factory=dict)
 
     @property
     def workers(self) -> int:
