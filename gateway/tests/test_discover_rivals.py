@@ -74,3 +74,25 @@ def test_a_nonlinear_winner_and_a_channel_without_a_floor(monkeypatch: pytest.Mo
     best = _best("stiffness_change", {"a1": (1.0, 1.0), "a2": (1.0, 1.0)})
     assert judge.left_over_floor(s, rd, best) == math.inf
     assert len(judge.rivals_to_fit(s, rd, best, set())) == 2
+
+
+def _ev(kind: str, between: list[int], r2: float, available: bool = True) -> tr.Evidence:
+    return tr.Evidence(fx.Candidate(kind, {"between": between}, f"{kind} {between}",
+                                    available), r2, 1.0)
+
+
+def test_rivals_are_each_types_best_placed_and_its_candidate_at_the_change() -> None:
+    ev = [_ev("contact", [2, 3], 0.9), _ev("friction", [0, 1], 0.8, available=False),
+          _ev("friction", [1, 2], 0.7), _ev("stiffness_change", [0, 1], 0.6),
+          _ev("contact", [0, 1], 0.5), _ev("friction", [0, 1], 0.4),
+          _ev("cubic_stiffness", [1, 2], 0.3), _ev("contact", [1, 2], 0.2)]
+    firsts = judge.best_placed_nonlinear(ev)
+    assert {t: e.cand.location["between"] for t, e in firsts.items()} == {
+        "contact": [2, 3], "friction": [1, 2], "cubic_stiffness": [1, 2]}  # unavailable skipped
+    rd = session.Round(1, {}, {}, ev, [], None, "", noise=dict(NOISE))
+    best = {"candidate": fx.Candidate("stiffness_change", {"between": [0, 1]}, "k1", True)}
+    got = [(e.cand.type, e.cand.location["between"])
+           for e in judge.nonlinear_rivals(rd, best, {judge.cand_key(ev[2].cand)})]
+    # friction [1, 2] accepted already: friction's best-placed is then [0, 1], also "here"
+    assert got == [("contact", [2, 3]), ("friction", [0, 1]), ("cubic_stiffness", [1, 2]),
+                   ("contact", [0, 1])]

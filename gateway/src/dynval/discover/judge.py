@@ -142,15 +142,23 @@ def nonlinear_rivals(rd: Round, best: dict[str, Any] | None, accepted: set[str]
         return []
     done = accepted | {cand_key(f["candidate"]) for f in rd.fits}
     where = best["candidate"].location.get("between")
-    picked: dict[Any, tr.Evidence] = {}
-    for e in rd.evidence:  # best evidence first
-        c = e.cand
-        if not c.available or not fx.by_type(c.type).nonlinear or cand_key(c) in done:
-            continue
-        picked.setdefault(c.type, e)
-        if where is not None and c.location.get("between") == where:
-            picked.setdefault((c.type, "here"), e)
-    return list({cand_key(e.cand): e for e in picked.values()}.values())
+    offered = [e for e in rd.evidence if cand_key(e.cand) not in done]
+    picked = list(best_placed_nonlinear(offered).values())
+    if where is not None:
+        picked += best_placed_nonlinear(
+            [e for e in offered if e.cand.location.get("between") == where]).values()
+    return list({cand_key(e.cand): e for e in picked}.values())
+
+
+def best_placed_nonlinear(evidence: Sequence[tr.Evidence]) -> dict[str, tr.Evidence]:
+    """The best-placed (first: evidence comes best first) available candidate of each
+    nonlinear element type: the rivals fitted when the evidence view's ranking is not enough
+    (a linear change winning, or weak evidence)."""
+    firsts: dict[str, tr.Evidence] = {}
+    for e in evidence:
+        if e.cand.available and fx.by_type(e.cand.type).nonlinear:
+            firsts.setdefault(e.cand.type, e)
+    return firsts
 
 
 def nested_in(simple: fx.Candidate, rich: fx.Candidate) -> bool:

@@ -44,6 +44,7 @@ from dynval.discover.judge import (
     Step,
     backward,
     best_of_round,
+    best_placed_nonlinear,
     cand_key,
     effect_entry,
 )
@@ -458,11 +459,7 @@ def _weak_evidence_fallback(s: Session, rd: Round, pool: list[tr.Evidence],
     above_noise = 1.0 - next((e.r2 for e in rd.evidence if e.cand.type == "none"), 1.0)
     if top >= WEAK_EVIDENCE * above_noise:
         return []
-    firsts: dict[str, tr.Evidence] = {}
-    for e in pool:  # best evidence first
-        if fx.by_type(e.cand.type).nonlinear:
-            firsts.setdefault(e.cand.type, e)
-    extra = [e for e in firsts.values() if e not in chosen]
+    extra = [e for e in best_placed_nonlinear(pool).values() if e not in chosen]
     if extra:
         msg = (f"round {rd.index}: the evidence view explains at most {top:.3f} of the "
                f"residual's {above_noise:.2f} above the noise: the best-placed candidate of "
