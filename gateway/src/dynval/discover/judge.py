@@ -27,6 +27,15 @@ def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model
     judge = Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band,
                   s.workers)
     best = judge_all(s, rd, judge, pool, None)
+    if rd.weak and (best is None or left_over_floor(s, rd, best) > RIVALS_FLOOR_RATIO):
+        why = ("nothing it ranked first was accepted" if best is None
+               else "the best fit leaves the held-out tests above the floor")
+        msg = (f"round {rd.index}: the evidence view saw little of the residual and {why}: "
+               f"the best-placed candidate of each nonlinear element type is fitted too "
+               f"({len(rd.weak)})")
+        log.info(msg)
+        s.notes.append(msg)
+        best = judge_all(s, rd, judge, rd.weak, best)
     rivals = rivals_to_fit(s, rd, best, accepted)
     if rivals:
         best = judge_all(s, rd, judge, rivals, best)

@@ -431,7 +431,7 @@ def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     chosen += [e for e in rd.second
                if offered(e.cand) and all(cand_key(e.cand) != cand_key(c.cand) for c in chosen)]
     if not accepted:  # bounded cost: only where the answer would otherwise be "no effect"
-        chosen += _weak_evidence_fallback(s, rd, pool, chosen, top)
+        rd.weak = _weak_evidence_fallback(s, rd, pool, chosen, top)
     # evidence is first order (the output view) or taken through integrated accelerations
     # (the force view, where a DAQ's 1/f noise swamps the low frequencies): a linear change
     # that shifts a resonance by more than its bandwidth can rank low; screen them all (one
@@ -461,11 +461,8 @@ def _weak_evidence_fallback(s: Session, rd: Round, pool: list[tr.Evidence],
         return []
     extra = [e for e in best_placed_nonlinear(pool).values() if e not in chosen]
     if extra:
-        msg = (f"round {rd.index}: the evidence view explains at most {top:.3f} of the "
-               f"residual's {above_noise:.2f} above the noise: the best-placed candidate of "
-               f"each nonlinear element type is fitted too ({len(extra)})")
-        log.info(msg)
-        s.notes.append(msg)
+        log.info("round %d: the evidence view explains at most %.3f of the residual's %.2f "
+                 "above the noise: its ranking is not trusted", rd.index, top, above_noise)
     return extra
 
 
