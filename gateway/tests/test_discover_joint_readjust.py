@@ -35,7 +35,8 @@ def test_friction_with_a_force_offset_maps_each_value_to_its_own_element() -> No
                             f"k2{ft.READJUSTED}"], [1.3, 2e-3, -0.6, 2.1e4])
     # the friction's own two: the constant force's 'force_n' holds the offset's value, not
     # the friction's; k2 is a declared parameter, re-adjusted anyway
-    assert loop._added_params(m, res) == ["e1.force_n", "e1.v_eps_m_per_s"]
+    assert loop._added_params(m, res) == {"e1.force_n": "force_n",
+                                          "e1.v_eps_m_per_s": "v_eps_m_per_s"}
 
 
 def test_a_cubic_springs_coefficient_is_taken() -> None:
@@ -43,5 +44,5 @@ def test_a_cubic_springs_coefficient_is_taken() -> None:
     cand = next(c for c in fx.by_type("cubic_stiffness").candidates(m)
                 if c.location["between"] == [1, 2])
     res = _result(m, cand, ["k3_n_per_m3"], [4e12])
-    assert loop._added_params(m, res) == ["e1.k3_n_per_m3"]
-    assert loop._added_params(res.model, res) == []  # an element already there is declared
+    assert loop._added_params(m, res) == {"e1.k3_n_per_m3": "k3_n_per_m3"}
+    assert loop._added_params(res.model, res) == {}  # an element already there is declared

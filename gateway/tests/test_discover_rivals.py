@@ -96,3 +96,18 @@ def test_rivals_are_each_types_best_placed_and_its_candidate_at_the_change() -> 
     # friction [1, 2] accepted already: friction's best-placed is then [0, 1], also "here"
     assert got == [("contact", [2, 3]), ("friction", [0, 1]), ("cubic_stiffness", [1, 2]),
                    ("contact", [0, 1])]
+
+
+def test_weak_evidence_candidates_are_fitted_only_above_the_floor(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    s = _session(monkeypatch)
+    rd = _round()
+    rd.weak = [_ev("contact", [0, 1], 0.05), _ev("friction", [0, 1], 0.04)]
+    at_floor = _best("cubic_stiffness", {"a1": (1.0, 1.05), "a2": (1.0, 1.0)})  # 1.025 x
+    assert judge.weak_to_fit(s, rd, at_floor) == []
+    above = _best("cubic_stiffness", {"a1": (1.0, 1.3), "a2": (1.0, 1.0)})  # 1.16 x
+    assert judge.weak_to_fit(s, rd, above) == rd.weak
+    assert "leaves the held-out tests above the floor" in s.notes[-1]
+    assert judge.weak_to_fit(s, rd, None) == rd.weak
+    assert "nothing it ranked first was accepted" in s.notes[-1]
+    assert judge.weak_to_fit(s, _round(), None) == []  # no weak evidence this round

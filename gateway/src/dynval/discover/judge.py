@@ -27,15 +27,9 @@ def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model
     judge = Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band,
                   s.workers)
     best = judge_all(s, rd, judge, pool, None)
-    if rd.weak and (best is None or left_over_floor(s, rd, best) > RIVALS_FLOOR_RATIO):
-        why = ("nothing it ranked first was accepted" if best is None
-               else "the best fit leaves the held-out tests above the floor")
-        msg = (f"round {rd.index}: the evidence view saw little of the residual and {why}: "
-               f"the best-placed candidate of each nonlinear element type is fitted too "
-               f"({len(rd.weak)})")
-        log.info(msg)
-        s.notes.append(msg)
-        best = judge_all(s, rd, judge, rd.weak, best)
+    weak = weak_to_fit(s, rd, best)
+    if weak:
+        best = judge_all(s, rd, judge, weak, best)
     rivals = rivals_to_fit(s, rd, best, accepted)
     if rivals:
         best = judge_all(s, rd, judge, rivals, best)
@@ -103,6 +97,22 @@ def siblings(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
             out.append(tr.Evidence(c, f["evidence"], float(c.shape.get("amp", 0.0)),
                                    {**c.shape, **start}))
     return out
+
+
+def weak_to_fit(s: Session, rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
+    """The candidates kept aside when the evidence view saw little of the residual
+    (Round.weak), unless the first batch's best already leaves the held-out residual within
+    RIVALS_FLOOR_RATIO of the noise floor; a note says why they are fitted."""
+    if not rd.weak or left_over_floor(s, rd, best) <= RIVALS_FLOOR_RATIO:
+        return []
+    why = ("nothing it ranked first was accepted" if best is None
+           else "the best fit leaves the held-out tests above the floor")
+    msg = (f"round {rd.index}: the evidence view saw little of the residual and {why}: the "
+           f"best-placed candidate of each nonlinear element type is fitted too "
+           f"({len(rd.weak)})")
+    log.info(msg)
+    s.notes.append(msg)
+    return rd.weak
 
 
 def rivals_to_fit(s: Session, rd: Round, best: dict[str, Any] | None, accepted: set[str]

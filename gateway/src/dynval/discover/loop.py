@@ -215,15 +215,20 @@ def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
     return cal.model, tab, res
 
 
-def _added_params(before: mdl.Model, res: ft.FitResult) -> list[str]:
-    """The parameters of the elements an accepted effect added that its fit moved: e<i>.<name>
-    holding the fitted value of the effect's parameter <name> (a parameter the fit held is
-    left out, and a friction's force is not taken for its force offset's)."""
+def _added_params(before: mdl.Model, res: ft.FitResult) -> dict[str, str]:
+    """The parameters of the elements an accepted effect added that its fit moved, by model
+    name (e<i>.<name>) with the effect's parameter <name> whose fitted value they hold (a
+    parameter the fit held is left out, and a friction's force is not taken for its force
+    offset's)."""
     fitted = {n: v for n, v in zip(res.names, res.values, strict=True)
               if not n.endswith(ft.READJUSTED)}
     old = before.parameters()
-    return [n for n, v in res.model.parameters().items()
-            if n not in old and n.startswith("e") and fitted.get(n.split(".", 1)[1]) == v]
+    out = {}
+    for n, v in res.model.parameters().items():
+        own = n.split(".", 1)[-1]
+        if n not in old and n.startswith("e") and fitted.get(own) == v:
+            out[n] = own
+    return out
 
 
 def _follow_effect_params(s: Session, m: mdl.Model, effects: list[dict[str, Any]]) -> None:
@@ -431,7 +436,7 @@ def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     chosen += [e for e in rd.second
                if offered(e.cand) and all(cand_key(e.cand) != cand_key(c.cand) for c in chosen)]
     if not accepted:  # bounded cost: only where the answer would otherwise be "no effect"
-        rd.weak = _weak_evidence_fallback(s, rd, pool, chosen, top)
+        rd.weak = _weak_evidence_fallback(rd, pool, chosen, top)
     # evidence is first order (the output view) or taken through integrated accelerations
     # (the force view, where a DAQ's 1/f noise swamps the low frequencies): a linear change
     # that shifts a resonance by more than its bandwidth can rank low; screen them all (one
@@ -447,13 +452,14 @@ def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
 WEAK_EVIDENCE = 0.25
 
 
-def _weak_evidence_fallback(s: Session, rd: Round, pool: list[tr.Evidence],
-                            chosen: list[tr.Evidence], top: float) -> list[tr.Evidence]:
+def _weak_evidence_fallback(rd: Round, pool: list[tr.Evidence], chosen: list[tr.Evidence],
+                            top: float) -> list[tr.Evidence]:
     """When the view explains under WEAK_EVIDENCE of the residual above the noise (its noise
     swamps an effect that acts at a few instants, a rarely closing contact on a shake table,
     or a DOF without a sensor leaves it first order only), the best-placed candidate of each
-    nonlinear element type, to be fitted too. The linear changes are screened by simulation
-    anyway (_screen_linear); the held-out test judges.
+    nonlinear element type, to be fitted if the first batch does not reach the floor
+    (judge.weak_to_fit). The linear changes are screened by simulation anyway
+    (_screen_linear); the held-out test judges.
     Used before any effect is accepted (in later rounds it cost a 5-DOF case 3.5 x its time
     and found nothing more on the blind cases)."""
     above_noise = 1.0 - next((e.r2 for e in rd.evidence if e.cand.type == "none"), 1.0)
@@ -530,8 +536,8 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
         spread = ft.scatter(cur, res_b, s.fit_t, s.chans, s.scales, best["readjusted"],
                             workers=s.workers)
         effects.append(effect_entry(res_b, best, cur, spread))
-        s.effect_params.update({n: (len(effects) - 1, n.split(".", 1)[1])
-                                for n in _added_params(cur, res_b)})
+        s.effect_params.update({n: (len(effects) - 1, own)
+                                for n, own in _added_params(cur, res_b).items()})
         cur = res_b.model
         if prediction == "open loop":  # the new model's initial states
             initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
