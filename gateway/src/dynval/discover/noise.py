@@ -384,11 +384,34 @@ def mains_hum(res: Sequence[np.ndarray], inputs: Sequence[np.ndarray], fs_hz: fl
                     continue
                 side = np.r_[k - 12:k - 2, k + 3:k + 13]
                 base, base_u = float(np.median(p[side])), float(np.median(pu[side]))
-                if p[k] > LINE_RATIO * base and pu[k] < 3 * base_u:
+                if (p[k] > LINE_RATIO * base and pu[k] < 3 * base_u
+                        and tone_share(r, fs_hz, h * f0) >= TONE_SHARE):
                     total += float(np.sum(p[k - 2:k + 3]) - 5 * base) * df
                     lines.add(h * f0)
         power.append(total)
     return (float(np.median(power)) if power else 0.0), sorted(lines)
+
+
+TONE_SHARE = 0.75  # a pure tone puts ~98 % in its 3 central bins, a resonance of 0.2 % ~60 %
+TONE_SPAN_HZ = 0.4  # the neighbourhood (either side) a tone's share is taken over
+
+
+def tone_share(r: np.ndarray, fs_hz: float, f0: float) -> float:
+    """Share of the power near f0 (+-TONE_SPAN_HZ, over the local baseline) in the 3 bins
+    around its peak, at the whole record's resolution (Hann): mains hum is a steady sine, all
+    in those bins; a resonance of the residual that happens to sit at 50 or 60 Hz (a mode the
+    effect moved, driven by a random input) spreads over its bandwidth 2 zeta f."""
+    n = r.size
+    x = np.abs(np.fft.rfft((r - np.mean(r)) * np.hanning(n))) ** 2
+    df = fs_hz / n
+    k0, span = int(round(f0 / df)), max(4, int(round(TONE_SPAN_HZ / df)))
+    if k0 - 3 * span < 1 or k0 + 3 * span >= x.size:
+        return 1.0  # too short a record to tell: a line is taken for a tone, as before
+    base = float(np.median(np.r_[x[k0 - 3 * span:k0 - span], x[k0 + span + 1:k0 + 3 * span + 1]]))
+    near = np.maximum(x[k0 - span:k0 + span + 1] - base, 0.0)
+    kp = int(np.argmax(near))
+    total = float(np.sum(near))
+    return float(np.sum(near[max(kp - 1, 0):kp + 2]) / total) if total > 0 else 0.0
 
 
 def spectral(res: Sequence[np.ndarray], fs_hz: float, band_hz: tuple[float, float],

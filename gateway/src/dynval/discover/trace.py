@@ -197,6 +197,7 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
     as_: list[np.ndarray] = []
     fs_list: list[np.ndarray] = []
     grounds: list[tuple[np.ndarray, np.ndarray]] = []
+    tables: list[np.ndarray] = []
     trim_frac = 0.04
 
     def hp(z: np.ndarray) -> np.ndarray:
@@ -221,11 +222,13 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
         fs_list.append(fm[:, sl])
         if ug is not None and vg is not None:
             grounds.append((ug[sl], vg[sl]))
+        if m.input.kind == "ground_acc":
+            tables.append(hp(t.u)[sl])
 
     xg = np.concatenate([g[0] for g in grounds]) if grounds else None
     vgs = np.concatenate([g[1] for g in grounds]) if grounds else None
     st = fx.States(np.hstack(xs), np.hstack(vs), np.hstack(as_), mass, k, c, w, phi, hp,
-                   chan_dof, xg, vgs)
+                   chan_dof, xg, vgs, ag=np.concatenate(tables) if tables else None)
     _set_rates(st, tests)
     return ForceView(st, np.hstack(fs_list), slice(None))
 
@@ -323,16 +326,19 @@ def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
     observer's estimate) and a candidate's restoring-force field g is judged by what it would
     take away from the measured outputs, G g, with G the model's linear frequency response
     from a force at each DOF to each channel (first-order, Born approximation: y_meas =
-    y_model - G g). Channels are normalised by their measured RMS, as in the fit. None when
-    the input is not a force or a channel is not an acc/vel/disp output."""
-    if m.input.kind != "force" or not chans:
+    y_model - G g). Channels are normalised by their measured RMS, as in the fit. On a shake
+    table the states are relative to it and G is the same (the table's motion is prescribed:
+    a missing force changes the relative motion only). None for a ground-displacement input
+    or when a channel is not an acc/vel/disp output."""
+    table = m.input.kind == "ground_acc"
+    if m.input.kind not in ("force", "ground_acc") or not chans:
         return None
     if any(m.outputs[c].kind not in ("acc", "vel", "disp") for c in chans):
         return None
     n = m.n_dof
     mass, k, c, w, phi = matrices(m)
     fs = tests[0].fs_hz
-    xs, vs, as_, target = [], [], [], []
+    xs, vs, as_, target, tables = [], [], [], [], []
     pred: dict[str, list[np.ndarray]] = {ch: [] for ch in chans}
     lens: list[int] = []
     for t in tests:
@@ -341,7 +347,10 @@ def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
             return None
         xs.append(_dof_rows(p, "x", n))
         vs.append(_dof_rows(p, "v", n))
-        as_.append(_dof_rows(p, "a", n))
+        # the core's acceleration outputs are absolute; its states are relative to a table
+        as_.append(_dof_rows(p, "a", n) - (t.u[None, :] if table else 0.0))
+        if table:
+            tables.append(t.u)
         target.append(np.concatenate([-(t.y[ch] - p[ch]) / scales[ch] for ch in chans]))
         for ch in chans:
             pred[ch].append(p[ch] / scales[ch])
@@ -374,7 +383,7 @@ def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
         return z
 
     st = fx.States(np.hstack(xs), np.hstack(vs), np.hstack(as_), mass, k, c, w, phi, ident,
-                   {})
+                   {}, ag=np.concatenate(tables) if tables else None)
     _set_rates(st, tests)
     return ForceView(st, np.concatenate(target)[None, :], slice(None), propagate,
                      {ch: np.concatenate(v) for ch, v in pred.items()}, lens)

@@ -15,6 +15,7 @@ from dynval.discover.effects.base import (
     EffectType,
     Param,
     States,
+    inertial,
     readjust_every_stiffness,
 )
 from dynval.model.structure import with_appendage
@@ -60,7 +61,7 @@ class Appendage(EffectType):
         out = []
         for f in grid:
             b = np.zeros_like(st.a)
-            b[j] = st.hp(appendage_motion(st.a[j], st.fs_hz, float(f), 0.03))
+            b[j] = st.hp(appendage_motion(inertial(st, j), st.fs_hz, float(f), 0.03))
             out.append(({"f_hz": float(f), "f_lo": float(grid[0]), "f_hi": float(grid[-1]),
                          "m_ref": float(st.mass[j])}, b))
         return out

@@ -58,6 +58,14 @@ class States:
     reaction_only: bool = False  # the missing force is seen only through the reaction
     fs_hz: float = 0.0  # sample rate of the states
     band_hz: tuple[float, float] = (0.0, 0.0)  # the input's band
+    # a shake table's acceleration: the states are relative to the table, inertia sees a + ag
+    ag: np.ndarray | None = None
+
+
+def inertial(st: States, j: int) -> np.ndarray:
+    """The absolute acceleration of DOF j (0-based), which a mass (an added one, an
+    appendage's) resists: on a shake table the states are relative to the table."""
+    return st.a[j] if st.ag is None else st.a[j] + st.ag
 
 
 def relative(st: States, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:

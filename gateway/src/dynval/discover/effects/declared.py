@@ -16,6 +16,7 @@ from dynval.discover.effects.base import (
     States,
     damping_params,
     drift,
+    inertial,
     pair_basis,
     readjust_every_stiffness,
 )
@@ -90,7 +91,7 @@ class MassChange(EffectType):
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
         j = cand.location["dof"] - 1
         b = np.zeros_like(st.a)
-        b[j] = st.a[j]
+        b[j] = inertial(st, j)
         return [({}, b)]
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
