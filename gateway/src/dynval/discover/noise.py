@@ -385,33 +385,34 @@ def mains_hum(res: Sequence[np.ndarray], inputs: Sequence[np.ndarray], fs_hz: fl
                 side = np.r_[k - 12:k - 2, k + 3:k + 13]
                 base, base_u = float(np.median(p[side])), float(np.median(pu[side]))
                 if (p[k] > LINE_RATIO * base and pu[k] < 3 * base_u
-                        and tone_share(r, fs_hz, h * f0) >= TONE_SHARE):
+                        and tone_contrast(r, fs_hz, h * f0) >= TONE_CONTRAST):
                     total += float(np.sum(p[k - 2:k + 3]) - 5 * base) * df
                     lines.add(h * f0)
         power.append(total)
     return (float(np.median(power)) if power else 0.0), sorted(lines)
 
 
-TONE_SHARE = 0.75  # a pure tone puts ~98 % in its 3 central bins, a resonance of 0.2 % ~60 %
-TONE_SPAN_HZ = 0.4  # the neighbourhood (either side) a tone's share is taken over
+TONE_CONTRAST = 20.0  # a tone's peak over its neighbours at 0.1 Hz; random bins reach ~5
+TONE_SPAN_HZ = 0.4  # the neighbourhood (either side) the contrast is taken over
+TONE_SEG_S = 10.0  # segments of at most this long: 0.1 Hz bins hold a mains line that drifts
 
 
-def tone_share(r: np.ndarray, fs_hz: float, f0: float) -> float:
-    """Share of the power near f0 (+-TONE_SPAN_HZ, over the local baseline) in the 3 bins
-    around its peak, at the whole record's resolution (Hann): mains hum is a steady sine, all
-    in those bins; a resonance of the residual that happens to sit at 50 or 60 Hz (a mode the
-    effect moved, driven by a random input) spreads over its bandwidth 2 zeta f."""
-    n = r.size
-    x = np.abs(np.fft.rfft((r - np.mean(r)) * np.hanning(n))) ** 2
-    df = fs_hz / n
+def tone_contrast(r: np.ndarray, fs_hz: float, f0: float) -> float:
+    """The highest bin near f0 over the median of its neighbours (+-TONE_SPAN_HZ, the peak's
+    own 3 bins left out), at a fine resolution (Hann segments of up to TONE_SEG_S): mains
+    hum is a steady sine, all in those 3 bins, far above its neighbours; a resonance of the
+    residual that sits at 50 or 60 Hz (a mode an effect moved, driven by a random input)
+    spreads over its bandwidth 2 zeta f, and its bins scatter as random ones do (inf when
+    the record is too short to tell: the line is then taken for hum, as before)."""
+    f, x = signal.welch(r, fs=fs_hz, nperseg=min(r.size, int(TONE_SEG_S * fs_hz)))
+    df = float(f[1] - f[0])
     k0, span = int(round(f0 / df)), max(4, int(round(TONE_SPAN_HZ / df)))
-    if k0 - 3 * span < 1 or k0 + 3 * span >= x.size:
-        return 1.0  # too short a record to tell: a line is taken for a tone, as before
-    base = float(np.median(np.r_[x[k0 - 3 * span:k0 - span], x[k0 + span + 1:k0 + 3 * span + 1]]))
-    near = np.maximum(x[k0 - span:k0 + span + 1] - base, 0.0)
-    kp = int(np.argmax(near))
-    total = float(np.sum(near))
-    return float(np.sum(near[max(kp - 1, 0):kp + 2]) / total) if total > 0 else 0.0
+    if k0 - span < 1 or k0 + span >= x.size:
+        return math.inf
+    kp = k0 - span + int(np.argmax(x[k0 - span:k0 + span + 1]))
+    side = np.r_[x[k0 - span:kp - 1], x[kp + 2:k0 + span + 1]]
+    base = float(np.median(side)) if side.size else 0.0
+    return float(x[kp] / base) if base > 0 else math.inf
 
 
 def spectral(res: Sequence[np.ndarray], fs_hz: float, band_hz: tuple[float, float],
