@@ -10,7 +10,7 @@ model). discover runs with its defaults; the table gives the type and place foun
 held-out error after over the ideal's (the true model driven by the measured input, same
 initial-state handling). Writes bench/RESULTS.blind.md.
 
-    python3 bench/bench_discover_blind.py [--cases 16] [--first 0]
+    python3 bench/bench_discover_blind.py [--cases 16] [--first 0] [--effects 1|2]
 """
 from __future__ import annotations
 
@@ -110,10 +110,35 @@ def cheap_daq(recs: list[Recording], rng: np.random.Generator) -> None:
             ch.data = ch.data + noise + 2 * lv * np.sin(2 * np.pi * 50 * t + i) + off
 
 
-def run(seed: int) -> str:
-    rng = np.random.default_rng(1000 + seed)
+def merged(a: gen.Truth, b: gen.Truth) -> gen.Truth:
+    """Both effects at once (a second draw at the same place as the first is redrawn)."""
+    return gen.Truth(k_scale={**a.k_scale, **b.k_scale}, m_add_kg={**a.m_add_kg, **b.m_add_kg},
+                     elements=a.elements + b.elements, appendages=a.appendages + b.appendages)
+
+
+def effects(rng: np.random.Generator, m: mdl.Model, count: int
+            ) -> tuple[gen.Truth, list[dict[str, Any]]]:
+    """``count`` effects of different kinds or places."""
+    _, truth, want = effect(rng, m)
+    wants = [want]
+    while len(wants) < count:
+        _, t2, w2 = effect(rng, m)
+        if w2 not in wants and (w2["type"], w2.get("dof"), w2.get("story")) != (
+                wants[0]["type"], wants[0].get("dof"), wants[0].get("story")):
+            truth, wants = merged(truth, t2), [*wants, w2]
+    return truth, wants
+
+
+def _found(e: dict[str, Any], want: dict[str, Any]) -> bool:
+    return e["type"] == want["type"] and all(
+        e["location"].get(k) == v for k, v in want.items() if k != "type")
+
+
+def run(seed: int, count: int = 1) -> str:
+    """One blind case: its table row. ``count`` 2 draws two effects (another seed stream)."""
+    rng = np.random.default_rng((1000 if count == 1 else 2000) + seed)
     m, table = structure(rng)
-    kind, truth, want = effect(rng, m)
+    truth, wants = effects(rng, m, count)
     cut, daq, bl = (bool(rng.random() < 0.5) for _ in range(3))
     n = 2 * N if cut else N
     recs = gen.generate(m, truth, n_tests=6, n_samples=n, seed=seed, fs_hz=FS,
@@ -127,9 +152,8 @@ def run(seed: int) -> str:
     declared = best_linear(m, recs) if bl else m
     r = loop.discover(declared, recs)
     phys = [e for e in r.effects if e["type"] != "sensor_offset"]
-    got = (f"{phys[0]['type']} {phys[0]['location']}" if phys else "no effect")
-    ok = bool(phys) and phys[0]["type"] == want["type"] and all(
-        phys[0]["location"].get(k) == v for k, v in want.items() if k != "type")
+    got = "; ".join(f"{e['type']} {e['location']}" for e in phys) or "no effect"
+    ok = len(phys) == len(wants) and all(any(_found(e, w) for e in phys) for w in wants)
     tm = dataclasses.replace(gen.truth_model(m, truth), outputs=m.outputs,
                              interpolation=m.interpolation, oversample=m.oversample)
     tm = dataclasses.replace(tm, outputs={c: dataclasses.replace(
@@ -138,30 +162,36 @@ def run(seed: int) -> str:
     ratio = r.after.total(r.held_names) / ideal
     cond = ", ".join(c for c, on in (("cut from a run", cut), ("cheap DAQ", daq),
                                      ("best-linear", bl), ("shake table", table)) if on) or "-"
-    want_s = " ".join(f"{k} {v}" for k, v in want.items() if k != "type")
-    return (f"| {seed} | {m.n_dof} DOF, {len(m.outputs)} sensors | {cond} | {want['type']} "
-            f"{want_s} | {got} | {'yes' if ok else 'no'} | {ratio:.2f} |")
+    want_s = "; ".join(w["type"] + " " + " ".join(f"{k} {v}" for k, v in w.items()
+                                                   if k != "type") for w in wants)
+    return (f"| {seed} | {m.n_dof} DOF, {len(m.outputs)} sensors | {cond} | {want_s} | {got} "
+            f"| {'yes' if ok else 'no'} | {ratio:.2f} |")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--cases", type=int, default=16)
     ap.add_argument("--first", type=int, default=0)
-    ap.add_argument("--out", default=str(ROOT / "bench" / "RESULTS.blind.md"))
+    ap.add_argument("--effects", type=int, default=1, choices=(1, 2),
+                    help="effects per case (2: two at once, another seed stream)")
+    ap.add_argument("--out", default=None)
     a = ap.parse_args()
+    out = a.out or str(ROOT / "bench" / ("RESULTS.blind.md" if a.effects == 1
+                                         else "RESULTS.blind-two.md"))
     rows = []
     for seed in range(a.first, a.first + a.cases):
-        rows.append(run(seed))
+        rows.append(run(seed, a.effects))
         print(rows[-1], flush=True)  # noqa: T201 (a benchmark's table)
     right = sum("| yes |" in r for r in rows)
     within = sum(float(r.rsplit("|", 2)[1]) <= 1.3 for r in rows)
     text = ("# discover on blind generated cases with real rigs' conditions (issue 16)\n\n"
-            f"`python3 bench/bench_discover_blind.py --cases {a.cases} --first {a.first}`: "
+            f"`python3 bench/bench_discover_blind.py --cases {a.cases} --first {a.first} "
+            f"--effects {a.effects}`: "
             f"right type and place in {right} of {len(rows)}; held-out error within 1.3 x the "
             f"ideal in {within} of {len(rows)}.\n\n"
             "| seed | structure | conditions | truth | found | right | after / ideal |\n"
             "|---|---|---|---|---|---|---:|\n" + "\n".join(rows) + "\n")
-    Path(a.out).write_text(text, encoding="utf-8")
+    Path(out).write_text(text, encoding="utf-8")
 
 
 if __name__ == "__main__":

@@ -104,7 +104,8 @@ def uncertain_params(m: mdl.Model, names: Sequence[str]) -> list[fx.Param]:
     """Declared parameters the user called uncertain (Model.with_params names), free within
     1/3..3 x their declared value (log-scaled); a story stiffness down to 1/100 of it (a
     best-linear declared stiffness may be mostly the nonlinearity's: a friction damper's
-    stick phase); zero-valued ones within 0..1."""
+    stick phase) and a damping matrix's modal ratio down to 1/10; zero-valued ones within
+    0..1."""
     cur = m.parameters()
     out = []
     for n in names:
@@ -113,7 +114,10 @@ def uncertain_params(m: mdl.Model, names: Sequence[str]) -> list[fx.Param]:
                               f"(known: {', '.join(cur)})")
         v = float(cur[n])
         unit = mdl.param_unit(n, m)
-        low = v / 100 if re.fullmatch(r"k\d+", n) else v / 3
+        # a story stiffness: a best-linear one may be mostly the nonlinearity's; a damping
+        # matrix's ratio may hold an effect's dissipation an earlier fit gave it
+        wide = re.fullmatch(r"k\d+", n) or (m.damping.type == "matrix" and n.startswith("zeta"))
+        low = v / (100 if n.startswith("k") else 10) if wide else v / 3
         out.append(fx.Param(n, unit, low, 3 * v, log=True) if v > 0 else
                    fx.Param(n, unit, 0.0, 1.0))
     return out

@@ -216,18 +216,23 @@ def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
 
 
 def _added_params(before: mdl.Model, res: ft.FitResult) -> dict[str, str]:
-    """The parameters of the elements an accepted effect added that its fit moved, by model
-    name (e<i>.<name>) with the effect's parameter <name> whose fitted value they hold (a
-    parameter the fit held is left out, and a friction's force is not taken for its force
-    offset's)."""
+    """The parameters an accepted effect added to the model that the joint re-adjustment may
+    move, by model name, with the effect's parameter they hold ('' where none holds it
+    alone): its elements' parameters the fit moved (e<i>.<name>: a parameter the fit held is
+    left out, and a friction's force is not taken for its force offset's), an appendage's
+    link and mass (l<i>.*, m<j>: its frequency, mass and damping are read back from them)."""
     fitted = {n: v for n, v in zip(res.names, res.values, strict=True)
               if not n.endswith(ft.READJUSTED)}
     old = before.parameters()
     out = {}
     for n, v in res.model.parameters().items():
         own = n.split(".", 1)[-1]
-        if n not in old and n.startswith("e") and fitted.get(own) == v:
+        if n in old:
+            continue
+        if n.startswith("e") and fitted.get(own) == v:
             out[n] = own
+        elif n.startswith(("l", "m")) and v > 0:
+            out[n] = ""
     return out
 
 
@@ -236,7 +241,12 @@ def _follow_effect_params(s: Session, m: mdl.Model, effects: list[dict[str, Any]
     model's values (the uncertainties stay those of the effect's fit)."""
     pm = m.parameters()
     for name, (i, pname) in s.effect_params.items():
-        effects[i]["parameters"][pname]["value"] = float(pm[name])
+        if pname:
+            effects[i]["parameters"][pname]["value"] = float(pm[name])
+        elif name.endswith(".k_n_per_m") and effects[i]["type"] == "appendage":
+            link = int(name[1:].split(".", 1)[0]) - 1
+            for k, v in fx.Appendage.values_of(m, link).items():
+                effects[i]["parameters"][k]["value"] = v
 
 
 OFFSET_SHARE = 0.05  # a channel's constant residual must hold this share of its energy

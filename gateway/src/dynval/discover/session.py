@@ -129,9 +129,10 @@ class Session:
     # declared parameters an accepted effect re-adjusted: free already, so a later change of
     # one is the re-adjustment going on (the final joint one), not a new effect
     readjusted: set[str] = field(default_factory=set)
-    # the model parameters (e<i>.<name>) of the elements accepted effects added and fitted:
-    # re-adjusted with the declared ones, since they moved together (a best-linear model)
-    # (their entry in the effects list and their name there)
+    # the model parameters accepted effects added (e<i>.<name> of their elements, l<i>.* and
+    # the mass of an appendage): re-adjusted with the declared ones, since they moved
+    # together (a best-linear model; a second effect found later) (their entry in the effects
+    # list and their name there, '' for an appendage's link and mass: read back)
     effect_params: dict[str, tuple[int, str]] = field(default_factory=dict)
 
     @property

@@ -14,6 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from dynval.errors import ConfigError
 from dynval.model import elements as el
 from dynval.model.elements import Element
@@ -145,6 +147,9 @@ class Model:
         if d.type == "modal" or (d.type == "rayleigh" and d.modes):
             for i, z in enumerate(d.zeta, 1):
                 p[f"zeta{i}"] = z
+        elif d.type == "matrix":
+            for i, z in enumerate(matrix_ratios(self), 1):
+                p[f"zeta{i}"] = z
         elif d.type == "rayleigh":
             p["alpha"] = float(d.alpha_per_s or 0.0)
             p["beta"] = float(d.beta_s or 0.0)
@@ -157,8 +162,9 @@ class Model:
         return p
 
     def with_params(self, params: Mapping[str, float]) -> Model:
-        """A copy with parameters replaced: m<i>, k<i>, zeta<i> (modal ratio of mode i, or the
-        i-th of the two Rayleigh ratios), alpha, beta (Rayleigh a, b), e<i>.<parameter> of
+        """A copy with parameters replaced: m<i>, k<i>, zeta<i> (modal ratio of mode i, the
+        i-th of the two Rayleigh ratios, or for a damping matrix mode i's ratio in it,
+        matrix_ratios), alpha, beta (Rayleigh a, b), e<i>.<parameter> of
         element i (its registry parameters, model/elements.py), l<i>.k_n_per_m and
         l<i>.c_n_s_per_m of link i. The copy is validated."""
         from dynval.model.validation import validate  # validation reads this schema
@@ -171,6 +177,8 @@ class Model:
         for name, value in params.items():
             v = float(value)
             idx, attr = param_target(name, self)
+            if attr == "zeta" and damp.type == "matrix":
+                continue  # set on the new modes below
             if attr in ("m", "k", "zeta"):
                 lists[attr][idx] = v
             elif attr == "alpha":
@@ -182,11 +190,15 @@ class Model:
             else:  # an element parameter (checked against its type by param_target)
                 upd: dict[str, Any] = {attr: v}
                 lists["e"][idx] = dataclasses.replace(lists["e"][idx], **upd)
+        ratios = {param_target(n, self)[0]: float(v) for n, v in params.items()
+                  if n.startswith("zeta")} if damp.type == "matrix" else {}
         if lists["zeta"]:
             damp = dataclasses.replace(damp, zeta=tuple(lists["zeta"]))
         m = dataclasses.replace(self, masses_kg=tuple(lists["m"]),
                                 stiffness_n_per_m=tuple(lists["k"]), damping=damp,
                                 elements=tuple(lists["e"]), links=tuple(lists["l"]))
+        if ratios:  # on the modes of the new masses and stiffnesses
+            m = dataclasses.replace(m, damping=with_matrix_ratios(m, ratios))
         validate(m)
         return m
 
@@ -210,7 +222,8 @@ def param_target(name: str, m: Model) -> tuple[int, str]:
         return 0, g.group(3)
     if g.group(1):
         i = int(g.group(2)) - 1
-        n = len(m.damping.zeta) if g.group(1) == "zeta" else m.n_dof
+        n = len(m.damping.zeta) if g.group(1) == "zeta" and m.damping.type != "matrix" \
+            else m.n_dof
         if not 0 <= i < n:
             raise ConfigError(f"parameter '{name}': index out of range 1..{n}")
         return i, g.group(1)
@@ -227,6 +240,37 @@ def param_target(name: str, m: Model) -> tuple[int, str]:
     except ConfigError as exc:
         raise ConfigError(f"parameter '{name}': element {i + 1}: {exc}") from None
     return i, g.group(5)
+
+
+def matrix_ratios(m: Model) -> list[float]:
+    """The damping ratio of each mode in a damping matrix C (type 'matrix'): phi' C phi /
+    (2 w) on m's undamped modes (mass-normalised, links included; the links' own dashpots
+    are theirs). A matrix kept fixed while the masses or stiffnesses change (an added mode,
+    a stiffness loss) keeps its dissipation; these ratios let a later fit re-adjust it mode
+    by mode. A rigid-body mode's ratio reads 0."""
+    from dynval.model.simulation import linear  # the simulation reads this schema
+
+    lin = linear(m)
+    c = np.asarray(m.damping.c_n_s_per_m, dtype=float)
+    return [float(ph @ c @ ph / (2 * w)) if w > 1e-6 else 0.0
+            for w, ph in zip(lin.w, lin.phi.T, strict=True)]
+
+
+def with_matrix_ratios(m: Model, ratios: Mapping[int, float]) -> Damping:
+    """m's damping matrix with mode i's ratio (0-based keys, matrix_ratios) set: C + 2 dz w
+    (M phi)(M phi)' per mode, which leaves the other modes' ratios as they are (the shapes
+    are M-orthogonal). ConfigError for a rigid-body mode."""
+    from dynval.model.simulation import linear  # the simulation reads this schema
+
+    lin = linear(m)
+    c = np.array(m.damping.c_n_s_per_m, dtype=float)
+    for i, z in ratios.items():
+        w, ph = float(lin.w[i]), lin.phi[:, i]
+        if not w > 1e-6:
+            raise ConfigError(f"zeta{i + 1}: mode {i + 1} is a rigid-body mode (no ratio)")
+        mp = lin.mass * ph
+        c = c + 2 * (z - float(ph @ c @ ph) / (2 * w)) * w * np.outer(mp, mp)
+    return Damping("matrix", c_n_s_per_m=tuple(tuple(float(v) for v in row) for row in c))
 
 
 _UNITS = {"m": "kg", "k": "N/m", "zeta": "1", "alpha": "1/s", "beta": "s"}

@@ -88,12 +88,33 @@ def by_type(name: str) -> EffectType:
     raise KeyError(name)
 
 
+def link_held_dofs(m: mdl.Model) -> set[int]:
+    """The DOFs held only by links (an appendage's mass, added by an accepted effect): no
+    story spring on either side and no sensor. No effect is placed on them: their motion is
+    the appendage's own, already fitted."""
+    k = m.stiffness_n_per_m
+    linked = {d for lk in m.links for d in (lk.dof_a, lk.dof_b)}
+    seen = {o.index for o in m.outputs.values()}
+    return {j for j in range(1, m.n_dof + 1)
+            if k[j - 1] == 0 and (j == m.n_dof or k[j] == 0) and j in linked and j not in seen}
+
+
+def _dofs_of(loc: dict[str, Any]) -> set[int]:
+    out = set(loc.get("between", ()))
+    if "dof" in loc:
+        out.add(int(loc["dof"]))
+    if "story" in loc:
+        out |= {int(loc["story"]) - 1, int(loc["story"])}
+    return out
+
+
 def catalogue(m: mdl.Model, quiet: bool = False) -> list[Candidate]:
-    """Every candidate (type x location) for a model; unavailable types are logged (unless
-    quiet)."""
+    """Every candidate (type x location) for a model, none on a DOF held only by links
+    (link_held_dofs); unavailable types are logged (unless quiet)."""
     out: list[Candidate] = []
+    held = link_held_dofs(m)
     for e in LIBRARY:
-        cs = e.candidates(m)
+        cs = [c for c in e.candidates(m) if not _dofs_of(c.location) & held]
         if cs and not e.available and not quiet:
             log.info("effect type %s: %s", e.type, e.note)
         out.extend(cs)

@@ -89,6 +89,15 @@ class Appendage(EffectType):
         f, ma, z = self.initial(m, cand, amp)
         return [[f, ma, z], [f, ma, 0.1]]
 
+    @staticmethod
+    def values_of(m: mdl.Model, link: int) -> dict[str, float]:
+        """f_hz, mass_kg and zeta of the appendage held by link ``link`` (0-based) of m (the
+        inverse of apply: a joint re-adjustment moves the link and the mass)."""
+        lk = m.links[link]
+        ma = m.masses_kg[lk.dof_b - 1]
+        w = math.sqrt(lk.k_n_per_m / ma)
+        return {"f_hz": w / (2 * math.pi), "mass_kg": ma, "zeta": lk.c_n_s_per_m / (2 * ma * w)}
+
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
         f, ma, z = (float(v) for v in values)
         j = cand.location["dof"]
