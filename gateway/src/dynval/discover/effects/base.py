@@ -65,7 +65,7 @@ class States:
 def inertial(st: States, j: int) -> np.ndarray:
     """The absolute acceleration of DOF j (0-based), which a mass (an added one, an
     appendage's) resists: on a shake table the states are relative to the table."""
-    return st.a[j] if st.ag is None else st.a[j] + st.ag
+    return st.a[j] if st.ag is None else np.asarray(st.a[j] + st.ag)
 
 
 def relative(st: States, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
