@@ -114,10 +114,12 @@ def uncertain_params(m: mdl.Model, names: Sequence[str]) -> list[fx.Param]:
                               f"(known: {', '.join(cur)})")
         v = float(cur[n])
         unit = mdl.param_unit(n, m)
-        # a story stiffness: a best-linear one may be mostly the nonlinearity's; a damping
-        # matrix's ratio may hold an effect's dissipation an earlier fit gave it
-        wide = re.fullmatch(r"k\d+", n) or (m.damping.type == "matrix" and n.startswith("zeta"))
-        low = v / (100 if n.startswith("k") else 10) if wide else v / 3
+        if re.fullmatch(r"k\d+", n):  # a best-linear one may be mostly the nonlinearity's
+            low = v / 100
+        elif m.damping.type == "matrix" and n.startswith("zeta"):
+            low = v / 10  # it may hold the dissipation an earlier effect's fit gave it
+        else:
+            low = v / 3
         out.append(fx.Param(n, unit, low, 3 * v, log=True) if v > 0 else
                    fx.Param(n, unit, 0.0, 1.0))
     return out

@@ -59,6 +59,7 @@ from dynval.discover.session import (
 )
 from dynval.errors import ConfigError, DynvalError
 from dynval.io.recording import Recording
+from dynval.model.schema import param_target
 from dynval.validate import mahalanobis as mh
 
 __all__ = ["DiscoverResult", "Options", "Round", "discover"]
@@ -244,7 +245,7 @@ def _follow_effect_params(s: Session, m: mdl.Model, effects: list[dict[str, Any]
         if pname:
             effects[i]["parameters"][pname]["value"] = float(pm[name])
         elif name.endswith(".k_n_per_m") and effects[i]["type"] == "appendage":
-            link = int(name[1:].split(".", 1)[0]) - 1
+            link, _ = param_target(name, m)
             for k, v in fx.Appendage.values_of(m, link).items():
                 effects[i]["parameters"][k]["value"] = v
 

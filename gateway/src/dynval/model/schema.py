@@ -174,11 +174,13 @@ class Model:
                                        "zeta": list(self.damping.zeta), "e": list(self.elements),
                                        "l": list(self.links)}
         damp = self.damping
+        ratios: dict[int, float] = {}  # of a damping matrix: set on the new modes below
         for name, value in params.items():
             v = float(value)
             idx, attr = param_target(name, self)
             if attr == "zeta" and damp.type == "matrix":
-                continue  # set on the new modes below
+                ratios[idx] = v
+                continue
             if attr in ("m", "k", "zeta"):
                 lists[attr][idx] = v
             elif attr == "alpha":
@@ -190,14 +192,12 @@ class Model:
             else:  # an element parameter (checked against its type by param_target)
                 upd: dict[str, Any] = {attr: v}
                 lists["e"][idx] = dataclasses.replace(lists["e"][idx], **upd)
-        ratios = {param_target(n, self)[0]: float(v) for n, v in params.items()
-                  if n.startswith("zeta")} if damp.type == "matrix" else {}
         if lists["zeta"]:
             damp = dataclasses.replace(damp, zeta=tuple(lists["zeta"]))
         m = dataclasses.replace(self, masses_kg=tuple(lists["m"]),
                                 stiffness_n_per_m=tuple(lists["k"]), damping=damp,
                                 elements=tuple(lists["e"]), links=tuple(lists["l"]))
-        if ratios:  # on the modes of the new masses and stiffnesses
+        if ratios:  # on the modes of the new masses and stiffnesses (and links)
             m = dataclasses.replace(m, damping=with_matrix_ratios(m, ratios))
         validate(m)
         return m
