@@ -13,7 +13,7 @@ dv_status_t dv_elem_check(const dv_elem_desc_t *e)
 {
     if (e == NULL || !dv_priv_finite(e->gap_m) || !dv_priv_finite(e->delta_m) ||
         !dv_priv_finite(e->kb_n_per_m) || e->gap_m < DV_R(0.0) || e->delta_m < DV_R(0.0) ||
-        (e->kb_n_per_m < DV_R(0.0) && e->law != DV_ELEM_CONSTANT) ||
+        (e->kb_n_per_m < DV_R(0.0) && e->law != DV_ELEM_CONSTANT && e->law != DV_ELEM_CUBIC) ||
         (e->side != DV_SIDE_POS && e->side != DV_SIDE_NEG && e->side != DV_SIDE_BOTH) ||
         (unsigned)e->law >= DV_ELEM_N_LAWS) {
         return DV_EINVAL;

@@ -444,16 +444,22 @@ static inline bool fast_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y)
     return true;
 }
 
+/* A model with elements can run away from a finite input (a softening spring driven past
+ * its peak force, an element too stiff for the sub-steps): its state is then not finite. A
+ * linear model the init accepted cannot. */
+static bool ran_away(const dv_obs_t *o)
+{
+    return o->nf > 0u && !dv_priv_all_finite(o->sv, o->ns);
+}
+
 /* kept out of line: dv_obs_step() then needs no saved registers on its modal path */
 #if defined(__GNUC__)
 __attribute__((noinline))
 #endif
 dv_status_t dv_priv_obs_step_slow(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas)
 {
-    if (fast_step(o, u, y_meas)) {
-        return DV_OK;
-    }
-    return step(o, u, y_meas, true);
+    const dv_status_t st = fast_step(o, u, y_meas) ? DV_OK : step(o, u, y_meas, true);
+    return ran_away(o) ? DV_EUNSTABLE : st;
 }
 
 /* Complete the pending sample (cubic) with an extrapolated next input; the state, window and
@@ -534,7 +540,7 @@ static dv_status_t run_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y
             }
         }
     }
-    return worst;
+    return ran_away(o) ? DV_EUNSTABLE : worst; /* a non-finite state stays so to the end */
 }
 
 /* dv_obs_simulate() with the cubic hold: the call with u[k] completes the last accepted sample
@@ -571,7 +577,7 @@ static dv_status_t simulate_cubic(dv_obs_t *o, const dv_real_t *u, size_t n, dv_
             }
         }
     }
-    return worst;
+    return ran_away(o) ? DV_EUNSTABLE : worst;
 }
 
 dv_status_t dv_obs_update_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y_meas,

@@ -16,7 +16,10 @@
  *   gap = gap_m (m, >= 0), delta = delta_m (m, >= 0), kB = kb_n_per_m (N/m, >= 0).
  * - DV_ELEM_FRICTION, regularised Coulomb friction on V: g = F V / sqrt(V^2 + eps^2),
  *   F = kb_n_per_m (slip force, N, >= 0), eps = delta_m (m/s, > 0): g -> F sign(V).
- * - DV_ELEM_CUBIC, cubic spring on X: g = k3 X^3, k3 = kb_n_per_m (N/m^3).
+ * - DV_ELEM_CUBIC, cubic spring on X: g = k3 X^3, k3 = kb_n_per_m (N/m^3, any sign: k3 < 0
+ *   is a softening spring, whose restoring force with the linear stiffness k between the same
+ *   DOFs peaks at X^2 = k / (3 |k3|); driven past it the motion runs away, which the observer
+ *   reports as DV_EUNSTABLE).
  * - DV_ELEM_VV, quadratic damper on V: g = c2 V |V|, c2 = kb_n_per_m (N s^2/m^2, >= 0).
  * - DV_ELEM_STICKSLIP, elasto-plastic (Jenkins) friction on X with history: a stick spring of
  *   stiffness F / z in series with a slider at F = kb_n_per_m (N, >= 0), z = delta_m (m, > 0):
@@ -88,8 +91,8 @@ bool dv_elem_on_velocity(dv_elem_law_t law);
  * @param[in] e  element
  * @retval DV_OK     valid
  * @retval DV_EINVAL NULL @p e, an unknown law or side, a non-finite parameter, gap_m,
- *                   delta_m < 0, kb_n_per_m < 0 (except for the constant force, of any
- *                   sign), or delta_m <= 0 for friction and stick-slip
+ *                   delta_m < 0, kb_n_per_m < 0 (except for the constant force and the
+ *                   cubic spring, of any sign), or delta_m <= 0 for friction and stick-slip
  */
 dv_status_t dv_elem_check(const dv_elem_desc_t *e);
 

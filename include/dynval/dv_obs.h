@@ -260,6 +260,10 @@ void dv_obs_reset(dv_obs_t *o);
  *                     DV_OBS_FLAG_BAD_INPUT); or a measured channel is NaN/Inf: predicted
  *                     without correction, that channel's residual set to 0 (flag
  *                     DV_OBS_FLAG_BAD_MEAS)
+ * @retval DV_EUNSTABLE the model has elements and its state is no longer finite: it ran away
+ *                     (a softening cubic spring driven past its peak force, an element too
+ *                     stiff for the sub-steps); the predictions from here on are not finite
+ *                     until dv_obs_reset()
  */
 dv_status_t dv_obs_step(dv_obs_t *o, dv_real_t u, const dv_real_t *y_meas);
 
@@ -316,6 +320,8 @@ dv_status_t dv_obs_get_state(const dv_obs_t *o, dv_real_t *x, size_t len);
  * @retval DV_OK       all samples accepted
  * @retval DV_ENUMERIC at least one sample had a NaN/Inf input or measurement (see
  *                     dv_obs_step(); the others were processed)
+ * @retval DV_EUNSTABLE the state is not finite at the end of the block: the model ran away
+ *                     (see dv_obs_step()); the rows from there on are not finite
  * @retval DV_EINVAL   @p o or @p u NULL with @p n > 0
  */
 dv_status_t dv_obs_update_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t *y_meas,
@@ -330,7 +336,8 @@ dv_status_t dv_obs_update_block(dv_obs_t *o, const dv_real_t *u, const dv_real_t
  * @param[in]     u       n inputs
  * @param[in]     n       samples
  * @param[out]    y       n x no outputs, row-major
- * @retval DV_OK / DV_ENUMERIC / DV_EINVAL as dv_obs_update_block() (@p y NULL is DV_EINVAL)
+ * @retval DV_OK / DV_ENUMERIC / DV_EUNSTABLE / DV_EINVAL as dv_obs_update_block() (@p y NULL
+ *         is DV_EINVAL)
  */
 dv_status_t dv_obs_simulate(dv_obs_t *o, const dv_real_t *u, size_t n, dv_real_t *y);
 

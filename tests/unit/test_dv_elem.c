@@ -236,6 +236,65 @@ static void test_elem_cubic_matches_reference(void **state)
     assert_true(err < 0.02 * eff);
 }
 
+static void test_elem_softening_cubic_matches_reference(void **state)
+{
+    (void)state;
+    double err, eff;
+    /* k3 < 0: the story's restoring force peaks at X = sqrt(k / (3 |k3|)) = 0.15 mm, beyond
+     * this record's drifts */
+    run_case(DV_ELEM_CUBIC, 2, 3, 0.0, -6e12, 8.0, &err, &eff);
+    fprintf(stderr, "softening cubic: error %.3g, effect of the element %.3g\n", err, eff);
+    assert_true(eff > 0.01);
+    assert_true(err < 0.02 * eff);
+}
+
+/* Driven past its peak force a softening spring runs away: every step from there reports
+ * DV_EUNSTABLE (never DV_OK with a non-finite prediction), and so do the block calls. */
+static void test_elem_runaway_is_reported(void **state)
+{
+    (void)state;
+    dv_model_desc_t d;
+    dv_model_t m;
+    dv_obs_t o;
+    make_force(200.0);
+    mt_lanl_desc(&d);
+    d.n_elem = 1;
+    d.n_sub = 8;
+    d.elem[0].dof_a = 2;
+    d.elem[0].dof_b = 3;
+    d.elem[0].side = DV_SIDE_POS;
+    d.elem[0].law = DV_ELEM_CUBIC;
+    d.elem[0].kb_n_per_m = (dv_real_t)-2e13;
+    assert_int_equal(dv_model_init(&m, &d, (dv_real_t)(1.0 / MT_FS), ebuf, NBE), DV_OK);
+    assert_int_equal(dv_obs_init(&o, &m, NULL, eobuf, NBE), DV_OK);
+    assert_int_equal(dv_obs_simulate(&o, eu, NE, ey), DV_EUNSTABLE);
+    dv_obs_reset(&o);
+    int first_bad = -1;
+    for (int k = 0; k < NE; k++) {
+        const dv_status_t st = dv_obs_step(&o, eu[k], NULL);
+        dv_real_t yk[4];
+        assert_int_equal(dv_obs_get(&o, yk, NULL, 4), DV_OK);
+        const bool finite = isfinite((double)yk[0]) && isfinite((double)yk[1]) &&
+                            isfinite((double)yk[2]) && isfinite((double)yk[3]);
+        if (st == DV_OK) {
+            assert_true(finite);
+            assert_int_equal(first_bad, -1); /* no recovery once it ran away */
+        } else {
+            assert_int_equal(st, DV_EUNSTABLE);
+            first_bad = first_bad < 0 ? k : first_bad;
+        }
+    }
+    assert_true(first_bad > 0);
+    dv_obs_reset(&o);
+    assert_int_equal(dv_obs_update_block(&o, eu, NULL, (size_t)first_bad, ey, NULL), DV_OK);
+    assert_int_equal(dv_obs_update_block(&o, eu + first_bad, NULL, 16, ey, NULL), DV_EUNSTABLE);
+    /* the same input on the hardening spring stays finite */
+    d.elem[0].kb_n_per_m = (dv_real_t)2e13;
+    assert_int_equal(dv_model_init(&m, &d, (dv_real_t)(1.0 / MT_FS), ebuf, NBE), DV_OK);
+    assert_int_equal(dv_obs_init(&o, &m, NULL, eobuf, NBE), DV_OK);
+    assert_int_equal(dv_obs_simulate(&o, eu, NE, ey), DV_OK);
+}
+
 static void test_elem_vv_matches_reference(void **state)
 {
     (void)state;
@@ -288,7 +347,13 @@ static void test_elem_laws_closed_form(void **state)
     c.kb_n_per_m = (dv_real_t)50.0;
     assert_true(dv_test_close(dv_elem_force(&c, (dv_real_t)-0.2), -50.0 * 0.04, tol, 0));
     assert_int_equal(dv_elem_check(&c), DV_OK);
-    c.kb_n_per_m = (dv_real_t)-50.0; /* a negative coefficient: only the constant force */
+    c.kb_n_per_m = (dv_real_t)-50.0; /* a negative coefficient: the constant force and the
+                                        softening cubic spring only */
+    assert_int_equal(dv_elem_check(&c), DV_EINVAL);
+    c.law = DV_ELEM_CUBIC;
+    assert_int_equal(dv_elem_check(&c), DV_OK);
+    assert_true(dv_test_close(dv_elem_force(&c, (dv_real_t)0.1), -50.0 * 1e-3, tol, 0));
+    c.law = DV_ELEM_FRICTION;
     assert_int_equal(dv_elem_check(&c), DV_EINVAL);
     c.law = DV_ELEM_CONSTANT;
     assert_int_equal(dv_elem_check(&c), DV_OK);
@@ -404,6 +469,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_elem_friction_matches_reference),
         cmocka_unit_test(test_elem_cubic_matches_reference),
+        cmocka_unit_test(test_elem_softening_cubic_matches_reference),
+        cmocka_unit_test(test_elem_runaway_is_reported),
         cmocka_unit_test(test_elem_vv_matches_reference),
         cmocka_unit_test(test_elem_stickslip_matches_reference),
         cmocka_unit_test(test_elem_constant_matches_reference),

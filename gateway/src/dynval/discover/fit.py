@@ -61,10 +61,10 @@ def _to_value(p: fx.Param, z: float) -> float:
 
 
 def _to_z(p: fx.Param, v: float) -> float:
+    v = min(max(v, min(p.lower, p.upper)), max(p.lower, p.upper))  # log bounds may be < 0
     if p.log:
-        v = min(max(v, p.lower), p.upper)
         return float(math.log(v / p.lower) / math.log(p.upper / p.lower))
-    return float((min(max(v, p.lower), p.upper) - p.lower) / (p.upper - p.lower))
+    return float((v - p.lower) / (p.upper - p.lower))
 
 
 def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],

@@ -55,7 +55,8 @@ class Friction:
 
 @dataclass(frozen=True)
 class CubicSpring:
-    """Cubic spring on X = x_b - x_a (DV_ELEM_CUBIC), coefficient ``k3_n_per_m3``."""
+    """Cubic spring on X = x_b - x_a (DV_ELEM_CUBIC), coefficient ``k3_n_per_m3`` (negative: a
+    softening spring)."""
 
     dof_a: int
     dof_b: int
@@ -159,7 +160,7 @@ REGISTRY: dict[str, ElementType] = {t.name: t for t in (
         Param("force_n", "N", "kb_n_per_m"),
         Param("v_eps_m_per_s", "m/s", "delta_m", strict=True))),
     ElementType("cubic_spring", CubicSpring, "DV_ELEM_CUBIC", (
-        Param("k3_n_per_m3", "N/m^3", "kb_n_per_m"),)),
+        Param("k3_n_per_m3", "N/m^3", "kb_n_per_m", lower=-np.inf),)),  # < 0: softening
     ElementType("vv_damper", VVDamper, "DV_ELEM_VV", (
         Param("c2_n_s2_per_m2", "N s^2/m^2", "kb_n_per_m"),)),
     ElementType("stick_slip", StickSlip, "DV_ELEM_STICKSLIP", (

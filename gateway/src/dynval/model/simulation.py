@@ -185,6 +185,13 @@ class _Core:
         return f, phi.reshape(n, n)
 
 
+def _checked_later(status: int) -> bool:
+    """Statuses of a simulation whose outputs are checked instead: DV_ENUMERIC (non-finite input
+    samples, held and counted) and DV_EUNSTABLE (the model ran away: the outputs stop being
+    finite, which _check_finite reports with its cause, and a fit penalises)."""
+    return status in (_core.lib.DV_ENUMERIC, _core.lib.DV_EUNSTABLE)
+
+
 def _refused(m: Model, func: str, status: int, dt: float) -> ConfigError:
     name = _core.status_name(status)
     hint = _STATUS_HINT.get(name, "")
@@ -281,6 +288,9 @@ def predict_observed(m: Model, u: np.ndarray, y: Mapping[str, np.ndarray], fs_hz
     pred = np.zeros((n, len(names)))
     st = lib.dv_obs_update_block(core.obs, _core.ptr(u), _core.ptr(meas), n, _core.ptr(pred),
                                  ffi.NULL)
+    if st == lib.DV_EUNSTABLE:
+        raise ConfigError(f"{m.source or '<model>'}: the observer's model ran away (its state "
+                          "is no longer finite): check the elements' coefficients")
     if st < 0 and st != lib.DV_ENUMERIC:
         _core.check(st, "dv_obs_update_block")
     return {c: _sensor(np.ascontiguousarray(pred[:, j]), m.outputs[c])
@@ -455,7 +465,7 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
         uf = u[a * r:b * r] if prepared else _fine_block(u, r, a, b)
         yf = np.empty((uf.size, core.no))
         st = core.run(uf, yf) if a == 0 and not late else core.cont(uf, yf)
-        if st < 0 and st != _core.lib.DV_ENUMERIC:
+        if st < 0 and not _checked_later(st):
             _core.check(st, "dv_obs_simulate")
         if not late:
             yield outputs(a, uf, yf)
@@ -480,7 +490,7 @@ def _run(m: Model, u: np.ndarray, dt: float) -> np.ndarray:
     core.build(m, refill=False)
     y = np.empty((u.size, core.no))
     st = core.run(u, y)
-    if st < 0 and st != _core.lib.DV_ENUMERIC:
+    if st < 0 and not _checked_later(st):
         _core.check(st, "dv_obs_simulate")
     return y
 
@@ -514,8 +524,11 @@ def _divergence_cause(m: Model, u: np.ndarray, dt: float) -> str:
         if finite_without([j for j in idx if j != i]):
             e = m.elements[i]
             vals = ", ".join(f"{k} = {v:.4g}" for k, v in el.values(e).items())
-            return (f"elements[{i}] ({e.type}, {vals}) makes it unstable at this step; lower "
-                    "its coefficient, or raise simulation.substeps or oversample")
+            softening = isinstance(e, el.CubicSpring) and e.k3_n_per_m3 < 0
+            return (f"elements[{i}] ({e.type}, {vals}) makes it unstable at this step; " + (
+                "a softening spring driven past its peak restoring force runs away: lower |k3| "
+                "or the input" if softening else
+                "lower its coefficient, or raise simulation.substeps or oversample"))
     if m.elements and finite_without([]):
         return "the elements together make it unstable; check their coefficients"
     return ("the linear model is unstable at this step: check masses_kg, stiffness_n_per_m "
@@ -581,7 +594,7 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
         except ConfigError as exc:
             raise ConfigError(f"parameter set {i} {dict(ps)}: {exc}") from None
         st = _run_blocks(core, fine, n * r, out[i], r, blk, work, late)
-        if st < 0 and st != _core.lib.DV_ENUMERIC:
+        if st < 0 and not _checked_later(st):
             _core.check(st, "dv_obs_simulate")
         if on_progress is not None:
             on_progress(i + 1, len(param_sets))
@@ -606,7 +619,7 @@ def _run_blocks(core: _Core, fine: Callable[[int, int], np.ndarray], size: int, 
         uf = fine(a, min(a + blk, size))
         dst = y[a:a + uf.size] if work is None else work[:uf.size]
         st = core.run(uf, dst) if a == 0 and not late else core.cont(uf, dst)
-        if st < 0 and (worst >= 0 or worst == _core.lib.DV_ENUMERIC):  # the first real error
+        if st < 0 and (worst >= 0 or _checked_later(worst)):  # the first real error
             worst = st
         if late:  # row j is step a + j - 1: keep the multiples of r
             j0 = 0 if a and r == 1 else 1

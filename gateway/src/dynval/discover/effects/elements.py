@@ -264,12 +264,28 @@ class StickSlipFriction(_FrictionOffset):
 
 
 class CubicStiffness(_OneCoefficient):
+    """Hardening (k3 > 0) or softening (k3 < 0): the sign the evidence gives (the basis's
+    coefficient with the linear nuisances taken out), fitted in log over four decades."""
+
     tag = "cubic"
     type = "cubic_stiffness"
     element = "cubic_spring"
     what = "cubic stiffness"
     default_scale = 1e12
-    law = "cubic spring between two DOFs: k3 X^3 (a dv_model cubic_spring element)"
+    law = ("cubic spring between two DOFs: k3 X^3, k3 > 0 hardening, k3 < 0 softening (a "
+           "dv_model cubic_spring element)")
+
+    @staticmethod
+    def _sign(cand: Candidate) -> float:
+        s = float(cand.shape.get("sign", cand.shape.get("amp", 1.0)) or 1.0)
+        return 1.0 if s > 0 else -1.0
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        c = self._sign(cand) * self._scale(cand, self.default_scale)
+        return [element_param(self.element, "k3_n_per_m3", 1e-3 * c, 1e2 * c, log=True)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        return [self._sign(cand) * self._scale(cand, self.default_scale)]
 
 
 class VelocitySquaredDamping(_OneCoefficient):

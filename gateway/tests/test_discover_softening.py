@@ -1,0 +1,65 @@
+"""A softening spring is a cubic spring with k3 < 0 (issue 16, item 7: the library's effects
+between any two DOFs). Loosening joints and bolted connections soften; the cubic spring was
+hardening only, so a softening story was named something else. Measured before the change
+(k3 refused below 0 in the fit): the 3-DOF case below was named stick-slip friction at story
+2, 10.3 x the ideal's held-out error; the 4-DOF best-linear case stick-slip and two frictions
+(max_effects reached), 15.0 x. After: the cubic spring with k3 < 0 at the right place, k3
+within 1 %, 1.00 x the ideal in both."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from lanl4dof import declared
+from test_discover_best_linear import best_linear
+
+from dynval import model as mdl
+from dynval import synth as gen
+from dynval.discover import loop
+from dynval.discover import residual as rs
+from dynval.errors import ConfigError
+
+
+def three_dof() -> mdl.Model:
+    return mdl.Model(masses_kg=(3.8, 4.15, 3.77), stiffness_n_per_m=(4.86e5, 1.76e5, 2.93e5),
+                     damping=mdl.Damping("modal", (0.038, 0.036, 0.024)),
+                     input=mdl.Input("force", 3, "force_N"),
+                     outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in (1, 2, 3)},
+                     fs_hz=640.0)
+
+
+def softening(m: mdl.Model, a: int, b: int, share: float, seed: int) -> mdl.CubicSpring:
+    """A softening cubic spring between DOF a and b that takes `share` of the story's linear
+    stiffness at the drift's RMS (12 N RMS input), its peak force far beyond the peak drift."""
+    f = gen.band_limited_force(np.random.default_rng(seed), 8192, m.fs_hz, 12.0)
+    y = mdl.simulate(dataclasses.replace(m, outputs={"a": mdl.Output("disp", a),
+                                                     "b": mdl.Output("disp", b)}), f, m.fs_hz)
+    x_rms = float(np.sqrt(np.mean((y["b"] - y["a"]) ** 2)))
+    return mdl.CubicSpring(a, b, -share * m.stiffness_n_per_m[b - 1] / x_rms ** 2)
+
+
+@pytest.mark.parametrize(("case", "a", "b", "seed"), [("3dof", 1, 2, 1), ("lanl-bl", 2, 3, 3)])
+def test_a_softening_story_is_a_cubic_spring_with_k3_below_zero(case: str, a: int, b: int,
+                                                                seed: int) -> None:
+    m = three_dof() if case == "3dof" else declared()
+    el = softening(m, a, b, 0.01, seed)
+    recs = gen.generate(m, gen.Truth(elements=(el,)), n_tests=6, seed=seed)
+    r = loop.discover(best_linear(m, recs) if case.endswith("-bl") else m, recs)
+    assert [(e["type"], e["location"]["between"]) for e in r.effects] == [
+        ("cubic_stiffness", [a, b])]
+    k3 = r.effects[0]["parameters"]["k3_n_per_m3"]["value"]
+    assert k3 == pytest.approx(el.k3_n_per_m3, rel=0.1)
+    ideal, _ = rs.error_table(dataclasses.replace(m, elements=(el,)), r.tests, r.chans, r.scales)
+    assert r.after.total(r.held_names) < 1.1 * ideal.total(r.held_names)
+
+
+def test_a_softening_spring_driven_past_its_peak_force_is_a_one_line_error() -> None:
+    m = three_dof()
+    el = mdl.CubicSpring(1, 2, -1e14)  # peaks at X = sqrt(k / (3 |k3|)) = 24 um
+    u = gen.band_limited_force(np.random.default_rng(0), 4096, m.fs_hz, 50.0)
+    with pytest.raises(ConfigError,
+                       match=r"diverged .*elements\[0\] \(cubic_spring.*softening spring"):
+        mdl.simulate(dataclasses.replace(m, elements=(el,)), u, m.fs_hz)
+    y = mdl.simulate(dataclasses.replace(m, elements=(el,)), 1e-3 * u, m.fs_hz)
+    assert all(np.isfinite(v).all() for v in y.values())  # below it: an ordinary record
