@@ -2,11 +2,11 @@
 """Issue 16 "done means": blind generated cases with real rigs' conditions. Each case draws,
 from its seed, a structure (3-5 DOF chain, masses, stiffnesses, modal damping), an input (a
 force at a random DOF, or a shake table), the sensors (every DOF, or a random subset of at
-least two with the force input), one effect the declared model lacks (contact, cubic spring,
-friction, v|v| damper, stiffness loss, added mass, appendage) at a random place, and real-rig
-conditions (each with probability 1/2: records cut from a running test, a cheap DAQ (pink
-noise, 50 Hz hum, a 2nd-order anti-alias filter, sensor offsets), a best-linear declared
-model). discover runs with its defaults; the table gives the type and place found, and the
+least two with the force input), one effect the declared model lacks (contact on one side or
+both, cubic spring hardening or softening, friction, v|v| damper, stiffness loss, added mass,
+appendage) at a random place, and real-rig conditions (each with probability 1/2: records cut
+from a running test, a cheap DAQ (pink noise, 50 Hz hum, a 2nd-order anti-alias filter,
+sensor offsets), a best-linear declared model). discover runs with its defaults; the table gives the type and place found, and the
 held-out error after over the ideal's (the true model driven by the measured input, same
 initial-state handling). Writes bench/RESULTS.blind.md.
 
@@ -72,8 +72,13 @@ def effect(rng: np.random.Generator, m: mdl.Model) -> tuple[str, gen.Truth, dict
     k = m.stiffness_n_per_m[b - 1]
     drift_rms = _drift_rms(m, a, b)
     if kind == "contact":
-        el = mdl.Contact(a, b, drift_rms * rng.uniform(1.5, 2.5), 5e-5, 4 * k)
-        return kind, gen.Truth(elements=(el,)), {"type": "contact", "between": [a, b]}
+        # one draw: a quarter of them a clearance that closes both ways (free play, a loose
+        # joint), the others a bumper on one side
+        u = rng.uniform(1.5, 2.5)
+        side = "both" if u < 1.75 else "pos"
+        el = mdl.Contact(a, b, drift_rms * u, 5e-5, 4 * k, side)
+        return kind, gen.Truth(elements=(el,)), {"type": "contact", "between": [a, b],
+                                                 "side": side}
     if kind == "cubic":
         # one draw (the other draws of a seed stay as they were): half the springs soften, and
         # a softening one takes less of the stiffness, 0.4-1.2 % at the RMS drift, so that its

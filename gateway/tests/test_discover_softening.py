@@ -16,6 +16,8 @@ from test_discover_best_linear import best_linear
 
 from dynval import model as mdl
 from dynval import synth as gen
+from dynval.discover import effects as fx
+from dynval.discover import fit as ft
 from dynval.discover import loop
 from dynval.discover import residual as rs
 from dynval.errors import ConfigError
@@ -63,3 +65,15 @@ def test_a_softening_spring_driven_past_its_peak_force_is_a_one_line_error() -> 
         mdl.simulate(dataclasses.replace(m, elements=(el,)), u, m.fs_hz)
     y = mdl.simulate(dataclasses.replace(m, elements=(el,)), 1e-3 * u, m.fs_hz)
     assert all(np.isfinite(v).all() for v in y.values())  # below it: an ordinary record
+
+
+def test_the_signed_log_scale_is_continuous_through_zero_and_inverts() -> None:
+    p = fx.Param("k3_n_per_m3", "N/m^3", 1e9, 1e14, signed=True)
+    assert ft._to_value(p, 0.5) == 0.0
+    for v in (-9e13, -3e11, -1e9, -1.0, 0.0, 2e8, 5e12, 9e13):
+        assert ft._to_value(p, ft._to_z(p, v)) == pytest.approx(v, rel=1e-9, abs=1e-6)
+        z, h = ft._to_z(p, v), 1e-7
+        slope = (ft._to_value(p, z + h) - ft._to_value(p, z - h)) / (2 * h)
+        assert ft._dv_dz(p, v) == pytest.approx(slope, rel=1e-4)
+    assert ft._to_value(p, 0.0) == pytest.approx(-(1e14 - 1e9))  # the bounds
+    assert ft._to_value(p, 1.0) == pytest.approx(1e14 - 1e9)

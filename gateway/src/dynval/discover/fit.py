@@ -55,16 +55,30 @@ class FitResult:
 
 def _to_value(p: fx.Param, z: float) -> float:
     z = min(max(z, 0.0), 1.0)
+    if p.signed:  # z = 1/2 is 0; the magnitude in log either way (continuous through 0)
+        t = 2.0 * z - 1.0
+        return math.copysign(p.lower * ((p.upper / p.lower) ** abs(t) - 1.0), t)
     if p.log:
         return float(p.lower * (p.upper / p.lower) ** z)
     return float(p.lower + (p.upper - p.lower) * z)
 
 
 def _to_z(p: fx.Param, v: float) -> float:
-    v = min(max(v, min(p.lower, p.upper)), max(p.lower, p.upper))  # log bounds may be < 0
+    if p.signed:
+        mag = min(abs(v), p.upper - p.lower)
+        t = math.log1p(mag / p.lower) / math.log(p.upper / p.lower)
+        return 0.5 * (1.0 + math.copysign(t, v))
+    v = min(max(v, p.lower), p.upper)
     if p.log:
         return float(math.log(v / p.lower) / math.log(p.upper / p.lower))
     return float((v - p.lower) / (p.upper - p.lower))
+
+
+def _dv_dz(p: fx.Param, v: float) -> float:
+    """The slope of _to_value at the value v."""
+    if p.signed:
+        return 2.0 * (abs(v) + p.lower) * math.log(p.upper / p.lower)
+    return v * math.log(p.upper / p.lower) if p.log else p.upper - p.lower
 
 
 def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
@@ -200,6 +214,7 @@ class Problem:
     params: list[fx.Param]
     n_effect: int
     build: Callable[[list[float]], mdl.Model]
+    z_others: list[np.ndarray] = field(default_factory=list)  # EffectType.other_starts
 
     def values(self, z: np.ndarray) -> list[float]:
         return [_to_value(p, float(zi)) for p, zi in zip(self.params, z, strict=True)]
@@ -215,8 +230,12 @@ def problem(m: mdl.Model, cand: fx.Candidate, init: Sequence[float],
     cur = m.parameters()
     init_all = [*init, *(float(cur[p.name]) for p in xs)]
     ps_all = [*ps, *xs]
-    z0 = np.array([min(max(_to_z(p, v), 0.02), 0.98)
-                   for p, v in zip(ps_all, init_all, strict=True)])
+    def to_z(values: Sequence[float]) -> np.ndarray:
+        return np.array([min(max(_to_z(p, v), 0.02), 0.98)
+                         for p, v in zip(ps_all, values, strict=True)])
+
+    z0 = to_z(init_all)
+    z_others = [to_z([*o, *init_all[len(ps):]]) for o in et.other_starts(m, cand, init)]
     n_res = sum(t.n for t in tests for c in chans)
     npar = len(ps)
 
@@ -236,7 +255,7 @@ def problem(m: mdl.Model, cand: fx.Candidate, init: Sequence[float],
             return np.full(n_res, _PENALTY / math.sqrt(n_res))
         return r
 
-    pb = Problem(fun, z0, ps_all, npar, build)  # fun reads pb.values: made before its call
+    pb = Problem(fun, z0, ps_all, npar, build, z_others)  # fun reads pb.values: made first
     return pb
 
 
@@ -266,8 +285,9 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
     pb = problem(m, cand, init, tests, chans, scales, uncertain)
     ps_all = pb.params
     fun_at, jac = forward_jacobian(pb.fun, workers)
-    sol = least_squares(fun_at, pb.z0, jac=jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0,
-                        max_nfev=max_nfev, xtol=1e-6, ftol=1e-8)
+    sol = min((least_squares(fun_at, z0, jac=jac, bounds=(0.0, 1.0), method="trf",
+                             x_scale=1.0, max_nfev=max_nfev, xtol=1e-6, ftol=1e-8)
+               for z0 in (pb.z0, *pb.z_others)), key=lambda s: float(np.sum(s.fun ** 2)))
     vals = pb.values(sol.x)
     mm = pb.build(vals)
     r = sol.fun
@@ -280,8 +300,7 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
         cov_z = np.linalg.pinv(jtj) * s2 * factor
         # dv/dz
         for i, p in enumerate(ps_all):
-            dvdz = (vals[i] * math.log(p.upper / p.lower)) if p.log else (p.upper - p.lower)
-            sig[i] = float(abs(dvdz) * math.sqrt(max(cov_z[i, i], 0.0)))
+            sig[i] = float(abs(_dv_dz(p, vals[i])) * math.sqrt(max(cov_z[i, i], 0.0)))
     except (np.linalg.LinAlgError, ValueError):
         pass
     names = ([p.name for p in ps_all[:pb.n_effect]]

@@ -38,7 +38,21 @@ def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model
         log.info("round %d: %d other place(s) of %s re-fitted from its values", rd.index,
                  len(sibs), best["candidate"].label if best else "")
         best = judge_all(s, rd, judge, sibs, best)
+    simpler = simpler_to_fit(rd, best)
+    if simpler:
+        best = judge_all(s, rd, judge, simpler, best)
     return simplest_nested(best, rd.fits, s.o.min_gain, judge.confirm)
+
+
+def simpler_to_fit(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
+    """The winner's simpler types at its place (nested_in) not fitted yet this round, so that
+    simplest_nested can prefer one on a near tie: a contact closing both ways from gap 0 is a
+    smooth hardening, and stood in for a cubic spring with three parameters for one."""
+    if best is None:
+        return []
+    done = {cand_key(f["candidate"]) for f in rd.fits}
+    return [e for e in rd.evidence
+            if nested_in(e.cand, best["candidate"]) and cand_key(e.cand) not in done]
 
 
 def judge_all(s: Session, rd: Round, judge: Judge, evs: list[tr.Evidence],
@@ -187,6 +201,7 @@ def nested_in(simple: fx.Candidate, rich: fx.Candidate) -> bool:
     loc = {k: v for k, v in rich.location.items() if k != "offset"}
     if simple.type == rich.type:
         return simple.location == loc and loc != rich.location
+    loc.pop("side", None)  # a contact's side: no other type has one
     return simple.type in fx.by_type(rich.type).simpler and simple.location == loc
 
 

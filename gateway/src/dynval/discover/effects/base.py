@@ -16,13 +16,16 @@ from dynval.model import elements as el
 
 @dataclass(frozen=True)
 class Param:
-    """One parameter: name, unit, bounds in model units, and whether it is fitted in log."""
+    """One parameter: name, unit, bounds in model units, and whether it is fitted in log.
+    ``signed``: either sign, its magnitude in log between 0 and upper - lower (lower: the
+    magnitude below which the scale turns linear, through 0)."""
 
     name: str
     unit: str
     lower: float
     upper: float
     log: bool = False
+    signed: bool = False
 
 
 @dataclass(frozen=True)
@@ -173,9 +176,9 @@ def unit_force(type_name: str, x: np.ndarray | None = None, v: np.ndarray | None
 
 
 def element_param(type_name: str, name: str, lower: float, upper: float,
-                  log: bool = False) -> Param:
+                  log: bool = False, signed: bool = False) -> Param:
     """A fit parameter of an element effect: its registry name and unit, the search bounds."""
-    return Param(name, el.spec(type_name).param(name).unit, lower, upper, log)
+    return Param(name, el.spec(type_name).param(name).unit, lower, upper, log, signed)
 
 
 def add_element(m: mdl.Model, type_name: str, dof_a: int, dof_b: int,
@@ -192,7 +195,9 @@ class EffectType:
     law = ""
     available = True
     note = ""
-    simpler: tuple[str, ...] = ()  # effect types that are special cases of this one (same place)
+    # effect types with fewer parameters that are special cases of this one or that it can
+    # stand in for, at the same place: preferred on a near tie (judge.simplest_nested)
+    simpler: tuple[str, ...] = ()
     # a nonlinear element: it may act at a few instants only (a rarely closing contact), where
     # a noisy evidence view swamps it
     nonlinear = False
@@ -241,6 +246,12 @@ class EffectType:
         """Declared parameters re-adjusted while this candidate is fitted: a declared model
         is often a best linear fit that absorbed part of the effect (see readjust_local)."""
         return ()
+
+    def other_starts(self, m: mdl.Model, cand: Candidate, init: Sequence[float]
+                     ) -> list[list[float]]:
+        """Other starting values of the effect's parameters, each fitted too and the best fit
+        kept: for an effect whose fit has several basins. []: the one start."""
+        return []
 
     def direct_evidence(self, cand: Candidate, residuals: Sequence[dict[str, np.ndarray]]
                         ) -> tuple[float, float] | None:

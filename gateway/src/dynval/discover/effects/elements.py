@@ -33,12 +33,16 @@ class Contact(EffectType):
     type = "contact"
     location_kind = "story"
     nonlinear = True
+    simpler = ("cubic_stiffness",)  # a smooth hardening with one parameter for three
     law = ("gap/bumper on the story drift X (report eq. 6-7): s = X - gap (pos side) or "
            "-X - gap (neg); force 0 for s <= 0, kB s^2/(2 delta) for s < delta, kB (s - delta/2) "
-           "beyond; a dv_model contact element")
+           "beyond; both sides: their sum, a clearance closing either way; a dv_model contact "
+           "element")
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
-        return [{**loc, "side": side} for loc in pairs(m.n_dof) for side in ("pos", "neg")]
+        # 'both': a clearance (free play, a loose joint) that closes either way, one gap
+        return [{**loc, "side": side} for loc in pairs(m.n_dof)
+                for side in ("pos", "neg", "both")]
 
     def label(self, loc: dict[str, Any]) -> str:
         return f"contact, {pair_label(loc)}, {loc['side']} side"
@@ -47,7 +51,7 @@ class Contact(EffectType):
         a, b = cand.location["between"]
         d, _ = relative(st, a, b)
         side = cand.location["side"]
-        y = d if side == "pos" else -d
+        y = {"pos": d, "neg": -d, "both": np.abs(d)}[side]
         out = []
         for q in _QUANTILES:  # a bilinear contact (delta = 0, kB = 1) at the drift's quantiles
             gap = max(float(np.quantile(y, q)), 0.0)
@@ -78,6 +82,16 @@ class Contact(EffectType):
         a, b = cand.location["between"]
         return add_element(m, "contact", a, b, values, f"discovered contact {a}-{b}",
                             cand.location["side"])
+
+    def other_starts(self, m: mdl.Model, cand: Candidate, init: Sequence[float]
+                     ) -> list[list[float]]:
+        """A soft transition as well: the evidence's bilinear gap (delta = 0) is where a soft
+        contact's force has risen halfway, and a fit from a sharp start can stop there (a
+        clearance closing both ways: gap +15 %, delta / 8, 3.1 x the ideal; from delta = the
+        drift's RMS, the ideal)."""
+        gap, delta, kb = (float(v) for v in init)
+        d = float(cand.shape.get("drift_rms_m", 0.0))
+        return [[max(gap - 0.5 * d, 0.0), d, kb]] if delta < 0.5 * d else []
 
     def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
                  ) -> tuple[str, ...]:
@@ -264,8 +278,9 @@ class StickSlipFriction(_FrictionOffset):
 
 
 class CubicStiffness(_OneCoefficient):
-    """Hardening (k3 > 0) or softening (k3 < 0): the sign the evidence gives (the basis's
-    coefficient with the linear nuisances taken out), fitted in log over four decades."""
+    """Hardening (k3 > 0) or softening (k3 < 0): fitted on a signed log scale from the sign
+    the evidence gives (the basis's coefficient with the linear nuisances taken out), which
+    the fit may cross when the evidence is weak."""
 
     tag = "cubic"
     type = "cubic_stiffness"
@@ -281,8 +296,8 @@ class CubicStiffness(_OneCoefficient):
         return 1.0 if s > 0 else -1.0
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
-        c = self._sign(cand) * self._scale(cand, self.default_scale)
-        return [element_param(self.element, "k3_n_per_m3", 1e-3 * c, 1e2 * c, log=True)]
+        c = self._scale(cand, self.default_scale)
+        return [element_param(self.element, "k3_n_per_m3", 1e-3 * c, 1e2 * c, signed=True)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         return [self._sign(cand) * self._scale(cand, self.default_scale)]
