@@ -6,11 +6,12 @@ least two with the force input), one effect the declared model lacks (contact on
 both, cubic spring hardening or softening, friction, v|v| damper, stiffness loss, added mass,
 appendage) at a random place, and real-rig conditions (each with probability 1/2: records cut
 from a running test, a cheap DAQ (pink noise, 50 Hz hum, a 2nd-order anti-alias filter,
-sensor offsets), a best-linear declared model). discover runs with its defaults; the table gives the type and place found, and the
-held-out error after over the ideal's (the true model driven by the measured input, same
-initial-state handling). Writes bench/RESULTS.blind.md.
+sensor offsets), a best-linear declared model). discover runs with its defaults; the table
+gives the type and place found, and the held-out error after over the ideal's (the true model
+driven by the measured input, same initial-state handling). Writes bench/RESULTS.blind.md.
 
     python3 bench/bench_discover_blind.py [--cases 16] [--first 0] [--effects 1|2]
+        [--only KIND --out FILE]
 """
 from __future__ import annotations
 
@@ -64,8 +65,11 @@ def _drift_rms(m: mdl.Model, a: int, b: int) -> float:
     return float(np.std(d))
 
 
-def effect(rng: np.random.Generator, m: mdl.Model) -> tuple[str, gen.Truth, dict[str, Any]]:
-    kind = EFFECTS[int(rng.integers(len(EFFECTS)))]
+def effect(rng: np.random.Generator, m: mdl.Model, only: str = ""
+           ) -> tuple[str, gen.Truth, dict[str, Any]]:
+    kind = only or EFFECTS[int(rng.integers(len(EFFECTS)))]
+    if only:
+        rng.integers(len(EFFECTS))  # the draw made anyway: the seed's other draws stay
     n = m.n_dof
     b = int(rng.integers(1, n + 1))
     a = b - 1
@@ -128,10 +132,10 @@ def merged(a: gen.Truth, b: gen.Truth) -> gen.Truth:
                      elements=a.elements + b.elements, appendages=a.appendages + b.appendages)
 
 
-def effects(rng: np.random.Generator, m: mdl.Model, count: int
+def effects(rng: np.random.Generator, m: mdl.Model, count: int, only: str = ""
             ) -> tuple[gen.Truth, list[dict[str, Any]]]:
     """``count`` effects of different kinds or places."""
-    _, truth, want = effect(rng, m)
+    _, truth, want = effect(rng, m, only)
     wants = [want]
     while len(wants) < count:
         _, t2, w2 = effect(rng, m)
@@ -149,11 +153,11 @@ def _found(e: dict[str, Any], want: dict[str, Any]) -> bool:
         e["location"].get(k) == v for k, v in want.items() if k not in ("type", "sign"))
 
 
-def run(seed: int, count: int = 1) -> str:
+def run(seed: int, count: int = 1, only: str = "") -> str:
     """One blind case: its table row. ``count`` 2 draws two effects (another seed stream)."""
     rng = np.random.default_rng((1000 if count == 1 else 2000) + seed)
     m, table = structure(rng)
-    truth, wants = effects(rng, m, count)
+    truth, wants = effects(rng, m, count, only)
     cut, daq, bl = (bool(rng.random() < 0.5) for _ in range(3))
     n = 2 * N if cut else N
     recs = gen.generate(m, truth, n_tests=6, n_samples=n, seed=seed, fs_hz=FS,
@@ -189,19 +193,21 @@ def main() -> None:
     ap.add_argument("--first", type=int, default=0)
     ap.add_argument("--effects", type=int, default=1, choices=(1, 2),
                     help="effects per case (2: two at once, another seed stream)")
+    ap.add_argument("--only", default="", choices=("", *EFFECTS),
+                    help="every case's (first) effect of this kind, the other draws as drawn")
     ap.add_argument("--out", default=None)
     a = ap.parse_args()
     out = a.out or str(ROOT / "bench" / ("RESULTS.blind.md" if a.effects == 1
                                          else "RESULTS.blind-two.md"))
     rows = []
     for seed in range(a.first, a.first + a.cases):
-        rows.append(run(seed, a.effects))
+        rows.append(run(seed, a.effects, a.only))
         print(rows[-1], flush=True)  # noqa: T201 (a benchmark's table)
     right = sum("| yes |" in r for r in rows)
     within = sum(float(r.rsplit("|", 2)[1]) <= 1.3 for r in rows)
     text = ("# discover on blind generated cases with real rigs' conditions (issue 16)\n\n"
             f"`python3 bench/bench_discover_blind.py --cases {a.cases} --first {a.first} "
-            f"--effects {a.effects}`: "
+            f"--effects {a.effects}{' --only ' + a.only if a.only else ''}`: "
             f"right type and place in {right} of {len(rows)}; held-out error within 1.3 x the "
             f"ideal in {within} of {len(rows)}.\n\n"
             "| seed | structure | conditions | truth | found | right | after / ideal |\n"
