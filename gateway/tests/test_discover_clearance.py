@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from lanl4dof import declared
 from test_discover_best_linear import best_linear
-from test_discover_softening import three_dof
+from test_discover_two_effects import three_dof
 
 from dynval import model as mdl
 from dynval import synth as gen

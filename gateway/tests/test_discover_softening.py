@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from lanl4dof import declared
 from test_discover_best_linear import best_linear
+from test_discover_two_effects import three_dof
 
 from dynval import model as mdl
 from dynval import synth as gen
@@ -21,14 +22,6 @@ from dynval.discover import fit as ft
 from dynval.discover import loop
 from dynval.discover import residual as rs
 from dynval.errors import ConfigError
-
-
-def three_dof() -> mdl.Model:
-    return mdl.Model(masses_kg=(3.8, 4.15, 3.77), stiffness_n_per_m=(4.86e5, 1.76e5, 2.93e5),
-                     damping=mdl.Damping("modal", (0.038, 0.036, 0.024)),
-                     input=mdl.Input("force", 3, "force_N"),
-                     outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in (1, 2, 3)},
-                     fs_hz=640.0)
 
 
 def softening(m: mdl.Model, a: int, b: int, share: float, seed: int) -> mdl.CubicSpring:

@@ -467,10 +467,11 @@ def score(view: ForceView, cands: Sequence[fx.Candidate], workers: int = 1
                     brr = float(br @ br)
                 if brr <= 1e-12 * bb:
                     continue
-                r2 = float(bv @ f_res) ** 2 / brr / fr
+                proj = float(bv @ f_res)
+                r2 = proj ** 2 / brr / fr
                 # the coefficient's sign with the linear nuisances taken out: a softening
                 # spring's evidence, against a best-linear model's stiffness too
-                shape = {**shape, "sign": 1.0 if float(bv @ f_res) >= 0 else -1.0}
+                shape = {**shape, "sign": 1.0 if proj >= 0 else -1.0}
             if r2 > best.r2:
                 best = Evidence(cand, r2, amp, dict(shape))
         best.shape.update(fx.by_type(cand.type).motion_scales(view.states, cand))
