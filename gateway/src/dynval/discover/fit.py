@@ -118,8 +118,9 @@ def uncertain_params(m: mdl.Model, names: Sequence[str]) -> list[fx.Param]:
     """Declared parameters the user called uncertain (Model.with_params names), free within
     1/3..3 x their declared value (log-scaled); a story stiffness down to 1/100 of it (a
     best-linear declared stiffness may be mostly the nonlinearity's: a friction damper's
-    stick phase) and a damping matrix's modal ratio down to 1/10; zero-valued ones within
-    0..1."""
+    stick phase) and a damping matrix's modal ratio down to 1/10; a negative one (an added
+    softening spring's k3, a force offset) keeps its sign, 1/3..3 x its value (linear);
+    zero-valued ones within 0..1."""
     cur = m.parameters()
     out = []
     for n in names:
@@ -134,8 +135,12 @@ def uncertain_params(m: mdl.Model, names: Sequence[str]) -> list[fx.Param]:
             low = v / 10  # it may hold the dissipation an earlier effect's fit gave it
         else:
             low = v / 3
-        out.append(fx.Param(n, unit, low, 3 * v, log=True) if v > 0 else
-                   fx.Param(n, unit, 0.0, 1.0))
+        if v > 0:
+            out.append(fx.Param(n, unit, low, 3 * v, log=True))
+        elif v < 0:  # a fitted softening spring's k3, a force offset: the same sign, 1/3..3 x
+            out.append(fx.Param(n, unit, 3 * v, v / 3))
+        else:
+            out.append(fx.Param(n, unit, 0.0, 1.0))
     return out
 
 
