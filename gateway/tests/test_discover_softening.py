@@ -58,6 +58,12 @@ def test_a_softening_spring_driven_past_its_peak_force_is_a_one_line_error() -> 
         mdl.simulate(dataclasses.replace(m, elements=(el,)), u, m.fs_hz)
     y = mdl.simulate(dataclasses.replace(m, elements=(el,)), 1e-3 * u, m.fs_hz)
     assert all(np.isfinite(v).all() for v in y.values())  # below it: an ordinary record
+    # the observer (discover's drifting models) names the element the same way
+    y = mdl.simulate(m, u, m.fs_hz)
+    with pytest.raises(ConfigError, match=r"observer's model ran away .*elements\[0\] "
+                                          r"\(cubic_spring.*softening spring"):
+        mdl.predict_observed(dataclasses.replace(m, elements=(el,)), u, y, m.fs_hz,
+                             [1.0] * m.n_dof, {c: 1e-4 for c in m.outputs})
 
 
 def test_the_signed_log_scale_is_continuous_through_zero_and_inverts() -> None:

@@ -262,7 +262,27 @@ def predict_observed(m: Model, u: np.ndarray, y: Mapping[str, np.ndarray], fs_hz
     ``y``: measured channels (the model's outputs; a missing one is not corrected by);
     ``q_force_n2``: white force variance at each DOF, N^2; ``r_meas``: noise variance per
     channel (channel units^2). The samples are held linearly (first-order hold) at fs_hz.
-    ConfigError when the core refuses the noise model (e.g. an undetectable rigid-body mode)."""
+    ConfigError when the core refuses the noise model (e.g. an undetectable rigid-body mode)
+    or the model runs away (naming the element that makes it)."""
+    def observe(mm: Model) -> tuple[int, np.ndarray]:
+        return _observe(mm, u, y, fs_hz, q_force_n2, r_meas)
+
+    st, pred = observe(m)
+    if st == _core.lib.DV_EUNSTABLE:
+        cause = _divergence_cause(m, lambda mm: observe(mm)[0] != _core.lib.DV_EUNSTABLE)
+        raise ConfigError(f"{m.source or '<model>'}: the observer's model ran away (its state "
+                          f"is no longer finite): {cause}")
+    if st < 0 and st != _core.lib.DV_ENUMERIC:
+        _core.check(st, "dv_obs_update_block")
+    return {c: _sensor(np.ascontiguousarray(pred[:, j]), m.outputs[c])
+            for j, c in enumerate(m.outputs)}
+
+
+def _observe(m: Model, u: np.ndarray, y: Mapping[str, np.ndarray], fs_hz: float,
+             q_force_n2: Sequence[float], r_meas: Mapping[str, float]
+             ) -> tuple[int, np.ndarray]:
+    """predict_observed's core run: dv_obs_update_block's status and the predictions in the
+    model's units (samples x outputs)."""
     mo = dataclasses.replace(m, interpolation="foh", oversample=1)
     core = _Core(mo, 1.0 / fs_hz)
     core.build_model(mo)
@@ -284,17 +304,11 @@ def predict_observed(m: Model, u: np.ndarray, y: Mapping[str, np.ndarray], fs_hz
         if c in y:
             o = m.outputs[c]
             meas[:, j] = (y[c] - o.offset) / o.gain
-    u = np.ascontiguousarray(u, dtype=np.float64)
+    uc = np.ascontiguousarray(u, dtype=np.float64)
     pred = np.zeros((n, len(names)))
-    st = lib.dv_obs_update_block(core.obs, _core.ptr(u), _core.ptr(meas), n, _core.ptr(pred),
+    st = lib.dv_obs_update_block(core.obs, _core.ptr(uc), _core.ptr(meas), n, _core.ptr(pred),
                                  ffi.NULL)
-    if st == lib.DV_EUNSTABLE:
-        raise ConfigError(f"{m.source or '<model>'}: the observer's model ran away (its state "
-                          "is no longer finite): check the elements' coefficients")
-    if st < 0 and st != lib.DV_ENUMERIC:
-        _core.check(st, "dv_obs_update_block")
-    return {c: _sensor(np.ascontiguousarray(pred[:, j]), m.outputs[c])
-            for j, c in enumerate(names)}
+    return int(st), pred
 
 
 def free_response(m: Model, fs_hz: float, n: int) -> np.ndarray:
@@ -506,22 +520,24 @@ def _check_finite(m: Model, u: np.ndarray, y: np.ndarray, dt: float, start: int,
     if not bad.any():
         return
     k = start + int(np.argmax(bad))
-    cause = _divergence_cause(m, prefix(k + 1), dt)
+    uk = prefix(k + 1)
+    cause = _divergence_cause(m, lambda probe: bool(np.isfinite(_run(probe, uk, dt)).all()))
     raise ConfigError(f"{m.source or '<model>'}: the simulation diverged at t = {k * dt:.6g} s "
                       f"(step {k} of {total}): {cause}")
 
 
-def _divergence_cause(m: Model, u: np.ndarray, dt: float) -> str:
-    """Which part of m diverges on u: each element alone removed, then all of them."""
-    def finite_without(keep: Sequence[int]) -> bool:
+def _divergence_cause(m: Model, runs: Callable[[Model], bool]) -> str:
+    """Which part of m diverges: each element alone removed, then all of them. ``runs(probe)``:
+    whether the probe model runs without diverging (an open-loop simulation, the observer)."""
+    def without(keep: Sequence[int]) -> bool:
         elems = tuple(m.elements[i] for i in keep)
         outs = {k: o for k, o in m.outputs.items() if o.kind != "contact_force"}
-        probe = dataclasses.replace(m, elements=elems, outputs=outs or {"x1": Output("disp", 1)})
-        return bool(np.isfinite(_run(probe, u, dt)).all())
+        return runs(dataclasses.replace(m, elements=elems,
+                                        outputs=outs or {"x1": Output("disp", 1)}))
 
     idx = range(len(m.elements))
     for i in idx:
-        if finite_without([j for j in idx if j != i]):
+        if without([j for j in idx if j != i]):
             e = m.elements[i]
             vals = ", ".join(f"{k} = {v:.4g}" for k, v in el.values(e).items())
             softening = isinstance(e, el.CubicSpring) and e.k3_n_per_m3 < 0
@@ -529,7 +545,7 @@ def _divergence_cause(m: Model, u: np.ndarray, dt: float) -> str:
                 "a softening spring driven past its peak restoring force runs away: lower |k3| "
                 "or the input" if softening else
                 "lower its coefficient, or raise simulation.substeps or oversample"))
-    if m.elements and finite_without([]):
+    if m.elements and without([]):
         return "the elements together make it unstable; check their coefficients"
     return ("the linear model is unstable at this step: check masses_kg, stiffness_n_per_m "
             "and damping")
