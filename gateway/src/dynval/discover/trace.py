@@ -192,6 +192,10 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
     flex = w[w > 2 * np.pi * 1.0]
     fs = tests[0].fs_hz
     f_hp = 0.4 * float(flex.min()) / (2 * np.pi) if flex.size else 5.0
+    # and at least half the input band's lower edge: below it the structure barely moves and
+    # the sensors' low-frequency noise (a cheap DAQ's 1/f), integrated twice, would swamp the
+    # displacements a gap or a stick-slip acts on
+    f_hp = max(f_hp, 0.5 * input_band(tests)[0])
     xs: list[np.ndarray] = []
     vs: list[np.ndarray] = []
     as_: list[np.ndarray] = []
