@@ -8,6 +8,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from test_discover_noise import pink
 
 from dynval import model as mdl
 from dynval import synth as gen
@@ -130,13 +131,6 @@ def test_a_joint_on_a_table_with_its_dof_unmeasured_is_found() -> None:
     ideal, _ = rs.error_table(dataclasses.replace(part, elements=(el,)), r.tests, r.chans,
                               r.scales)
     assert r.after.total(r.held_names) < 1.3 * ideal.total(r.held_names)
-
-
-def pink(rng: np.random.Generator, n: int) -> np.ndarray:
-    """1/f noise, unit RMS."""
-    x = np.fft.rfft(rng.standard_normal(n))
-    p = np.fft.irfft(x / np.sqrt(np.maximum(np.arange(x.size), 1.0)), n)
-    return np.asarray(p / np.std(p))
 
 
 @pytest.mark.parametrize("seed", [1, 2])
