@@ -89,7 +89,7 @@ def test_discover_stiffness_loss(seed: int) -> None:
     assert held_reduction(r) > 0.9
 
 
-@pytest.mark.parametrize("seed", [21, 22])
+@pytest.mark.parametrize("seed", [21])  # more seeds: bench_discover_blind (CI time)
 def test_discover_added_mass(seed: int) -> None:
     rng = np.random.default_rng(seed)
     dof = int(rng.integers(1, 5))
@@ -181,7 +181,7 @@ def test_discover_friction(seed: int) -> None:
     assert held_reduction(r) > 0.8
 
 
-@pytest.mark.parametrize("seed", [71, 72])
+@pytest.mark.parametrize("seed", [71])  # more seeds: bench_discover_blind (CI time)
 def test_discover_cubic_stiffness(seed: int) -> None:
     rng = np.random.default_rng(seed)
     story = int(rng.integers(2, 5))

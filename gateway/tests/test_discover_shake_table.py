@@ -63,7 +63,7 @@ def five_on_a_table() -> mdl.Model:
                      fs_hz=640.0)
 
 
-@pytest.mark.parametrize("seed", [4, 5])
+@pytest.mark.parametrize("seed", [4])  # seed 5 (found either way): dropped for CI time
 def test_rarely_closing_contact_on_a_table_is_found(seed: int) -> None:
     """A contact that closes a few times per record on a shake table (gap 2.5 x the story's
     RMS drift): the view's evidence is swamped by the integrated sensor noise (under 2 % of
