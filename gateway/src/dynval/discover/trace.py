@@ -143,10 +143,12 @@ def _hp(x: np.ndarray, fs: float, f_hp: float) -> np.ndarray:
     return np.asarray(np.fft.irfft(np.fft.rfft(x, nf, axis=-1) * h, nf, axis=-1)[..., :n])
 
 
-def _set_rates(st: fx.States, tests: Sequence[TestData]) -> None:
-    """The sample rate and input band the effects' bases need (filters over frequency)."""
+def _set_rates(st: fx.States, tests: Sequence[TestData],
+               band_hz: tuple[float, float] | None = None) -> None:
+    """The sample rate and input band (computed unless given) the effects' bases need
+    (filters over frequency)."""
     st.fs_hz = tests[0].fs_hz
-    st.band_hz = input_band(tests)
+    st.band_hz = input_band(tests) if band_hz is None else band_hz
 
 
 def matrices(m: mdl.Model) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -195,7 +197,8 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
     # and at least half the input band's lower edge: below it the structure barely moves and
     # the sensors' low-frequency noise (a cheap DAQ's 1/f), integrated twice, would swamp the
     # displacements a gap or a stick-slip acts on
-    f_hp = max(f_hp, 0.5 * input_band(tests)[0])
+    band = input_band(tests)
+    f_hp = max(f_hp, 0.5 * band[0])
     xs: list[np.ndarray] = []
     vs: list[np.ndarray] = []
     as_: list[np.ndarray] = []
@@ -233,7 +236,7 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
     vgs = np.concatenate([g[1] for g in grounds]) if grounds else None
     st = fx.States(np.hstack(xs), np.hstack(vs), np.hstack(as_), mass, k, c, w, phi, hp,
                    chan_dof, xg, vgs, ag=np.concatenate(tables) if tables else None)
-    _set_rates(st, tests)
+    _set_rates(st, tests, band)
     return ForceView(st, np.hstack(fs_list), slice(None))
 
 
