@@ -9,9 +9,11 @@ from a running test, a cheap DAQ (pink noise, 50 Hz hum, a 2nd-order anti-alias 
 sensor offsets), a best-linear declared model). discover runs with its defaults; the table
 gives the type and place found, and the held-out error after over the ideal's (the true model
 driven by the measured input, same initial-state handling). Writes bench/RESULTS.blind.md.
+``--free``: every chain rides on rails or a weak position loop (a rigid-body or nearly rigid
+mode: it drifts open loop), driven by a force, half of them with an encoder at DOF 1.
 
     python3 bench/bench_discover_blind.py [--cases 16] [--first 0] [--effects 1|2]
-        [--only KIND --out FILE]
+        [--only KIND --out FILE] [--free]
 """
 from __future__ import annotations
 
@@ -53,6 +55,26 @@ def structure(rng: np.random.Generator) -> tuple[mdl.Model, bool]:
                      fs_hz=FS), table
 
 
+def freed(m: mdl.Model, rng: np.random.Generator) -> mdl.Model:
+    """The chain on rails (no spring to the ground: a rigid-body mode) or in a weak position
+    loop (0.2-2 % of the mean story stiffness, heavily damped), a force at a random DOF, and
+    half the time an encoder at DOF 1 beside the accelerometers."""
+    ks = list(m.stiffness_n_per_m)
+    zeta = list(m.damping.zeta)
+    if rng.random() < 0.5:
+        ks[0], zeta[0] = 0.0, 0.0
+    else:
+        ks[0], zeta[0] = float(np.mean(ks[1:]) * rng.uniform(0.002, 0.02)), rng.uniform(0.2, 0.6)
+    outs = dict(m.outputs) if m.input.kind == "force" else {
+        f"acc{j}_mps2": mdl.Output("acc", j) for j in range(1, m.n_dof + 1)}
+    if rng.random() < 0.5:
+        outs = {"x1_m": mdl.Output("disp", 1), **outs}
+    inp = mdl.Input("force", int(rng.integers(1, m.n_dof + 1)), "force_N")
+    return dataclasses.replace(m, stiffness_n_per_m=tuple(ks),
+                               damping=mdl.Damping("modal", tuple(zeta)), input=inp,
+                               outputs=outs)
+
+
 def _drift_rms(m: mdl.Model, a: int, b: int) -> float:
     """The RMS of x_b - x_a of the declared model under the generator's higher input level
     (sets the size of the nonlinear effects so that they act)."""
@@ -72,8 +94,11 @@ def effect(rng: np.random.Generator, m: mdl.Model, only: str = ""
         rng.integers(len(EFFECTS))  # the draw made anyway: the seed's other draws stay
     n = m.n_dof
     b = int(rng.integers(1, n + 1))
+    if kind == "stiffness" and m.stiffness_n_per_m[b - 1] == 0:
+        kind = "mass"  # a chain on rails has no spring to the ground to lose
     a = b - 1
-    k = m.stiffness_n_per_m[b - 1]
+    # an element to the ground of a chain on rails scales with the other springs
+    k = m.stiffness_n_per_m[b - 1] or float(np.mean(m.stiffness_n_per_m[1:]))
     drift_rms = _drift_rms(m, a, b)
     if kind == "contact":
         # one draw: a quarter of them a clearance that closes both ways (free play, a loose
@@ -153,10 +178,13 @@ def _found(e: dict[str, Any], want: dict[str, Any]) -> bool:
         e["location"].get(k) == v for k, v in want.items() if k not in ("type", "sign"))
 
 
-def run(seed: int, count: int = 1, only: str = "") -> str:
-    """One blind case: its table row. ``count`` 2 draws two effects (another seed stream)."""
+def run(seed: int, count: int = 1, only: str = "", free: bool = False) -> str:
+    """One blind case: its table row. ``count`` 2 draws two effects (another seed stream);
+    ``free`` frees the chain from the ground (its own draws, after the structure's)."""
     rng = np.random.default_rng((1000 if count == 1 else 2000) + seed)
     m, table = structure(rng)
+    if free:
+        m, table = freed(m, np.random.default_rng(3000 + seed)), False
     truth, wants = effects(rng, m, count, only)
     cut, daq, bl = (bool(rng.random() < 0.5) for _ in range(3))
     n = 2 * N if cut else N
@@ -179,7 +207,9 @@ def run(seed: int, count: int = 1, only: str = "") -> str:
         o, offset=r.model.outputs[c].offset) for c, o in m.outputs.items()})
     ideal = rs.error_table(tm, r.tests, r.chans, r.scales)[0].total(r.held_names)
     ratio = r.after.total(r.held_names) / ideal
-    cond = ", ".join(c for c, on in (("cut from a run", cut), ("cheap DAQ", daq),
+    cond = ", ".join(c for c, on in (("free" if free and m.stiffness_n_per_m[0] == 0 else
+                                       "position loop", free),
+                                      ("cut from a run", cut), ("cheap DAQ", daq),
                                      ("best-linear", bl), ("shake table", table)) if on) or "-"
     want_s = "; ".join(w["type"] + " " + " ".join(f"{k} {v}" for k, v in w.items()
                                                    if k != "type") for w in wants)
@@ -196,18 +226,21 @@ def main() -> None:
     ap.add_argument("--only", default="", choices=("", *EFFECTS),
                     help="every case's (first) effect of this kind, the other draws as drawn")
     ap.add_argument("--out", default=None)
+    ap.add_argument("--free", action="store_true",
+                    help="chains on rails or a weak position loop (see the docstring)")
     a = ap.parse_args()
     out = a.out or str(ROOT / "bench" / ("RESULTS.blind.md" if a.effects == 1
                                          else "RESULTS.blind-two.md"))
     rows = []
     for seed in range(a.first, a.first + a.cases):
-        rows.append(run(seed, a.effects, a.only))
+        rows.append(run(seed, a.effects, a.only, a.free))
         print(rows[-1], flush=True)  # noqa: T201 (a benchmark's table)
     right = sum("| yes |" in r for r in rows)
     within = sum(float(r.rsplit("|", 2)[1]) <= 1.3 for r in rows)
     text = ("# discover on blind generated cases with real rigs' conditions (issue 16)\n\n"
             f"`python3 bench/bench_discover_blind.py --cases {a.cases} --first {a.first} "
-            f"--effects {a.effects}{' --only ' + a.only if a.only else ''}`: "
+            f"--effects {a.effects}{' --only ' + a.only if a.only else ''}"
+            f"{' --free' if a.free else ''}`: "
             f"right type and place in {right} of {len(rows)}; held-out error within 1.3 x the "
             f"ideal in {within} of {len(rows)}.\n\n"
             "| seed | structure | conditions | truth | found | right | after / ideal |\n"

@@ -37,7 +37,7 @@ def test_friction_and_a_force_offset_on_a_positioning_stage(seed: int, offset: f
     assert [(e["type"], e["location"]["between"], e["location"].get("offset"))
             for e in r.effects] == [("friction", [0, 1], True)]
     p = r.effects[0]["parameters"]
-    assert p["force_n"]["value"] == pytest.approx(force, rel=0.02)
+    assert p["force_n"]["value"] == pytest.approx(force, rel=0.03)  # see test_discover_drift
     assert p["offset_force_n"]["value"] == pytest.approx(offset, rel=0.03)
     assert _ideal_ratio(r, truth) < 1.3
 

@@ -129,7 +129,7 @@ def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     """The model's open-loop prediction, or None when the core refuses the model."""
     try:
         p = (mdl.simulate(m, t.input_for(m), t.fs_hz) if t.observer is None else
-             mdl.predict_observed(m, t.u, t.y, t.fs_hz, t.observer.q_force_n2,
+             mdl.predict_observed(m, t.input_for(m), t.y, t.fs_hz, t.observer.q_force_n2,
                                   t.observer.r_meas))
     except ConfigError as exc:
         log.debug("%s: simulation refused: %s", t.name, exc)

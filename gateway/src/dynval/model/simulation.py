@@ -252,20 +252,29 @@ def modes(m: Model) -> tuple[np.ndarray, np.ndarray]:
 def natural_frequencies(m: Model) -> np.ndarray:
     """Undamped natural frequencies of the linear chain, Hz, ascending (contacts open)."""
     return modes(m)[0]
-def predict_observed(m: Model, u: np.ndarray, y: Mapping[str, np.ndarray], fs_hz: float,
+def predict_observed(m: Model, u: Any, y: Mapping[str, np.ndarray], fs_hz: float,
                      q_force_n2: Sequence[float], r_meas: Mapping[str, float]
                      ) -> dict[str, np.ndarray]:
     """One-step-ahead predictions of every output by the core's observer with the steady-state
     Kalman gain (dv_obs_init with a noise model, dv_obs_update_block): before sample k the
     state is corrected by the measurements up to k - 1, so a drift the open-loop simulation
     accumulates is pulled back while the dynamics within a sample interval stay the model's.
-    ``y``: measured channels (the model's outputs; a missing one is not corrected by);
-    ``q_force_n2``: white force variance at each DOF, N^2; ``r_meas``: noise variance per
-    channel (channel units^2). The samples are held linearly (first-order hold) at fs_hz.
-    ConfigError when the core refuses the noise model (e.g. an undetectable rigid-body mode)
-    or the model runs away (naming the element that makes it)."""
+    ``u``: the sampled input, or a PreparedInput of it (prepare_input); ``y``: measured
+    channels (the model's outputs; a missing one is not corrected by); ``q_force_n2``: white
+    force variance at each DOF, N^2; ``r_meas``: noise variance per channel (channel
+    units^2). The input is interpolated as simulate() does (the model's band-limited
+    oversampling R: the observer steps at R fs and corrects at the measured samples only), so
+    a model predicts the same motion within a sample either way (a cubic hold is held
+    linearly here). ConfigError when the core refuses the noise model (e.g. an undetectable
+    rigid-body mode) or the model runs away (naming the element that makes it)."""
+    r = oversample_factor(m)
+    if isinstance(u, PreparedInput) and u.r != r:
+        raise ConfigError(f"the input was prepared for oversample {u.r}, the model simulates "
+                          f"at {r}")
+    fine = u.fine if isinstance(u, PreparedInput) else _prepare_input(u, r)
+
     def observe(mm: Model) -> tuple[int, np.ndarray]:
-        return _observe(mm, u, y, fs_hz, q_force_n2, r_meas)
+        return _observe(mm, fine, r, y, fs_hz, q_force_n2, r_meas)
 
     st, pred = observe(m)
     if st == _core.lib.DV_EUNSTABLE:
@@ -278,14 +287,16 @@ def predict_observed(m: Model, u: np.ndarray, y: Mapping[str, np.ndarray], fs_hz
             for j, c in enumerate(m.outputs)}
 
 
-def _observe(m: Model, u: np.ndarray, y: Mapping[str, np.ndarray], fs_hz: float,
+def _observe(m: Model, fine: np.ndarray, r: int, y: Mapping[str, np.ndarray], fs_hz: float,
              q_force_n2: Sequence[float], r_meas: Mapping[str, float]
              ) -> tuple[int, np.ndarray]:
-    """predict_observed's core run: dv_obs_update_block's status and the predictions in the
-    model's units (samples x outputs)."""
+    """predict_observed's core run on the input at r fs (``fine``): dv_obs_update_block's
+    status and the predictions in the model's units at the measured samples (samples x
+    outputs). The gain is the Kalman gain of the model sampled at fs (the measurements' rate):
+    the r steps between two measurements compose that model's step exactly, so the correction
+    at a measured sample is the one a filter at fs makes; between them the measurements are
+    NaN (predicted, not corrected)."""
     mo = dataclasses.replace(m, interpolation="foh", oversample=1)
-    core = _Core(mo, 1.0 / fs_hz)
-    core.build_model(mo)
     lib, ffi = _core.lib, _core.ffi
     noise = ffi.new("dv_obs_noise_t *")
     for j, q in enumerate(q_force_n2):
@@ -293,22 +304,37 @@ def _observe(m: Model, u: np.ndarray, y: Mapping[str, np.ndarray], fs_hz: float,
     names = list(m.outputs)
     for j, c in enumerate(names):  # in the model's units: the sensor's gain divided out
         noise.r_meas[j] = float(r_meas.get(c, 1.0)) / m.outputs[c].gain ** 2
+    gain = _kalman_gain(mo, 1.0 / fs_hz, noise)
+    core = _Core(mo, 1.0 / (fs_hz * r))
+    core.build(mo)
+    _core.check(lib.dv_obs_set_gain(core.obs, _core.ptr(gain), gain.size), "dv_obs_set_gain")
+    n = fine.size // r
+    meas = np.full((n * r, len(names)), np.nan)
+    for j, c in enumerate(names):
+        if c in y:
+            o = m.outputs[c]
+            meas[::r, j] = (y[c] - o.offset) / o.gain
+    uc = np.ascontiguousarray(fine[:n * r], dtype=np.float64)
+    pred = np.zeros((n * r, len(names)))
+    st = lib.dv_obs_update_block(core.obs, _core.ptr(uc), _core.ptr(meas), n * r,
+                                 _core.ptr(pred), ffi.NULL)
+    return int(st), pred[::r]
+
+
+def _kalman_gain(m: Model, dt_s: float, noise: Any) -> np.ndarray:
+    """The core's steady-state Kalman gain (dv_obs_init with a noise model) of m sampled at
+    dt_s, flat (states x outputs, row-major)."""
+    core = _Core(m, dt_s)
+    core.build_model(m)
+    lib = _core.lib
     olen = int(lib.dv_obs_buf_len(core.cm))
     buf = np.zeros(olen)
     st = lib.dv_obs_init(core.obs, core.cm, noise, _core.ptr(buf), olen)
     if st < 0:
         raise _refused(m, "dv_obs_init (Kalman gain)", st, core.dt)
-    n = u.size
-    meas = np.full((n, len(names)), np.nan)
-    for j, c in enumerate(names):
-        if c in y:
-            o = m.outputs[c]
-            meas[:, j] = (y[c] - o.offset) / o.gain
-    uc = np.ascontiguousarray(u, dtype=np.float64)
-    pred = np.zeros((n, len(names)))
-    st = lib.dv_obs_update_block(core.obs, _core.ptr(uc), _core.ptr(meas), n, _core.ptr(pred),
-                                 ffi.NULL)
-    return int(st), pred
+    gain = np.zeros(2 * m.n_dof * len(m.outputs))
+    _core.check(lib.dv_obs_get_gain(core.obs, _core.ptr(gain), gain.size), "dv_obs_get_gain")
+    return gain
 
 
 def free_response(m: Model, fs_hz: float, n: int) -> np.ndarray:
