@@ -131,6 +131,7 @@ def effect(rng: np.random.Generator, m: mdl.Model, only: str = ""
         return kind, gen.Truth(m_add_kg={b: m.masses_kg[b - 1] * rng.uniform(0.05, 0.2)}), \
             {"type": "mass_change", "dof": b}
     f = mdl.natural_frequencies(m)
+    f = f[f > 5.0]  # the elastic modes (not a chain's rigid-body or position-loop mode)
     app = gen.Appendage(b, m.masses_kg[b - 1] * rng.uniform(0.05, 0.15),
                         float(rng.uniform(0.5 * f[0], 0.9 * min(f[-1], 250.0))), 0.02)
     return kind, gen.Truth(appendages=(app,)), {"type": "appendage", "dof": b}

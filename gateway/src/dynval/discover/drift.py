@@ -13,8 +13,8 @@ the measured position itself, so its NRMSE alone can stay below 1). The Kalman g
 model: a white force of Q_REL x the input's force RMS at each DOF (small: the observer follows
 the drift, not the dynamics; with a shake table the input's force is m_j a_g) and measurement
 noise of R_REL x each channel's RMS. A model whose drift no sensor observes (a free rigid-body
-mode seen only through accelerations) makes the core refuse the gain: it stays open loop, with
-a note.
+mode seen only through accelerations: observed()) stays open loop, with a note; so does one
+whose gain the core refuses.
 """
 from __future__ import annotations
 
@@ -73,6 +73,31 @@ def drifts(m: mdl.Model, table: ErrorTable, res: dict[str, dict[str, np.ndarray]
              "%.2f", worst, 0.5 * band_hz[0], share)
     above = noise is None or any(pooled[c] > NOISE_RATIO * noise.get(c, 0.0) for c in chans)
     return worst if worst > 1.0 or (share > DRIFT_SHARE and above) else None
+
+
+def observed(m: mdl.Model, band_hz: tuple[float, float]) -> bool:
+    """Whether some output measures where the rigid-body-like modes are: a displacement or
+    velocity of a DOF they move, or a spring force or reaction they stretch (a position loop's
+    force). An accelerometer reads a mode near 0 Hz only through its omega^2, so with
+    accelerometers alone an observer cannot hold the drift: the Kalman gain's equation then
+    converges or not by rounding, and a gain that exists makes predictions that grow without
+    bound (a free chain with four accelerometers: 6e20 x the channels' RMS)."""
+    f, phi = mdl.modes(m)
+    low = np.flatnonzero(f < RIGID_FRACTION * max(band_hz[0], 1e-3))
+    ks = np.asarray(m.stiffness_n_per_m, dtype=float)
+    prev = np.vstack([np.zeros((1, phi.shape[1])), phi[:-1]])  # the DOF below, ground 0
+    for o in m.outputs.values():
+        if o.kind in ("disp", "vel"):
+            row = phi[o.index - 1]
+        elif o.kind == "story_force":
+            row = ks[o.index - 1] * (phi[o.index - 1] - prev[o.index - 1])
+        elif o.kind == "reaction":
+            row = ks[0] * phi[0]
+        else:
+            continue
+        if np.any(np.abs(row[low]) > 1e-3 * float(np.max(np.abs(row)))):
+            return True
+    return False
 
 
 def observer_for(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],

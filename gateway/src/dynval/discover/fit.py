@@ -301,6 +301,8 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
     sig = [math.nan] * len(ps_all)
     try:
         jtj = sol.jac.T @ sol.jac
+        if not np.all(np.isfinite(jtj)):  # LAPACK's SVD may not return on overflowed values
+            raise ValueError("the Jacobian overflowed")
         s2 = nsse / max(r.size - len(ps_all), 1)
         cov_z = np.linalg.pinv(jtj) * s2 * factor
         # dv/dz

@@ -122,6 +122,12 @@ def _open_loop_or_observer(s: Session, m: mdl.Model, before: rs.ErrorTable,
     if worst is None:
         return "open loop", {}
     open_loop = before.pooled(s.held_names, s.chans)
+    if not dr.observed(m, s.band):
+        s.notes.append(f"the open-loop simulation drifts (NRMSE up to {worst:.3g}) but no "
+                       "sensor measures the drift (a displacement, velocity or force of the "
+                       "rigid-body-like mode; accelerometers read it only through its omega^2): "
+                       "the errors are open loop and may be dominated by the drift")
+        return "open loop", {}
     if not dr.apply(m, s.evals, dr.observer_for(m, s.evals, s.chans, s.scales)):
         s.notes.append(f"the open-loop simulation drifts (NRMSE up to {worst:.3g}) and the "
                        "core refused an observer (no sensor sees the drift): the errors are "

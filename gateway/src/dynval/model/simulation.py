@@ -252,6 +252,8 @@ def modes(m: Model) -> tuple[np.ndarray, np.ndarray]:
 def natural_frequencies(m: Model) -> np.ndarray:
     """Undamped natural frequencies of the linear chain, Hz, ascending (contacts open)."""
     return modes(m)[0]
+
+
 def predict_observed(m: Model, u: Any, y: Mapping[str, np.ndarray], fs_hz: float,
                      q_force_n2: Sequence[float], r_meas: Mapping[str, float]
                      ) -> dict[str, np.ndarray]:
