@@ -309,7 +309,9 @@ def _observe(m: Model, fine: np.ndarray, r: int, y: Mapping[str, np.ndarray], fs
     gain = _kalman_gain(mo, 1.0 / fs_hz, noise)
     core = _Core(mo, 1.0 / (fs_hz * r))
     core.build(mo)
-    _core.check(lib.dv_obs_set_gain(core.obs, _core.ptr(gain), gain.size), "dv_obs_set_gain")
+    st = lib.dv_obs_set_gain(core.obs, _core.ptr(gain), gain.size)
+    if st < 0:  # a gain the core will not fold (not finite): refused like the model itself
+        raise _refused(m, "dv_obs_set_gain", st, core.dt)
     n = fine.size // r
     meas = np.full((n * r, len(names)), np.nan)
     for j, c in enumerate(names):
