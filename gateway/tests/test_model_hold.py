@@ -106,3 +106,10 @@ def test_a_prepared_input_simulates_as_the_samples_do() -> None:
     assert all(np.array_equal(direct[c], again[c]) for c in direct)
     with pytest.raises(ConfigError, match="prepared for oversample 1"):
         mdl.simulate(m, mdl.prepare_input(m, u, oversample=1), fs)
+    # the observer takes it too, with the same result and the same refusal
+    q, r = [1e-6] * m.n_dof, {c: 1e-4 for c in m.outputs}
+    obs = mdl.predict_observed(m, u, direct, fs, q, r)
+    obs_prepared = mdl.predict_observed(m, prepared, direct, fs, q, r)
+    assert all(np.array_equal(obs[c], obs_prepared[c]) for c in obs)
+    with pytest.raises(ConfigError, match="prepared for oversample 1"):
+        mdl.predict_observed(m, mdl.prepare_input(m, u, oversample=1), direct, fs, q, r)

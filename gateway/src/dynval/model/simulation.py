@@ -270,10 +270,7 @@ def predict_observed(m: Model, u: Any, y: Mapping[str, np.ndarray], fs_hz: float
     linearly here). ConfigError when the core refuses the noise model (e.g. an undetectable
     rigid-body mode) or the model runs away (naming the element that makes it)."""
     r = oversample_factor(m)
-    if isinstance(u, PreparedInput) and u.r != r:
-        raise ConfigError(f"the input was prepared for oversample {u.r}, the model simulates "
-                          f"at {r}")
-    fine = u.fine if isinstance(u, PreparedInput) else _prepare_input(u, r)
+    fine = _prepared_fine(u, r) if isinstance(u, PreparedInput) else _prepare_input(u, r)
 
     def observe(mm: Model) -> tuple[int, np.ndarray]:
         return _observe(mm, fine, r, y, fs_hz, q_force_n2, r_meas)
@@ -431,6 +428,14 @@ class PreparedInput:
     r: int
 
 
+def _prepared_fine(u: PreparedInput, r: int) -> np.ndarray:
+    """The interpolated input of u, which must have been prepared for the factor r."""
+    if u.r != r:
+        raise ConfigError(f"the input was prepared for oversample {u.r}, the model simulates "
+                          f"at {r}")
+    return u.fine
+
+
 def prepare_input(m: Model, force_or_motion: Any, oversample: int | None = None
                   ) -> PreparedInput:
     """The input as simulate() would interpolate it for m (see simulate)."""
@@ -475,10 +480,7 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
     r = oversample_factor(m, oversample)
     prepared = isinstance(force_or_motion, PreparedInput)
     if isinstance(force_or_motion, PreparedInput):
-        if force_or_motion.r != r:
-            raise ConfigError(f"the input was prepared for oversample {force_or_motion.r}, "
-                              f"the model simulates at {r}")
-        u = force_or_motion.fine
+        u = _prepared_fine(force_or_motion, r)
         n = u.size // r
     else:
         u = np.asarray(force_or_motion).reshape(-1)
