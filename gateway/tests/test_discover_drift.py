@@ -2,7 +2,7 @@
 encoder and accelerometers, Coulomb friction on the guide. Open loop, the model's position
 drifts to NRMSE 2-12 and discover answered 'no effect ... 19.9 x the noise floor'; with the
 observer's one-step-ahead prediction errors (the core's steady-state Kalman gain) it names
-the friction and fits its force within 3 % (it trades off against the law's velocity scale)."""
+the friction and fits its force within 4 % (it trades off against the law's velocity scale)."""
 from __future__ import annotations
 
 import dataclasses
@@ -13,8 +13,10 @@ import pytest
 from dynval import model as mdl
 from dynval import synth as gen
 from dynval.discover import drift as dr
+from dynval.discover import effects as fx
 from dynval.discover import loop, report
 from dynval.discover import residual as rs
+from dynval.discover import trace as tr
 
 
 def carriage() -> mdl.Model:
@@ -34,9 +36,13 @@ def test_friction_on_a_drifting_carriage_is_found_with_the_observer(seed: int) -
     assert r.prediction == "observer"
     assert any("drifts" in n for n in r.notes)
     assert [(e["type"], e["location"]["between"]) for e in r.effects] == [("friction", [0, 1])]
-    # the force trades off against the law's velocity scale (fitted too): within 3 %, and the
-    # held-out error within 5 % of the true model's under the same observer
-    assert r.effects[0]["parameters"]["force_n"]["value"] == pytest.approx(force, rel=0.03)
+    # the force trades off against the law's velocity scale (fitted too): within 4 %, and the
+    # held-out error within 5 % of the true model's under the same observer. Measured (seeds
+    # 2-5): F +2.8..+3.3 %, v_eps 1.6e-3 for 1e-3, held-out 0.82-0.90 x the true model's: the
+    # observer's velocity estimate carries the force sensor's noise (its gain assumes it), and
+    # near a reversal a sharp law flips on it, a smoother one less (F +1.8 % when the gain
+    # assumed a 100 x quieter sensor)
+    assert r.effects[0]["parameters"]["force_n"]["value"] == pytest.approx(force, rel=0.04)
     assert r.after.total(r.held_names) < 0.2 * r.before.total(r.held_names)
     truth = dataclasses.replace(carriage(), elements=(mdl.Friction(0, 1, force, 1e-3),))
     ideal, _ = rs.error_table(truth, r.tests, r.chans, r.scales)
@@ -103,3 +109,97 @@ def test_the_observer_is_used_only_where_a_sensor_measures_the_drift(
                   damping=mdl.Damping("modal", (0.3 if k1 else 0.0, 0.02, 0.03)),
                   input=mdl.Input("force", 1, "force_N"), outputs=outputs, fs_hz=640.0)
     assert dr.observed(m, (20.0, 200.0)) is seen
+
+
+def free_chain(outputs: dict[str, mdl.Output]) -> mdl.Model:
+    return mdl.Model(masses_kg=(3.0, 5.0, 4.0, 4.5), stiffness_n_per_m=(0.0, 4e5, 3e5, 3.5e5),
+                     damping=mdl.Damping("modal", (0.0, 0.02, 0.03, 0.02)),
+                     input=mdl.Input("force", 1, "force_N"), outputs=outputs, fs_hz=640.0)
+
+
+PARTIAL = {"x1_m": mdl.Output("disp", 1), "a1_mps2": mdl.Output("acc", 1),
+           "a2_mps2": mdl.Output("acc", 2), "a4_mps2": mdl.Output("acc", 4)}
+
+
+def test_probes_read_the_observer_estimate_and_a_missing_channel_still_corrects() -> None:
+    """Probes (a DOF's states, no measurement) leave the measured outputs' predictions as they
+    were and read the estimate: the probe on the encoder's DOF predicts what the encoder's own
+    output does. A channel a test lacks gets no gain: the others still correct (a NaN
+    placeholder stopped every correction: the drift ran free)."""
+    m = free_chain(PARTIAL)
+    t = rs.prepare(m, gen.generate(m, gen.Truth(), n_tests=1, seed=11))[0]
+    obs = dr.observer_for(m, [t], list(PARTIAL), rs.channel_scales([t], list(PARTIAL)))
+    args = (t.input_for(m), t.y, t.fs_hz, obs.q_force_n2, obs.r_meas)
+    plain = mdl.predict_observed(m, *args)
+    probed = mdl.predict_observed(m, *args, {"x": mdl.Output("disp", 1),
+                                             "v3": mdl.Output("vel", 3)})
+    for c in PARTIAL:
+        np.testing.assert_allclose(probed[c], plain[c], rtol=0, atol=1e-12 * np.std(plain[c]))
+    np.testing.assert_allclose(probed["x"], plain["x1_m"], rtol=0, atol=1e-12 * np.std(t.y["x1_m"]))
+    # without a2 in the test: the same as the model that has no a2 output at all
+    y = {c: v for c, v in t.y.items() if c != "a2_mps2"}
+    lacking = mdl.predict_observed(m, t.input_for(m), y, t.fs_hz, obs.q_force_n2, obs.r_meas)
+    m3 = dataclasses.replace(m, outputs={c: o for c, o in PARTIAL.items() if c != "a2_mps2"})
+    without = mdl.predict_observed(m3, t.input_for(m3), y, t.fs_hz, obs.q_force_n2, obs.r_meas)
+    np.testing.assert_allclose(lacking["x1_m"], without["x1_m"], rtol=1e-9, atol=1e-15)
+    assert np.std(t.y["x1_m"] - lacking["x1_m"]) < 0.1 * np.std(t.y["x1_m"])
+
+
+def test_the_output_view_in_observer_mode_propagates_a_force_as_the_observer_sees_it() -> None:
+    """The output view's response of a force the model lacks, in observer mode, is what the
+    observer's one-step errors do when the sensors read that force's open-loop response:
+    checked against running the observer on it (a random force at DOF 3, which no
+    accelerometer carries), to 1e-6 of its RMS once the record's first 512 samples are past
+    (there the band-limited interpolation of a record's start differs from an impulse's,
+    2-12 %, and the observer carries it for a while)."""
+    m = free_chain(PARTIAL)
+    tests = rs.prepare(m, gen.generate(m, gen.Truth(), n_tests=1, n_samples=2048, seed=12))
+    chans = list(PARTIAL)
+    scales = rs.channel_scales(tests, chans)
+    obs = dr.observer_for(m, tests, chans, scales)
+    tests[0].observer = obs
+    view = tr.output_view(m, tests, chans, scales)
+    assert view is not None and view.propagate is not None
+    n = tests[0].u.size
+    g = np.zeros((m.n_dof, n))
+    g[2] = np.random.default_rng(5).standard_normal(n)
+    got = view.propagate(g).reshape(len(chans), n)
+    lin = dataclasses.replace(m, input=mdl.Input("force", 3))
+    y = mdl.simulate(lin, g[2], m.fs_hz)
+    p = mdl.predict_observed(lin, np.zeros(n), y, m.fs_hz, obs.q_force_n2, obs.r_meas)
+    for i, c in enumerate(chans):
+        e = (y[c] - p[c]) / scales[c]
+        np.testing.assert_allclose(got[i, 512:], e[512:], rtol=0, atol=1e-6 * np.std(e))
+
+
+def test_in_observer_mode_the_output_view_names_what_is_missing_not_the_drift() -> None:
+    """A free 4-DOF chain with an encoder and no accelerometer at DOF 3: the output view's
+    residual was the open-loop one, whose drift on the encoder was all of it (a sensor gain
+    on the encoder had all the evidence, 1.0); with the observer's errors the added mass
+    ranks first at its DOF."""
+    m = free_chain(PARTIAL)
+    recs = gen.generate(m, gen.Truth(m_add_kg={2: 0.4}), n_tests=2, seed=13)
+    tests = rs.prepare(m, recs)
+    chans = list(PARTIAL)
+    scales = rs.channel_scales(tests, chans)
+    obs = dr.observer_for(m, tests, chans, scales)
+    for t in tests:
+        t.observer = obs
+    view = tr.output_view(m, tests, chans, scales)
+    assert view is not None
+    ev = tr.score(view, fx.catalogue(m), 1)
+    assert (ev[0].cand.type, ev[0].cand.location) == ("mass_change", {"dof": 2})
+
+
+def test_the_observer_assumes_the_input_sensor_noise_the_data_show() -> None:
+    """The force noise where the input enters is the input sensor's own (its quietest band):
+    white noise of 2 % of the force's RMS reads within 20 % of it; the other DOFs keep the
+    small slack."""
+    m = free_chain(PARTIAL)
+    recs = gen.generate(m, gen.Truth(), n_tests=2, seed=14, noise=0.02)
+    tests = rs.prepare(m, recs)
+    chans = list(PARTIAL)
+    obs = dr.observer_for(m, tests, chans, rs.channel_scales(tests, chans))
+    u = np.concatenate([t.u for t in tests])
+    assert np.sqrt(obs.q_force_n2[0]) == pytest.approx(0.02 * np.sqrt(np.mean(u * u)), rel=0.2)
+    assert obs.q_force_n2[1] == pytest.approx((dr.Q_REL * np.std(u)) ** 2)

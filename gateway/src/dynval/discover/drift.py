@@ -11,8 +11,10 @@ is worse than predicting zero (NRMSE > 1) or most of its residual (DRIFT_SHARE o
 lies below half the input band's lower edge, where only a drift puts it (a force offset moves
 the measured position itself, so its NRMSE alone can stay below 1). The Kalman gain's noise
 model: a white force of Q_REL x the input's force RMS at each DOF (small: the observer follows
-the drift, not the dynamics; with a shake table the input's force is m_j a_g) and measurement
-noise of R_REL x each channel's RMS. A model whose drift no sensor observes (a free rigid-body
+the drift, not the dynamics; with a shake table the input's force is m_j a_g), raised where the
+input enters to the input sensor's own noise when the data show it (the measured input's
+noise drives every prediction: a cheap force sensor's), and measurement noise of R_REL x each
+channel's RMS. A model whose drift no sensor observes (a free rigid-body
 mode seen only through accelerations: observed()) stays open loop, with a note; so does one
 whose gain the core refuses.
 """
@@ -25,6 +27,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from dynval import model as mdl
+from dynval.discover import noise
 from dynval.discover.residual import ErrorTable, Observer, TestData
 from dynval.errors import ConfigError
 
@@ -102,11 +105,22 @@ def observed(m: mdl.Model, band_hz: tuple[float, float]) -> bool:
 
 def observer_for(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
                  scales: dict[str, float]) -> Observer:
+    """The Kalman gain's noise model (the module comment): the force noise where the input
+    enters is at least the input sensor's own (noise.input_noise_psd), which the measured
+    input carries into every prediction; a gain that assumes less trusts the model's drift
+    too far, and a wrong model that holds the drift (a spring to the ground) beats the right
+    one on a cheap sensor's noise."""
     u = np.concatenate([t.u for t in tests])
+    slack = (Q_REL * float(np.std(u))) ** 2
+    psd = noise.input_noise_psd(tests)
+    sensor = 0.0 if psd is None else psd * tests[0].fs_hz / 2
     if m.input.kind == "force":
-        q = [(Q_REL * float(np.std(u))) ** 2] * m.n_dof
-    else:  # a ground motion's force on each DOF: m_j x its acceleration scale
-        q = [(Q_REL * mj * float(np.std(u))) ** 2 for mj in m.masses_kg]
+        q = [slack] * m.n_dof
+        q[m.input.dof - 1] = max(slack, sensor)
+    elif m.input.kind == "ground_acc":  # a table's force on each DOF: m_j x its acceleration
+        q = [mj ** 2 * max(slack, sensor) for mj in m.masses_kg]
+    else:  # a ground displacement: its noise reaches the DOFs through springs (left at slack)
+        q = [mj ** 2 * slack for mj in m.masses_kg]
     r = {c: (R_REL * scales[c]) ** 2 for c in chans}
     return Observer(tuple(q), r)
 

@@ -294,32 +294,42 @@ INPUT_QUIET = 1e-2  # the input's quietest band must lie this far below its loud
 Respond = Callable[[Test, np.ndarray], Mapping[str, np.ndarray] | None]
 
 
+def input_noise_psd(tests: Sequence[Test], seg: int = 512) -> float | None:
+    """The input sensor's own noise as a white one-sided PSD (input units^2 / Hz): the level of
+    the input's quietest band (smoothed Welch PSD minimum), where the excitation is off; None
+    when records are shorter than 4 segments or the input has no band INPUT_QUIET below its
+    loudest (full-band excitation: its noise cannot be told apart). Its variance per sample
+    is the level x fs / 2."""
+    if not tests or min(t.u.size for t in tests) < 4 * seg:
+        return None
+    fs = tests[0].fs_hz
+    s_uu = np.mean([signal.welch(t.u, fs=fs, nperseg=seg)[1] for t in tests], axis=0)[1:]
+    smooth = np.array([np.median(s_uu[max(0, i - 4):i + 5]) for i in range(s_uu.size)])
+    level = float(np.min(smooth))
+    return level if level < INPUT_QUIET * float(np.max(smooth)) else None
+
+
 def input_noise_response(tests: Sequence[Test], res: Sequence[Mapping[str, np.ndarray]],
                          chans: Sequence[str], respond: Respond | None = None
                          ) -> dict[str, float]:
     """Variance each channel gets from the input sensor's own noise (the true model driven by
     the measured input leaves it; a factor model counts it as structure: it reaches every
-    channel). The input noise is taken white at the level of the input's quietest band
-    (smoothed PSD minimum), where the excitation is off; it reaches a channel through the
-    model: ``respond(test, e)``, the change of the model's prediction when white noise e of
-    that level is added to the test's input (every mode resolved, a lightly damped or nearly
-    rigid one included, and the elements acting as in the test), else the prediction's PSD
-    over the input's. Nothing when the input has no band INPUT_QUIET below its loudest
-    (full-band excitation: its noise cannot be told apart)."""
+    channel). The input noise is white at input_noise_psd's level; it reaches a channel
+    through the model: ``respond(test, e)``, the change of the model's prediction when white
+    noise e of that level is added to the test's input (every mode resolved, a lightly damped
+    or nearly rigid one included, and the elements acting as in the test), else the
+    prediction's PSD over the input's. Nothing when the input's noise cannot be told apart."""
     seg = 512
-    if not tests or min(t.u.size for t in tests) < 4 * seg:
+    level = input_noise_psd(tests, seg)
+    if level is None:
         return {}
     fs = tests[0].fs_hz
-    s_uu = np.mean([signal.welch(t.u, fs=fs, nperseg=seg)[1] for t in tests], axis=0)[1:]
-    smooth = np.array([np.median(s_uu[max(0, i - 4):i + 5]) for i in range(s_uu.size)])
-    level = float(np.min(smooth))
-    if not level < INPUT_QUIET * float(np.max(smooth)):
-        return {}
     if respond is not None:
         e = np.random.default_rng(0).standard_normal(tests[0].u.size) * math.sqrt(level * fs / 2)
         d = respond(tests[0], e)
         if d is not None:
             return {c: float(np.mean(np.square(d[c]))) for c in chans if c in d}
+    s_uu = np.mean([signal.welch(t.u, fs=fs, nperseg=seg)[1] for t in tests], axis=0)[1:]
     out: dict[str, float] = {}
     df = fs / seg
     for c in chans:

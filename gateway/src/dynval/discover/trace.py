@@ -27,9 +27,10 @@ from dynval import features as feat
 from dynval import model as mdl
 from dynval.discover import effects as fx
 from dynval.discover import parallel
-from dynval.discover.residual import TestData
+from dynval.discover.residual import Observer, TestData
 from dynval.errors import DynvalError
 from dynval.model import elements as el
+from dynval.model.validation import core_limits
 
 log = logging.getLogger(__name__)
 signal: Any = importlib.import_module("scipy.signal")
@@ -309,31 +310,70 @@ def _dof_rows(p: dict[str, np.ndarray], kind: str, n: int) -> np.ndarray:
 
 def _simulate_states(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     """The model's outputs and every DOF's displacement, velocity and acceleration (__x<j>,
-    __v<j>, __a<j>), in runs of at most the core's 16 output channels."""
-    want = dict(m.outputs)
+    __v<j>, __a<j>): open loop, or in observer mode (t.observer) the observer's one-step
+    estimate, which the measurements hold where the open-loop simulation drifts; in runs
+    within the core's output limit."""
+    probes: dict[str, mdl.Output] = {}
     for j in range(1, m.n_dof + 1):
-        want[f"__x{j}"] = mdl.Output("disp", j)
-        want[f"__v{j}"] = mdl.Output("vel", j)
-        want[f"__a{j}"] = mdl.Output("acc", j)
-    names = list(want)
+        probes[f"__x{j}"] = mdl.Output("disp", j)
+        probes[f"__v{j}"] = mdl.Output("vel", j)
+        probes[f"__a{j}"] = mdl.Output("acc", j)
+    limit = core_limits()["out"]
     out: dict[str, np.ndarray] = {}
-    for i in range(0, len(names), 16):
-        probe = dataclasses.replace(m, outputs={c: want[c] for c in names[i:i + 16]})
-        try:
-            out.update(mdl.simulate(probe, t.input_for(probe), t.fs_hz))
-        except DynvalError:
+    try:
+        if t.observer is None:
+            want = {**m.outputs, **probes}
+            names = list(want)
+            for i in range(0, len(names), limit):
+                probe = dataclasses.replace(m, outputs={c: want[c] for c in names[i:i + limit]})
+                out.update(mdl.simulate(probe, t.input_for(probe), t.fs_hz))
+            return out
+        per = limit - len(m.outputs)  # every run carries the measured outputs that correct it
+        if per < 1:
             return None
+        names = list(probes)
+        for i in range(0, len(names), per):
+            out.update(mdl.predict_observed(m, t.input_for(m), t.y, t.fs_hz,
+                                            t.observer.q_force_n2, t.observer.r_meas,
+                                            {c: probes[c] for c in names[i:i + per]}))
+    except DynvalError:
+        return None
     return out
+
+
+IMPULSE_DELAY = 32  # samples: the band-limited interpolation's ringing before an impulse
+
+
+def _innovation_frf(m: mdl.Model, obs: Observer, chans: Sequence[str], nf: int, fs: float
+                    ) -> np.ndarray:
+    """_frf's counterpart in observer mode (nfreq x n_out x n_dof): what a unit-sample force at
+    each DOF, which the model lacks, leaves in the observer's one-step errors. The sensors read
+    the linear part's open-loop response to it; the observer, which does not know the force, is
+    corrected by those readings, so the errors are its innovations of that response (a drift
+    the force starts is held, as in the tests). ConfigError when the core refuses a run."""
+    lin = dataclasses.replace(m, elements=(), outputs={c: m.outputs[c] for c in chans})
+    f = np.zeros(nf)
+    f[IMPULSE_DELAY] = 1.0
+    cols = []
+    for j in range(1, m.n_dof + 1):
+        mj = dataclasses.replace(lin, input=mdl.Input("force", j))
+        y = mdl.simulate(mj, f, fs)
+        p = mdl.predict_observed(mj, np.zeros(nf), y, fs, obs.q_force_n2, obs.r_meas)
+        e = np.vstack([np.roll(y[c] - p[c], -IMPULSE_DELAY) for c in chans])
+        cols.append(np.fft.rfft(e, axis=-1))
+    return np.stack(cols, axis=-1).transpose(1, 0, 2)
 
 
 def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
                 scales: dict[str, float]) -> ForceView | None:
     """The evidence view for any sensor set (some DOFs without an accelerometer, the force at
-    any DOF): the states of every DOF come from the model's own open-loop simulation (the
-    observer's estimate) and a candidate's restoring-force field g is judged by what it would
-    take away from the measured outputs, G g, with G the model's linear frequency response
-    from a force at each DOF to each channel (first-order, Born approximation: y_meas =
-    y_model - G g). Channels are normalised by their measured RMS, as in the fit. On a shake
+    any DOF): the states of every DOF come from the model's own open-loop simulation and a
+    candidate's restoring-force field g is judged by what it would take away from the
+    measured outputs, G g, with G the model's linear frequency response from a force at each
+    DOF to each channel (first-order, Born approximation: y_meas = y_model - G g). In
+    observer mode the states are the observer's estimates, the residual its one-step errors,
+    and G what a force leaves in them (_innovation_frf): an open-loop residual there is the
+    drift. Channels are normalised by their measured RMS, as in the fit. On a shake
     table the states are relative to it and G is the same (the table's motion is prescribed:
     a missing force changes the relative motion only). None for a ground-displacement input
     or when a channel is not an acc/vel/disp output."""
@@ -363,9 +403,14 @@ def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
             pred[ch].append(p[ch] / scales[ch])
         lens.append(t.u.size)
     frf: dict[int, np.ndarray] = {}
+    obs = tests[0].observer
     for ln in set(lens):
         nf = next_fast_len(2 * ln, real=True)
-        frf[ln] = _frf(m, chans, nf, fs)
+        try:
+            frf[ln] = _frf(m, chans, nf, fs) if obs is None else _innovation_frf(m, obs, chans,
+                                                                                 nf, fs)
+        except DynvalError:
+            return None
     inv_scale = np.array([1.0 / scales[ch] for ch in chans])
 
     def propagate(b: np.ndarray) -> np.ndarray:

@@ -255,8 +255,8 @@ def natural_frequencies(m: Model) -> np.ndarray:
 
 
 def predict_observed(m: Model, u: Any, y: Mapping[str, np.ndarray], fs_hz: float,
-                     q_force_n2: Sequence[float], r_meas: Mapping[str, float]
-                     ) -> dict[str, np.ndarray]:
+                     q_force_n2: Sequence[float], r_meas: Mapping[str, float],
+                     probes: Mapping[str, Output] | None = None) -> dict[str, np.ndarray]:
     """One-step-ahead predictions of every output by the core's observer with the steady-state
     Kalman gain (dv_obs_init with a noise model, dv_obs_update_block): before sample k the
     state is corrected by the measurements up to k - 1, so a drift the open-loop simulation
@@ -267,13 +267,18 @@ def predict_observed(m: Model, u: Any, y: Mapping[str, np.ndarray], fs_hz: float
     units^2). The input is interpolated as simulate() does (the model's band-limited
     oversampling R: the observer steps at R fs and corrects at the measured samples only), so
     a model predicts the same motion within a sample either way (a cubic hold is held
-    linearly here). ConfigError when the core refuses the noise model (e.g. an undetectable
-    rigid-body mode) or the model runs away (naming the element that makes it)."""
+    linearly here). ``probes``: further outputs to predict (a DOF's displacement, velocity,
+    acceleration) that measure nothing: the gain is the model's outputs' and the probes' own
+    columns of it are zero, so they read the estimate the measurements make (the core's
+    output limit holds for outputs and probes together). ConfigError when the core refuses
+    the noise model (e.g. an undetectable rigid-body mode) or the model runs away (naming the
+    element that makes it)."""
     r = oversample_factor(m)
     fine = _prepared_fine(u, r) if isinstance(u, PreparedInput) else _prepare_input(u, r)
+    extra = dict(probes or {})
 
     def observe(mm: Model) -> tuple[int, np.ndarray]:
-        return _observe(mm, fine, r, y, fs_hz, q_force_n2, r_meas)
+        return _observe(mm, fine, r, y, fs_hz, q_force_n2, r_meas, extra)
 
     st, pred = observe(m)
     if st == _core.lib.DV_EUNSTABLE:
@@ -282,44 +287,55 @@ def predict_observed(m: Model, u: Any, y: Mapping[str, np.ndarray], fs_hz: float
                           f"is no longer finite): {cause}")
     if st < 0 and st != _core.lib.DV_ENUMERIC:
         _core.check(st, "dv_obs_update_block")
-    return {c: _sensor(np.ascontiguousarray(pred[:, j]), m.outputs[c])
-            for j, c in enumerate(m.outputs)}
+    outs = {**m.outputs, **extra}
+    return {c: _sensor(np.ascontiguousarray(pred[:, j]), outs[c]) for j, c in enumerate(outs)}
 
 
 def _observe(m: Model, fine: np.ndarray, r: int, y: Mapping[str, np.ndarray], fs_hz: float,
-             q_force_n2: Sequence[float], r_meas: Mapping[str, float]
-             ) -> tuple[int, np.ndarray]:
+             q_force_n2: Sequence[float], r_meas: Mapping[str, float],
+             probes: Mapping[str, Output]) -> tuple[int, np.ndarray]:
     """predict_observed's core run on the input at r fs (``fine``): dv_obs_update_block's
     status and the predictions in the model's units at the measured samples (samples x
-    outputs). The gain is the Kalman gain of the model sampled at fs (the measurements' rate):
-    the r steps between two measurements compose that model's step exactly, so the correction
-    at a measured sample is the one a filter at fs makes; between them the measurements are
-    NaN (predicted, not corrected)."""
-    mo = dataclasses.replace(m, interpolation="foh", oversample=1)
+    outputs, then ``probes``). The gain is the Kalman gain of the model sampled at fs (the
+    measurements' rate) with the outputs y measures: the r steps between two measurements
+    compose that model's step exactly, so the correction at a measured sample is the one a
+    filter at fs makes; between them the measurements are NaN (the core then predicts without
+    correcting). Outputs y lacks and probes get zero gain columns and a finite placeholder
+    (a NaN would stop the whole correction)."""
+    measured = [c for c in m.outputs if c in y]
+    if not measured:
+        raise ConfigError(f"{m.source or '<model>'}: the observer has no measured output")
+    mo = dataclasses.replace(m, interpolation="foh", oversample=1,
+                             outputs={c: m.outputs[c] for c in measured})
     lib, ffi = _core.lib, _core.ffi
     noise = ffi.new("dv_obs_noise_t *")
     for j, q in enumerate(q_force_n2):
         noise.q_force_n2[j] = float(q)
-    names = list(m.outputs)
-    for j, c in enumerate(names):  # in the model's units: the sensor's gain divided out
+    for j, c in enumerate(measured):  # in the model's units: the sensor's gain divided out
         noise.r_meas[j] = float(r_meas.get(c, 1.0)) / m.outputs[c].gain ** 2
     gain = _kalman_gain(mo, 1.0 / fs_hz, noise)
+    silent = {**{c: o for c, o in m.outputs.items() if c not in y}, **probes}
+    if silent:
+        mo = dataclasses.replace(mo, outputs={**mo.outputs, **silent})
+        gain = np.hstack([gain.reshape(2 * m.n_dof, len(measured)),
+                          np.zeros((2 * m.n_dof, len(silent)))]).ravel()
     core = _Core(mo, 1.0 / (fs_hz * r))
     core.build(mo)
     st = lib.dv_obs_set_gain(core.obs, _core.ptr(gain), gain.size)
     if st < 0:  # a gain the core will not fold (not finite): refused like the model itself
         raise _refused(m, "dv_obs_set_gain", st, core.dt)
     n = fine.size // r
-    meas = np.full((n * r, len(names)), np.nan)
-    for j, c in enumerate(names):
-        if c in y:
-            o = m.outputs[c]
-            meas[::r, j] = (y[c] - o.offset) / o.gain
+    meas = np.full((n * r, len(mo.outputs)), np.nan)
+    meas[::r, len(measured):] = 0.0
+    for j, c in enumerate(measured):
+        o = m.outputs[c]
+        meas[::r, j] = (y[c] - o.offset) / o.gain
     uc = np.ascontiguousarray(fine[:n * r], dtype=np.float64)
-    pred = np.zeros((n * r, len(names)))
+    pred = np.zeros((n * r, len(mo.outputs)))
     st = lib.dv_obs_update_block(core.obs, _core.ptr(uc), _core.ptr(meas), n * r,
                                  _core.ptr(pred), ffi.NULL)
-    return int(st), pred[::r]
+    order = [list(mo.outputs).index(c) for c in [*m.outputs, *probes]]
+    return int(st), pred[::r][:, order]
 
 
 def _kalman_gain(m: Model, dt_s: float, noise: Any) -> np.ndarray:
