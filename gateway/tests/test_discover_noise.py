@@ -267,3 +267,44 @@ def test_cli_noise_in_channel_units_and_a_wrong_channel(
     assert doc["noise_method"]["acc1_mps2"]["method"] == "cross-channel"
     assert cli.main([*args, "--noise", "acc9=0.04"]) == 2
     assert cli.main([*args, "--noise", "acc2_mps2=-1"]) == 2
+
+
+def _power(x: np.ndarray, lo: float, hi: float) -> float:
+    f = np.fft.rfftfreq(x.size, 1.0 / FS)
+    s = np.abs(np.fft.rfft(x)) ** 2
+    return float(np.sum(s[(f > lo) & (f < hi)]))
+
+
+@pytest.mark.parametrize("seed", [31, 32, 33])
+def test_a_band_limited_inputs_sensor_noise_under_the_band_is_taken_out(seed: int) -> None:
+    """A 20-200 Hz force read by a sensor with 1/f and white noise (1 % of its RMS each): under
+    the band the measured force is noise; 95 % of its power below 8 Hz goes, with its mean,
+    while the band keeps its content to 0.1 % of its power."""
+    rng = np.random.default_rng(seed)
+    u_true = band_input(rng)
+    lv = 0.01 * float(np.std(u_true))
+    u = u_true + lv * (2 * pink(rng, N) + rng.standard_normal(N))
+    fc = nz.sub_band_corner(u, FS)
+    assert fc is not None and 5.0 < fc < BAND[0]
+    clean = nz.without_sub_band_noise(u, FS)
+    assert _power(clean, 0.0, 8.0) < 0.05 * _power(u, 0.0, 8.0)
+    assert abs(np.mean(clean)) < 0.05 * abs(np.mean(u))
+    assert _power(clean - u, 25.0, 190.0) < 1e-3 * _power(u_true, 25.0, 190.0)
+
+
+def test_an_input_with_content_down_to_dc_or_a_real_static_force_is_kept() -> None:
+    """Broadband (white) and 1-200 Hz inputs have no noise-only band under them: unchanged. A
+    static force ten times the slow noise is a force, not the sensor's mean: kept."""
+    rng = np.random.default_rng(34)
+    white = rng.standard_normal(N)
+    assert nz.sub_band_corner(white, FS) is None
+    assert nz.without_sub_band_noise(white, FS) is white
+    sos = signal.butter(4, [1.0, 200.0], btype="band", fs=FS, output="sos")
+    low = signal.sosfilt(sos, rng.standard_normal(N))
+    assert nz.sub_band_corner(low, FS) is None
+    u = band_input(rng)
+    lv = 0.01 * float(np.std(u))
+    slow_noise = lv * 2 * pink(rng, N)
+    pre = 10 * float(np.std(slow_noise))
+    clean = nz.without_sub_band_noise(u + slow_noise + pre, FS)
+    assert np.mean(clean) == pytest.approx(pre + np.mean(u + slow_noise), rel=1e-2)

@@ -354,10 +354,17 @@ def _floors(s: Session, m: mdl.Model, res: dict[str, dict[str, np.ndarray]],
     once = {str(id(t.u)): res[t.name] for t in s.evals if t.name in res}
 
     def respond(t: Any, e: np.ndarray) -> dict[str, np.ndarray] | None:
-        if getattr(t, "observer", None) is not None:
-            return None  # the observer corrects for it: the spectral estimate instead
+        # the input as the tests' simulations take it (TestData.input_for); in observer mode
+        # the measurements stay: the change is that of the observer's one-step errors
+        u = nz.simulated_input(m.input.kind, t.u, t.fs_hz)
+        e = nz.as_input_noise(m.input.kind, e, t.u, t.fs_hz)
+        obs = getattr(t, "observer", None)
         try:
-            a, b = mdl.simulate(m, t.u + e, t.fs_hz), mdl.simulate(m, t.u, t.fs_hz)
+            if obs is None:
+                a, b = mdl.simulate(m, u + e, t.fs_hz), mdl.simulate(m, u, t.fs_hz)
+            else:
+                a, b = (mdl.predict_observed(m, x, t.y, t.fs_hz, obs.q_force_n2, obs.r_meas)
+                        for x in (u + e, u))
         except DynvalError:
             return None
         return {c: a[c] - b[c] for c in s.chans}

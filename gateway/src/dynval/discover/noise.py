@@ -42,6 +42,7 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 signal: Any = importlib.import_module("scipy.signal")
+next_fast_len: Any = importlib.import_module("scipy.fft").next_fast_len
 
 REPEAT_CORR = 0.999  # inputs this correlated (and of equal RMS within 1 %) are repeats
 PERIOD_CORR = 0.995  # a lag whose input autocorrelation reaches this is a period
@@ -316,9 +317,10 @@ def input_noise_response(tests: Sequence[Test], res: Sequence[Mapping[str, np.nd
     the measured input leaves it; a factor model counts it as structure: it reaches every
     channel). The input noise is white at input_noise_psd's level; it reaches a channel
     through the model: ``respond(test, e)``, the change of the model's prediction when white
-    noise e of that level is added to the test's input (every mode resolved, a lightly damped
-    or nearly rigid one included, and the elements acting as in the test), else the
-    prediction's PSD over the input's. Nothing when the input's noise cannot be told apart."""
+    noise e of that level is added to the test's input as its simulations take it (every mode
+    resolved, a lightly damped or nearly rigid one included, the elements acting as in the
+    test; in observer mode the change of the one-step errors), else the prediction's PSD over
+    the input's. Nothing when the input's noise cannot be told apart."""
     seg = 512
     level = input_noise_psd(tests, seg)
     if level is None:
@@ -339,6 +341,73 @@ def input_noise_response(tests: Sequence[Test], res: Sequence[Mapping[str, np.nd
         s_pp = np.mean([signal.welch(p, fs=fs, nperseg=seg)[1] for p in pred], axis=0)[1:]
         out[c] = float(np.sum(s_pp / np.maximum(s_uu, 1e-300)) * level * df)
     return out
+
+
+SUB_BAND_FLOOR = 3.0  # below its band, an input within this factor of its lowest level is noise
+SUB_BAND_MEAN = 3.0  # ... and its mean is the sensor's when within this x the noise's RMS there
+SUB_BAND_KINDS = ("force", "ground_acc")  # a prescribed displacement's slow part is real motion
+
+
+def sub_band_corner(u: np.ndarray, fs_hz: float) -> float | None:
+    """The frequency below which a band-limited input is its sensor's noise: under the band
+    holding 98 % of its power, the highest frequency where its smoothed PSD is within
+    SUB_BAND_FLOOR of its lowest level there (a white sensor's flat floor, or the bottom of a
+    1/f sensor's rise towards DC), provided that level lies INPUT_QUIET below the loudest.
+    None when the input is not band-limited at its low end (real content down to DC, an
+    impulse) or the record is too short to tell."""
+    if u.size < 1024:
+        return None
+    f, p = signal.welch(u, fs=fs_hz, nperseg=min(u.size, max(1024, u.size // 8)))
+    c = np.cumsum(p) / (p.sum() or 1e-300)
+    below = np.flatnonzero((f > 0) & (f < f[np.searchsorted(c, 0.01)]))
+    if below.size < 3:
+        return None
+    smooth = np.array([np.median(p[max(0, i - 2):i + 3]) for i in range(p.size)])
+    floor = float(np.min(smooth[below]))
+    if not floor < INPUT_QUIET * float(np.max(smooth)):
+        return None
+    return float(f[below[smooth[below] <= SUB_BAND_FLOOR * floor].max()])
+
+
+def _high_pass(x: np.ndarray, fs_hz: float, fc: float) -> np.ndarray:
+    """x without its mean, through a zero-phase 4th-order Butterworth high-pass at fc
+    (frequency domain, zero-padded to twice the length)."""
+    n = x.size
+    nf = next_fast_len(2 * n, real=True)
+    f = np.fft.rfftfreq(nf, 1.0 / fs_hz)
+    h = 1.0 / np.sqrt(1.0 + (fc / np.maximum(f, 1e-12)) ** 8)
+    return np.asarray(np.fft.irfft(np.fft.rfft(x - np.mean(x), nf) * h, nf)[:n])
+
+
+def without_sub_band_noise(u: np.ndarray, fs_hz: float) -> np.ndarray:
+    """The input with its sensor's noise under the band taken out (sub_band_corner: a
+    zero-phase 4th-order Butterworth high-pass there); u itself when there is none. The mean
+    goes with it when it is no larger than SUB_BAND_MEAN x the RMS of what lay under the band
+    (a 1/f sensor's slow wander leaves a mean of that size; a real static force, larger, is
+    kept). The measured input drives every prediction: on a weakly restrained structure (a
+    position loop, a soft suspension) a cheap force sensor's 1/f noise under the band drives
+    the low mode, and its mean deflects it, far more than anything in the band, and a wrong
+    model that stiffens it wins."""
+    fc = sub_band_corner(u, fs_hz)
+    if fc is None:
+        return u
+    mean = float(np.mean(u))
+    kept = _high_pass(u, fs_hz, fc)
+    slow = float(np.std(u - mean - kept))
+    return np.asarray(kept + (mean if abs(mean) > SUB_BAND_MEAN * slow else 0.0))
+
+
+def simulated_input(kind: str, u: np.ndarray, fs_hz: float) -> np.ndarray:
+    """The measured input of kind ``kind`` (Model.input.kind) as discover's simulations take
+    it: a force or table acceleration without_sub_band_noise, a displacement as measured."""
+    return without_sub_band_noise(u, fs_hz) if kind in SUB_BAND_KINDS else u
+
+
+def as_input_noise(kind: str, e: np.ndarray, u: np.ndarray, fs_hz: float) -> np.ndarray:
+    """A noise record e added to the input u as the simulations take it (simulated_input):
+    without its part under u's band where u's is taken out."""
+    fc = sub_band_corner(u, fs_hz) if kind in SUB_BAND_KINDS else None
+    return e if fc is None else _high_pass(e, fs_hz, fc)
 
 
 def _level(f: np.ndarray, p: np.ndarray, lo: float, hi: float) -> float | None:

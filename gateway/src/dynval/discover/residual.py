@@ -17,6 +17,7 @@ import numpy as np
 
 from dynval import features as feat
 from dynval import model as mdl
+from dynval.discover import noise
 from dynval.errors import ConfigError
 from dynval.io.recording import Recording
 
@@ -62,10 +63,13 @@ class TestData:
                                                     repr=False, compare=False)
 
     def input_for(self, m: mdl.Model) -> mdl.PreparedInput:
-        """The input as m's simulations take it (mdl.simulate), interpolated once."""
+        """The input as m's simulations take it (mdl.simulate), interpolated once: a force or
+        table acceleration without its sensor's noise under the excitation band
+        (noise.simulated_input)."""
         r = mdl.oversample_factor(m)
         if r not in self._prepared:
-            self._prepared[r] = mdl.prepare_input(m, self.u)
+            u = noise.simulated_input(m.input.kind, self.u, self.fs_hz)
+            self._prepared[r] = mdl.prepare_input(m, u)
         return self._prepared[r]
 
     def counted(self, a: np.ndarray) -> np.ndarray:

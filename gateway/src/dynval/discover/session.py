@@ -170,6 +170,22 @@ def make_session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> Session
     tests, cut = segments.bound(tests, settle)  # long records: evenly spaced segments
     fit_t, held_t, how = split(tests)
     return Session(o, tests, chans, rs.channel_scales(tests, chans), fit_t, held_t, band,
-                   modes_hz, settle, [how, *cut])
+                   modes_hz, settle, [how, *cut, *sub_band_note(m, tests)])
+
+
+def sub_band_note(m: mdl.Model, tests: Sequence[rs.TestData]) -> list[str]:
+    """A note saying where the simulations' input leaves out its sensor's noise (the tests'
+    input_for: noise.without_sub_band_noise)."""
+    if m.input.kind not in nz.SUB_BAND_KINDS:
+        return []
+    corners = [c for t in tests if (c := nz.sub_band_corner(t.u, t.fs_hz)) is not None]
+    if not corners:
+        return []
+    lo, hi = f"{min(corners):.3g}", f"{max(corners):.3g}"
+    return [f"the measured input under {lo if lo == hi else f'{lo}-{hi}'} Hz "
+            f"({len(corners)} of {len(tests)} tests) is its sensor's noise (its spectrum within "
+            f"{nz.SUB_BAND_FLOOR:g} x of its floor under the excitation band): the simulations "
+            "are driven without it, and without its mean where that is no larger than "
+            f"{nz.SUB_BAND_MEAN:g} x that noise's RMS"]
 
 

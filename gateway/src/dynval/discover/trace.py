@@ -31,6 +31,7 @@ from dynval.discover.residual import Observer, TestData
 from dynval.errors import DynvalError
 from dynval.model import elements as el
 from dynval.model.validation import core_limits
+from dynval.validate import measurement
 
 log = logging.getLogger(__name__)
 signal: Any = importlib.import_module("scipy.signal")
@@ -106,11 +107,8 @@ def spectrum(r: np.ndarray, fs_hz: float, modes_hz: Sequence[float],
 
 
 def input_band(tests: Sequence[TestData]) -> tuple[float, float]:
-    """The band holding 98 % of the input's power (1 %-99 % of its cumulative PSD)."""
-    f, p = signal.welch(np.concatenate([t.u for t in tests]), fs=tests[0].fs_hz,
-                        nperseg=min(1024, tests[0].u.size))
-    c = np.cumsum(p) / (p.sum() or 1e-300)
-    return float(f[np.searchsorted(c, 0.01)]), float(f[min(np.searchsorted(c, 0.99), f.size - 1)])
+    """The band holding 98 % of the tests' input power (measurement.input_band)."""
+    return measurement.input_band(np.concatenate([t.u for t in tests]), tests[0].fs_hz)
 
 
 def _hp_response(n: int, fs: float, f_hp: float) -> tuple[np.ndarray, np.ndarray]:
