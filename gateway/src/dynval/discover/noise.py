@@ -352,21 +352,25 @@ def sub_band_corner(u: np.ndarray, fs_hz: float) -> float | None:
     """The frequency below which a band-limited input is its sensor's noise: under the band
     holding 98 % of its power, the highest frequency where its smoothed PSD is within
     SUB_BAND_FLOOR of its lowest level there (a white sensor's flat floor, or the bottom of a
-    1/f sensor's rise towards DC), provided that level lies INPUT_QUIET below the loudest.
+    1/f sensor's rise towards DC), provided that level lies INPUT_QUIET below the loudest, and
+    at most half the band's lower edge.
     None when the input is not band-limited at its low end (real content down to DC, an
     impulse) or the record is too short to tell."""
     if u.size < 1024:
         return None
     f, p = signal.welch(u, fs=fs_hz, nperseg=min(u.size, max(1024, u.size // 8)))
     c = np.cumsum(p) / (p.sum() or 1e-300)
-    below = np.flatnonzero((f > 0) & (f < f[np.searchsorted(c, 0.01)]))
+    f_lo = float(f[np.searchsorted(c, 0.01)])
+    below = np.flatnonzero((f > 0) & (f < f_lo))
     if below.size < 3:
         return None
     smooth = np.array([np.median(p[max(0, i - 2):i + 3]) for i in range(p.size)])
     floor = float(np.min(smooth[below]))
     if not floor < INPUT_QUIET * float(np.max(smooth)):
         return None
-    return float(f[below[smooth[below] <= SUB_BAND_FLOOR * floor].max()])
+    # an octave under the band at most: the high-pass keeps 99.8 % of the band's lowest
+    # frequency (a sine's leakage can reach the floor a few bins from the tone)
+    return min(float(f[below[smooth[below] <= SUB_BAND_FLOOR * floor].max()]), 0.5 * f_lo)
 
 
 def _high_pass(x: np.ndarray, fs_hz: float, fc: float) -> np.ndarray:
