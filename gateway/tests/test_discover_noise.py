@@ -323,3 +323,19 @@ def test_a_sine_inputs_tone_is_kept_whole(f_hz: float) -> None:
     mid = slice(N // 8, -N // 8)  # away from the records' ends
     amp = float(np.dot(clean[mid], tone[mid]) / np.dot(tone[mid], tone[mid]))
     assert amp == pytest.approx(1.0, abs=0.005)
+
+
+def test_sub_band_cleaning_leaves_an_input_it_cannot_judge_alone() -> None:
+    """A record with a NaN (the core counts and holds those), a short one, and huge finite
+    values: no corner is claimed where the spectrum cannot be read, the input stays as it is."""
+    rng = np.random.default_rng(36)
+    u = band_input(rng) + 0.01 * pink(rng, N)
+    bad = u.copy()
+    bad[100] = np.nan
+    assert nz.sub_band_corner(bad, FS) is None and nz.without_sub_band_noise(bad, FS) is bad
+    short = u[:512]
+    assert nz.without_sub_band_noise(short, FS) is short
+    huge = nz.without_sub_band_noise(u * 1e150, FS)
+    assert np.all(np.isfinite(huge))
+    np.testing.assert_allclose(huge / 1e150, nz.without_sub_band_noise(u, FS), rtol=1e-9,
+                               atol=1e-9 * np.std(u))
