@@ -12,7 +12,7 @@ driven by the measured input, same initial-state handling). Writes bench/RESULTS
 ``--free``: every chain rides on rails or a weak position loop (a rigid-body or nearly rigid
 mode: it drifts open loop), driven by a force, half of them with an encoder at DOF 1.
 
-    python3 bench/bench_discover_blind.py [--cases 16] [--first 0] [--effects 1|2]
+    python3 bench/bench_discover_blind.py [--cases 16] [--first 0] [--effects 0|1|2]
         [--only KIND --out FILE] [--free]
 """
 from __future__ import annotations
@@ -160,8 +160,11 @@ def merged(a: gen.Truth, b: gen.Truth) -> gen.Truth:
 
 def effects(rng: np.random.Generator, m: mdl.Model, count: int, only: str = ""
             ) -> tuple[gen.Truth, list[dict[str, Any]]]:
-    """``count`` effects of different kinds or places."""
+    """``count`` effects of different kinds or places; 0: none (the clean twin of the
+    one-effect case: its effect is drawn and dropped, so the other draws stay)."""
     _, truth, want = effect(rng, m, only)
+    if count == 0:
+        return gen.Truth(), []
     wants = [want]
     while len(wants) < count:
         _, t2, w2 = effect(rng, m)
@@ -182,7 +185,7 @@ def _found(e: dict[str, Any], want: dict[str, Any]) -> bool:
 def run(seed: int, count: int = 1, only: str = "", free: bool = False) -> str:
     """One blind case: its table row. ``count`` 2 draws two effects (another seed stream);
     ``free`` frees the chain from the ground (its own draws, after the structure's)."""
-    rng = np.random.default_rng((1000 if count == 1 else 2000) + seed)
+    rng = np.random.default_rng((1000 if count <= 1 else 2000) + seed)
     m, table = structure(rng)
     if free:
         m, table = freed(m, np.random.default_rng(3000 + seed)), False
@@ -215,7 +218,7 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False) -> str:
                                        "position loop", free),
                                       ("cut from a run", cut), ("cheap DAQ", daq),
                                      ("best-linear", bl), ("shake table", table)) if on) or "-"
-    want_s = "; ".join(w["type"] + " " + " ".join(f"{k} {v}" for k, v in w.items()
+    want_s = "none" if not wants else "; ".join(w["type"] + " " + " ".join(f"{k} {v}" for k, v in w.items()
                                                    if k != "type")
                        + (" (in the best-linear fit)" if w in absorbed else "") for w in wants)
     return (f"| {seed} | {m.n_dof} DOF, {len(m.outputs)} sensors | {cond} | {want_s} | {got} "
@@ -226,16 +229,17 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--cases", type=int, default=16)
     ap.add_argument("--first", type=int, default=0)
-    ap.add_argument("--effects", type=int, default=1, choices=(1, 2),
-                    help="effects per case (2: two at once, another seed stream)")
+    ap.add_argument("--effects", type=int, default=1, choices=(0, 1, 2),
+                    help="effects per case (2: two at once, another seed stream; 0: none, "
+                    "the one-effect cases' clean twins)")
     ap.add_argument("--only", default="", choices=("", *EFFECTS),
                     help="every case's (first) effect of this kind, the other draws as drawn")
     ap.add_argument("--out", default=None)
     ap.add_argument("--free", action="store_true",
                     help="chains on rails or a weak position loop (see the docstring)")
     a = ap.parse_args()
-    out = a.out or str(ROOT / "bench" / ("RESULTS.blind.md" if a.effects == 1
-                                         else "RESULTS.blind-two.md"))
+    out = a.out or str(ROOT / "bench" / {0: "RESULTS.blind-clean.md", 1: "RESULTS.blind.md",
+                                         2: "RESULTS.blind-two.md"}[a.effects])
     rows = []
     for seed in range(a.first, a.first + a.cases):
         rows.append(run(seed, a.effects, a.only, a.free))

@@ -9,7 +9,8 @@ Decisions (all documented in gateway/docs/discover-schema.md):
   segment_split), so every test and level is in both sets;
 * significance: the residual is significant while the pooled RMSE of some channel over all
   tests (or blocks) exceeds SIGNIFICANCE_RATIO x its noise floor (residual.noise_floor, or the
-  stated noise);
+  stated noise); before any effect is accepted, one above GRAY_RATIO x is tested by fitting
+  the evidence's first batch (a floor is an estimate: an effect's harmonics raise it);
 * acceptance of a fitted candidate: the held-out normalised SSE drops by at least ``min_gain``
   (default 10 %), no held-out test gets worse by more than 5 % (a test where the effect never
   acts, a low-level one below a contact's gap, moves by the re-adjustment's noise: 2.2 % on a
@@ -459,7 +460,10 @@ def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     chosen = _diverse([e for e in pool if e.r2 >= s.o.evidence_cut * top], s.o.top_k)
     chosen += [e for e in rd.second
                if offered(e.cand) and all(cand_key(e.cand) != cand_key(c.cand) for c in chosen)]
-    if not accepted:  # bounded cost: only where the answer would otherwise be "no effect"
+    if not accepted and not _gray(s.o, rd, accepted):
+        # bounded cost: only where the answer would otherwise be "no effect" with a residual
+        # the floor does not explain (in the gray zone evidence is weak by nature: a clean
+        # 5-DOF case fitted 4 more candidates for nothing)
         rd.weak = _weak_evidence_fallback(rd, pool, chosen, top)
     # evidence is first order (the output view) or taken through integrated accelerations
     # (the force view, where a DAQ's 1/f noise swamps the low frequencies): a linear change
@@ -468,6 +472,13 @@ def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     chosen += _screen_linear(cur, [e for e in pool if e not in chosen], s.fit_t, s.chans,
                              s.scales, cur_table.total(s.fit_names))
     return chosen
+
+
+def _gray(o: Options, rd: Round, accepted: set[str]) -> bool:
+    """Whether the round's residual is under the significance ratio but above the gray one
+    before any effect is accepted: tested by fitting (residual.GRAY_RATIO)."""
+    worst = max(rd.ratio.values(), default=0.0)
+    return not accepted and o.gray_ratio < worst <= o.significance_ratio
 
 
 # the best evidence under this share of the residual above the noise: its ranking is not
@@ -540,9 +551,12 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
         rounds.append(rd)
         if on_progress:
             on_progress(f"round {rnd}")
-        if not any(r > o.significance_ratio for r in rd.ratio.values()):
-            rd.decision = (f"residual at the noise floor (RMSE/noise <= "
-                           f"{o.significance_ratio:g} on every channel): stop")
+        worst = max(rd.ratio.values(), default=0.0)
+        gray = _gray(o, rd, accepted)
+        at_floor = (f"residual at the noise floor (RMSE/noise <= {o.significance_ratio:g} on "
+                    "every channel")
+        if worst <= o.significance_ratio and not gray:
+            rd.decision = f"{at_floor}): stop"
             break
         if len(effects) - (offsets is not None) >= o.max_effects:
             rd.decision = f"max_effects = {o.max_effects} reached: stop"
@@ -550,6 +564,10 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
         pool = _pool(s, rd, cur, cur_table, accepted)
         best = best_of_round(s, rd, pool, cur, cur_table, accepted)
         timing[f"round_{rnd}"] = time.perf_counter() - t0
+        if gray and best is None:
+            rd.decision = (f"{at_floor}; the worst, {worst:.3g} x, was tested by fitting: "
+                           "no candidate was accepted): stop")
+            break
         if best is None:
             rd.decision = ("no candidate improved the held-out tests significantly: stop"
                            if pool else "no available candidate: stop")
