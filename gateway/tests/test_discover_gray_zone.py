@@ -14,7 +14,7 @@ from test_discover_noise import pink
 
 from dynval import model as mdl
 from dynval import synth as gen
-from dynval.discover import loop
+from dynval.discover import loop, report
 from dynval.discover import residual as rs
 
 FS = 640.0
@@ -36,9 +36,9 @@ def drift_rms(m: mdl.Model, a: int, b: int) -> float:
     return float(np.std(y[f"x{b}"] - (y[f"x{a}"] if a else 0.0)))
 
 
-def cheap_daq(recs: list, rng: np.random.Generator) -> None:
+def cheap_daq(recs: list, rng: np.random.Generator, offsets: bool = True) -> None:
     """1/f + white noise (1 % of each channel's STD) behind a 2nd-order anti-alias filter,
-    50 Hz hum and an offset per output."""
+    50 Hz hum and (``offsets``) an offset per output."""
     sos = signal.butter(2, 0.4 * FS, fs=FS, output="sos")
     t = np.arange(recs[0].n_samples) / FS
     for rec in recs:
@@ -46,17 +46,19 @@ def cheap_daq(recs: list, rng: np.random.Generator) -> None:
             lv = 0.01 * float(np.std(ch.data))
             noise = signal.sosfilt(sos, lv * (2 * pink(rng, ch.data.size)
                                               + rng.standard_normal(ch.data.size)))
-            off = 0.03 * float(np.std(ch.data)) * (i + 1) if ch.role == "output" else 0.0
+            off = (0.03 * float(np.std(ch.data)) * (i + 1) if ch.role == "output" and offsets
+                   else 0.0)
             ch.data = ch.data + noise + 2 * lv * np.sin(2 * np.pi * 50 * t + i) + off
 
 
-def case(seed: int, with_contact: bool) -> tuple[mdl.Model, gen.Truth, loop.DiscoverResult]:
+def case(seed: int, with_contact: bool, offsets: bool = True
+         ) -> tuple[mdl.Model, gen.Truth, loop.DiscoverResult]:
     rng = np.random.default_rng(seed)
     m = chain(rng)
     el = mdl.Contact(0, 1, 2.0 * drift_rms(m, 0, 1), 5e-5, 3 * m.stiffness_n_per_m[0], "pos")
     truth = gen.Truth(elements=(el,) if with_contact else ())
     recs = gen.generate(m, truth, n_tests=6, seed=seed, noise=0.0)
-    cheap_daq(recs, rng)
+    cheap_daq(recs, rng, offsets)
     return m, truth, loop.discover(m, recs)
 
 
@@ -81,3 +83,22 @@ def test_a_clean_twin_in_the_gray_zone_stays_no_effect(seed: int) -> None:
     assert [e["type"] for e in r.effects] == ["sensor_offset"]
     assert r.rounds[0].fits  # tested by fitting, not stopped by the gate
     assert "was tested by fitting: no candidate was accepted" in r.rounds[0].decision
+
+
+def test_the_verdict_says_the_gray_zone_was_fitted() -> None:
+    """A clean twin without offsets (no effect at all) and a stated noise 0.8 x the floor it
+    reads: the residual is 1.24 x the stated noise, candidates are fitted, none is accepted,
+    and the verdict says so."""
+    rng = np.random.default_rng(1)
+    m = chain(rng)
+    recs = gen.generate(m, gen.Truth(), n_tests=6, seed=1, noise=0.0)
+    cheap_daq(recs, rng, offsets=False)
+    read = loop.discover(m, recs)
+    assert read.effects == [] and not read.rounds[0].fits  # 0.99 x: under the gray zone
+    r = loop.discover(m, recs, loop.Options(noise={c: 0.8 * v for c, v in read.noise.items()}))
+    assert r.effects == []
+    verdict = report.to_json(r)["verdict"]
+    assert verdict.startswith("no effect: the declared model explains the tests to the noise "
+                              "floor (worst channel 1.24 x its floor")
+    assert f"; {len(r.rounds[0].fits)} candidates fitted, none improved" in verdict
+    assert len(r.rounds[0].fits) >= 2

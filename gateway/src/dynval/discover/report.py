@@ -102,7 +102,10 @@ def to_json(r: DiscoverResult, model_path: str = "", model_out: str = "",
         # ratio, and a reader must see how far under (a small effect at 1.4 x reads the same)
         worst = max(last.ratio.values()) if last is not None and last.ratio else math.nan
         verdict = ("no effect: the declared model explains the tests to the noise floor "
-                   f"(worst channel {worst:.3g} x its floor)")
+                   f"(worst channel {worst:.3g} x its floor"
+                   + (f"; {len(last.fits)} candidates fitted, none improved the held-out "
+                      "tests enough to be accepted)" if last is not None and last.fits
+                      else ")"))
     else:
         worst = max(last.ratio.values()) if last is not None and last.ratio else math.nan
         verdict = ("no effect in the library improves the held-out tests significantly, but "
