@@ -275,6 +275,9 @@ class Judge:
             starts = [given]
         if len(starts) > 2:
             starts = ft.screen(self.cur, cand, starts, self.fit_t, self.chans, self.scales)
+        scan = [] if given else et.scan_starts(self.cur, cand, e.amp)
+        if scan:
+            starts += ft.screen(self.cur, cand, scan, self.fit_t, self.chans, self.scales, 1)
         res = None
         for init in starts:
             try:

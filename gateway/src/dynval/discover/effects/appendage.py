@@ -85,21 +85,24 @@ class Appendage(EffectType):
         # as a mass change (a new mode moves every mode), with the DOF's own mass
         return readjust_every_stiffness(m, band_hz, cand.location["dof"])
 
-    _N_STARTS = 8  # frequencies across the band screened besides the evidence's
+    _N_SCAN = 8  # frequencies across the band screened besides the evidence's
     _SCAN_MASS = 0.1  # ... at the evidence's mass and at this share of the DOF's mass
 
     def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
-        """The evidence's frequency and mass (two dampings), and a coarse scan of the band,
-        from which the fit screens its starts (fit.screen): under a cheap DAQ's noise the
-        view's best frequency and mass can be far off, and a least-squares fit stays in the
-        basin it starts in."""
         f, ma, z = self.initial(m, cand, amp)
+        return [[f, ma, z], [f, ma, 0.1]]
+
+    def scan_starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        """A coarse scan of the band at the evidence's mass and at a tenth of the DOF's:
+        under a cheap DAQ's noise the view's best frequency and mass can be far off, and a
+        least-squares fit stays in the basin it starts in."""
+        _, ma, z = self.initial(m, cand, amp)
         p = self.params(m, cand)
-        scan = np.geomspace(p[0].lower * 1.01, p[0].upper * 0.99, self._N_STARTS)
+        scan = np.geomspace(p[0].lower * 1.01, p[0].upper * 0.99, self._N_SCAN)
         mj = m.masses_kg[cand.location["dof"] - 1]
         masses = dict.fromkeys([ma, float(np.clip(self._SCAN_MASS * mj, p[1].lower,
                                                    p[1].upper))])
-        return [[f, ma, z], [f, ma, 0.1], *([float(g), mm, z] for mm in masses for g in scan)]
+        return [[float(g), mm, z] for mm in masses for g in scan]
 
     @staticmethod
     def values_of(m: mdl.Model, link: int) -> dict[str, float]:

@@ -233,8 +233,14 @@ class EffectType:
         return ""
 
     def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
-        """Starting points of the fit (the best fit over them is kept)."""
+        """Starting points of the fit (the best fit over them is kept; more than two are
+        screened by one simulation each, fit.screen, and the best two fitted)."""
         return [self.initial(m, cand, amp)]
+
+    def scan_starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        """Starting points away from the evidence's: the best of them by one simulation each
+        is fitted too (none by default)."""
+        return []
 
     def motion_scales(self, st: States, cand: Candidate) -> dict[str, float]:
         """Scales of the motion the effect acts on (recorded in the candidate's shape, they
