@@ -146,7 +146,7 @@ def test_discover_clean_data_reports_no_effect(seed: int) -> None:
     # how far under the significance ratio the worst channel is, said with the verdict
     worst = max(r.rounds[-1].ratio.values())
     assert 0.8 < worst <= rs.SIGNIFICANCE_RATIO
-    assert f"(worst channel {worst:.3g} x its floor)" in doc["verdict"]
+    assert f"(worst channel {worst:.3g} x its floor" in doc["verdict"]
     assert doc["rmse_after"] == doc["rmse_before"]
 
 

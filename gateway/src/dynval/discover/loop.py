@@ -552,13 +552,14 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
         if on_progress:
             on_progress(f"round {rnd}")
         worst = max(rd.ratio.values(), default=0.0)
-        gray = _gray(o, rd, accepted)
+        room = len(effects) - (offsets is not None) < o.max_effects
+        gray = room and _gray(o, rd, accepted)
         at_floor = (f"residual at the noise floor (RMSE/noise <= {o.significance_ratio:g} on "
                     "every channel")
         if worst <= o.significance_ratio and not gray:
             rd.decision = f"{at_floor}): stop"
             break
-        if len(effects) - (offsets is not None) >= o.max_effects:
+        if not room:
             rd.decision = f"max_effects = {o.max_effects} reached: stop"
             break
         pool = _pool(s, rd, cur, cur_table, accepted)
