@@ -218,9 +218,10 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False) -> str:
                                        "position loop", free),
                                       ("cut from a run", cut), ("cheap DAQ", daq),
                                      ("best-linear", bl), ("shake table", table)) if on) or "-"
-    want_s = "none" if not wants else "; ".join(w["type"] + " " + " ".join(f"{k} {v}" for k, v in w.items()
+    want_s = "; ".join(w["type"] + " " + " ".join(f"{k} {v}" for k, v in w.items()
                                                    if k != "type")
-                       + (" (in the best-linear fit)" if w in absorbed else "") for w in wants)
+                       + (" (in the best-linear fit)" if w in absorbed else "")
+                       for w in wants) or "none"
     return (f"| {seed} | {m.n_dof} DOF, {len(m.outputs)} sensors | {cond} | {want_s} | {got} "
             f"| {'yes' if ok else 'no'} | {ratio:.2f} |")
 

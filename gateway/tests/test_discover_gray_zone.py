@@ -9,8 +9,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from scipy import signal
-from test_discover_noise import pink
+from test_discover_noise import cheap_daq
 
 from dynval import model as mdl
 from dynval import synth as gen
@@ -36,29 +35,13 @@ def drift_rms(m: mdl.Model, a: int, b: int) -> float:
     return float(np.std(y[f"x{b}"] - (y[f"x{a}"] if a else 0.0)))
 
 
-def cheap_daq(recs: list, rng: np.random.Generator, offsets: bool = True) -> None:
-    """1/f + white noise (1 % of each channel's STD) behind a 2nd-order anti-alias filter,
-    50 Hz hum and (``offsets``) an offset per output."""
-    sos = signal.butter(2, 0.4 * FS, fs=FS, output="sos")
-    t = np.arange(recs[0].n_samples) / FS
-    for rec in recs:
-        for i, ch in enumerate(rec.channels):
-            lv = 0.01 * float(np.std(ch.data))
-            noise = signal.sosfilt(sos, lv * (2 * pink(rng, ch.data.size)
-                                              + rng.standard_normal(ch.data.size)))
-            off = (0.03 * float(np.std(ch.data)) * (i + 1) if ch.role == "output" and offsets
-                   else 0.0)
-            ch.data = ch.data + noise + 2 * lv * np.sin(2 * np.pi * 50 * t + i) + off
-
-
-def case(seed: int, with_contact: bool, offsets: bool = True
-         ) -> tuple[mdl.Model, gen.Truth, loop.DiscoverResult]:
+def case(seed: int, with_contact: bool) -> tuple[mdl.Model, gen.Truth, loop.DiscoverResult]:
     rng = np.random.default_rng(seed)
     m = chain(rng)
     el = mdl.Contact(0, 1, 2.0 * drift_rms(m, 0, 1), 5e-5, 3 * m.stiffness_n_per_m[0], "pos")
     truth = gen.Truth(elements=(el,) if with_contact else ())
     recs = gen.generate(m, truth, n_tests=6, seed=seed, noise=0.0)
-    cheap_daq(recs, rng, offsets)
+    cheap_daq(recs, rng, offset=0.03, hum=2.0)
     return m, truth, loop.discover(m, recs)
 
 
@@ -92,7 +75,7 @@ def test_the_verdict_says_the_gray_zone_was_fitted() -> None:
     rng = np.random.default_rng(1)
     m = chain(rng)
     recs = gen.generate(m, gen.Truth(), n_tests=6, seed=1, noise=0.0)
-    cheap_daq(recs, rng, offsets=False)
+    cheap_daq(recs, rng, offset=0.0, hum=2.0)
     read = loop.discover(m, recs)
     assert read.effects == [] and not read.rounds[0].fits  # 0.99 x: under the gray zone
     r = loop.discover(m, recs, loop.Options(noise={c: 0.8 * v for c, v in read.noise.items()}))

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -44,6 +45,22 @@ def pink(rng: np.random.Generator, n: int) -> np.ndarray:
     f[0] = 1.0
     p = np.fft.irfft(x / np.sqrt(f), n)
     return p / np.std(p)
+
+
+def cheap_daq(recs: list[Any], rng: np.random.Generator, offset: float, hum: float) -> None:
+    """A cheap DAQ on every channel of the records: 1/f + white noise (level: 1 % of the
+    channel's STD) behind a 2nd-order anti-alias filter at 0.4 fs, 50 Hz hum of ``hum`` x
+    that level, and on each output an offset of ``offset`` x its STD x (its index + 1)."""
+    fs = recs[0].fs_hz
+    sos = signal.butter(2, 0.4 * fs, fs=fs, output="sos")
+    t = np.arange(recs[0].n_samples) / fs
+    for rec in recs:
+        for k, ch in enumerate(rec.channels):
+            lv = 0.01 * float(np.std(ch.data))
+            n = signal.sosfilt(sos, lv * (2 * pink(rng, ch.data.size)
+                                          + rng.standard_normal(ch.data.size)))
+            off = offset * float(np.std(ch.data)) * (k + 1) if ch.role == "output" else 0.0
+            ch.data = ch.data + n + hum * lv * np.sin(2 * np.pi * 50 * t + k) + off
 
 
 def test_white_noise_reads_the_same_out_of_band_and_in_the_top_band() -> None:

@@ -42,22 +42,12 @@ def test_a_cheap_daq_offsets_hum_and_coloured_noise(with_contact: bool) -> None:
     2nd-order anti-alias filter: before, the offsets were fitted one per round and used up
     max_effects (the bumper was never reached) and the hum read as an unexplained residual;
     now one offsets entry, the hum counted in the noise floor, and the bumper found."""
-    from scipy import signal
-    from test_discover_noise import pink
+    from test_discover_noise import cheap_daq
 
     m = declared()
     els = (mdl.Contact(3, 4, 1.0e-4, 1e-4, 1.925e6),) if with_contact else ()
     recs = gen.generate(m, gen.Truth(elements=els), n_tests=6, seed=11, noise=0.0)
-    rng = np.random.default_rng(11)
-    sos = signal.butter(2, 0.4 * 640.0, fs=640.0, output="sos")
-    t = np.arange(recs[0].n_samples) / 640.0
-    for rec in recs:
-        for k, ch in enumerate(rec.channels):
-            lv = 0.01 * float(np.std(ch.data))
-            n = signal.sosfilt(sos, lv * (2 * pink(rng, ch.data.size)
-                                          + rng.standard_normal(ch.data.size)))
-            off = 0.02 * float(np.std(ch.data)) * (k + 1) if ch.role == "output" else 0.0
-            ch.data = ch.data + n + 3 * lv * np.sin(2 * np.pi * 50 * t + k) + off
+    cheap_daq(recs, np.random.default_rng(11), offset=0.02, hum=3.0)
     r = loop.discover(m, recs)
     assert [e["type"] for e in r.effects] == ["sensor_offset"] + (
         ["contact"] if with_contact else [])

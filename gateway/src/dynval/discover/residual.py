@@ -29,8 +29,8 @@ SIGNIFICANCE_RATIO = 1.5
 # ... but a floor is an estimate (an effect's harmonics outside the input band raise it: blind
 # cases 1.2-1.4 x the true model's error): before any effect is accepted, a residual above
 # GRAY_RATIO x its floor is tested by fitting the evidence's first batch, judged as any round
-# (the clean twins of the blind cases: every one of 10 above 1.0 x, the best held-out gain
-# 0.7 %, under the 10 % acceptance)
+# (the clean twins of blind seeds 0-8: every one of the 9 above 1.0 x, the best held-out
+# gain 0.7 %, under the 10 % acceptance)
 GRAY_RATIO = 1.0
 
 
