@@ -85,3 +85,21 @@ def test_the_verdict_says_the_gray_zone_was_fitted() -> None:
                               "floor (worst channel 1.24 x its floor")
     assert f"; {len(r.rounds[0].fits)} candidates fitted, none improved" in verdict
     assert len(r.rounds[0].fits) >= 2
+
+
+def test_a_channel_without_a_floor_does_not_decide_the_gray_zone() -> None:
+    """A NaN ratio (a record too short for a spectrum) is left out wherever it sits: before,
+    max() over the ratios returned NaN when it came first and the gate let the round fit."""
+    from dynval.discover.session import Options, Round
+
+    def rd(ratio: dict[str, float]) -> Round:
+        return Round(1, ratio, {}, [], [], None, "", None)
+
+    nan = float("nan")
+    for ratio in ({"a": nan, "b": 1.2}, {"b": 1.2, "a": nan}):
+        assert loop._worst(ratio) == 1.2
+        assert loop._gray(Options(), rd(ratio), set())
+    assert loop._worst({"a": nan}) == 0.0
+    assert not loop._gray(Options(), rd({"a": nan}), set())
+    assert not loop._gray(Options(), rd({"a": nan, "b": 0.9}), set())
+    assert not loop._gray(Options(), rd({"b": 1.2}), {"contact"})  # after an accepted effect
