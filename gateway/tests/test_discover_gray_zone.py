@@ -2,7 +2,7 @@
 sensors the floor comes from the residual outside the input band, and a contact's harmonics
 put energy there: the floor reads high and a contact that raises the residual to 1.07-1.17 x
 it fell under the 1.5 x significance ratio ("no effect"). Before any effect is accepted a
-residual above 1.0 x its floor is now tested by fitting; the clean twin stays "no effect"."""
+residual above 1.0 x its floor is now tested by fitting; a clean twin stays "no effect"."""
 from __future__ import annotations
 
 import dataclasses
@@ -59,13 +59,14 @@ def test_a_contact_under_the_significance_ratio_is_found_by_fitting() -> None:
 
 
 @pytest.mark.parametrize("seed", [1, 3, 9])
-def test_a_clean_twin_in_the_gray_zone_stays_no_effect(seed: int) -> None:
-    """Of 12 clean twins 3 read 1.01-1.04 x their floor: each is fitted, nothing accepted."""
+def test_per_test_offsets_keep_a_clean_twin_out_of_the_gray_zone(seed: int) -> None:
+    """The cheap DAQ's offsets grow with each test's level. Counted as residual they put 3 of
+    12 clean twins at 1.01-1.04 x their floor (the gray zone: fitted, nothing accepted);
+    taken per test (acc_offsets.py) these read 0.88-0.99 x and stop at once."""
     _, _, r = case(seed, False)
-    assert 1.0 < max(r.rounds[0].ratio.values()) < rs.SIGNIFICANCE_RATIO
-    assert [e["type"] for e in r.effects] == ["sensor_offset"]
-    assert r.rounds[0].fits  # tested by fitting, not stopped by the gate
-    assert "was tested by fitting: no candidate was accepted" in r.rounds[0].decision
+    assert max(r.rounds[0].ratio.values()) < 1.0
+    assert r.effects == [] and not r.rounds[0].fits
+    assert any(n.startswith("the mean residual of ") for n in r.notes)
 
 
 def test_the_verdict_says_the_gray_zone_was_fitted() -> None:

@@ -55,7 +55,7 @@ def estimate(m: mdl.Model, t: TestData, chans: Sequence[str], scales: dict[str, 
              settle: int) -> Start | None:
     """The initial state of test t under model m, or None when the record starts at rest
     (or the model cannot be simulated)."""
-    at_rest = TestData(t.name, t.fs_hz, t.u, t.y)
+    at_rest = TestData(t.name, t.fs_hz, t.u, t.y, demean=t.demean)
     p = predict(m, at_rest)
     if p is None:
         return None

@@ -33,10 +33,10 @@ from typing import Any
 import numpy as np
 
 from dynval import model as mdl
+from dynval.discover import acc_offsets, initial
 from dynval.discover import drift as dr
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
-from dynval.discover import initial
 from dynval.discover import noise as nz
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
@@ -527,6 +527,7 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
               on_progress: Callable[[str], None] | None) -> DiscoverResult:
     t_start = time.perf_counter()
     s = make_session(m, recs, o)
+    s.notes += acc_offsets.apply(m, s.tests, s.evals, s.chans)
     s.notes += initial.apply(m, s.evals, s.chans, s.scales, s.settle)
     before, res_before = s.table(m)
     if not res_before:

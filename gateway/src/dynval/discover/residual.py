@@ -64,6 +64,9 @@ class TestData:
     # cut from the middle of a run (segments.py): moving at its start, so its initial state is
     # estimated even where a slow mode's free motion lasts the whole record (initial.py)
     moving: bool = False
+    # acceleration channels whose offset changes from test to test: the mean of the residual
+    # over the counted samples is this test's offset, left out of predictions (acc_offsets.py)
+    demean: frozenset[str] = frozenset()
     # the input interpolated per oversampling factor, once per test (input_for)
     _prepared: dict[int, mdl.PreparedInput] = field(default_factory=dict, init=False,
                                                     repr=False, compare=False)
@@ -136,7 +139,8 @@ def channel_scales(tests: Sequence[TestData], chans: Sequence[str]) -> dict[str,
 
 
 def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
-    """The model's open-loop prediction, or None when the core refuses the model."""
+    """The model's open-loop (or observer) prediction, or None when the core refuses the
+    model; on the channels in t.demean, with the test's own offset (acc_offsets.py)."""
     try:
         p = (mdl.simulate(m, t.input_for(m), t.fs_hz) if t.observer is None else
              mdl.predict_observed(m, t.input_for(m), t.y, t.fs_hz, t.observer.q_force_n2,
@@ -146,6 +150,8 @@ def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
         return None
     if t.start is not None:
         p = {c: p[c] + t.start[c] if c in t.start else p[c] for c in p}
+    for c in t.demean:
+        p[c] = p[c] + float(np.mean(t.counted(t.y[c] - p[c])))
     return p
 
 
