@@ -108,7 +108,7 @@ def test_clean_records_and_one_offset_for_all_tests_get_no_per_test_offsets(seed
     """White noise only (the generator's), or a cheap DAQ's noise with one offset on every
     test: no channel's mean changes from test to test beyond its scatter within a test
     (measured p >= 0.002 on these seeds). Under 1/f noise the block means are not
-    independent and the analysis reads low p more often than 1e-3 (2 of 24 channels on
+    independent and the analysis reads low p more often than 1e-3 (4 of 24 channels on
     seeds 0-5): it then leaves out a per-test mean that is the noise's, which no structure
     makes (an acceleration's mean over a test is about zero)."""
     m = declared()
