@@ -34,6 +34,10 @@ least_squares: Any = importlib.import_module("scipy.optimize").least_squares
 _stats: Any = importlib.import_module("scipy.stats")
 
 _PENALTY = 1e3  # residual value for a parameter set the core refuses
+# a fit stops when a step lowers its error by less than this share: the decisions read gains
+# of percents (measured on the sliding-joint test: 19 % fewer Jacobians than at 1e-8, the
+# same parameters to 5 digits)
+FTOL = 1e-5
 READJUSTED = " (declared, re-adjusted)"  # suffix of a re-adjusted declared parameter's name
 
 
@@ -291,7 +295,7 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
     ps_all = pb.params
     fun_at, jac = forward_jacobian(pb.fun, workers)
     sol = min((least_squares(fun_at, z0, jac=jac, bounds=(0.0, 1.0), method="trf",
-                             x_scale=1.0, max_nfev=max_nfev, xtol=1e-6, ftol=1e-8)
+                             x_scale=1.0, max_nfev=max_nfev, xtol=1e-6, ftol=FTOL)
                for z0 in (pb.z0, *pb.z_others)), key=lambda s: float(np.sum(s.fun ** 2)))
     vals = pb.values(sol.x)
     mm = pb.build(vals)
