@@ -98,9 +98,24 @@ def test_a_channel_without_a_floor_does_not_decide_the_gray_zone() -> None:
 
     nan = float("nan")
     for ratio in ({"a": nan, "b": 1.2}, {"b": 1.2, "a": nan}):
-        assert loop._worst(ratio) == 1.2
+        assert rs.worst_ratio(ratio) == 1.2
         assert loop._gray(Options(), rd(ratio), set())
-    assert loop._worst({"a": nan}) == 0.0
+    assert rs.worst_ratio({"a": nan}) == 0.0
     assert not loop._gray(Options(), rd({"a": nan}), set())
     assert not loop._gray(Options(), rd({"a": nan, "b": 0.9}), set())
     assert not loop._gray(Options(), rd({"b": 1.2}), {"contact"})  # after an accepted effect
+
+
+def test_the_verdict_names_the_worst_channel_with_a_floor() -> None:
+    """The verdict's worst channel leaves a NaN ratio out wherever it sits: before, max() read
+    "worst channel nan x its floor" when the channel without a floor came first."""
+    from dynval.discover.session import Round
+
+    nan = float("nan")
+    for ratio in ({"a": nan, "b": 1.2}, {"b": 1.2, "a": nan}):
+        last = Round(1, ratio, {}, [], [], None, "residual at the noise floor (...): stop", None)
+        assert "(worst channel 1.2 x its floor)" in report._verdict([], {}, last)
+        last.decision = "no candidate improved the held-out tests significantly: stop"
+        assert "the residual is 1.2 x the noise floor" in report._verdict([], {}, last)
+    last = Round(1, {"a": nan}, {}, [], [], None, "residual at the noise floor: stop", None)
+    assert "(worst channel nan x its floor)" in report._verdict([], {}, last)

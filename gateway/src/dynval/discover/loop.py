@@ -474,16 +474,10 @@ def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     return chosen
 
 
-def _worst(ratio: dict[str, float]) -> float:
-    """The largest RMSE / noise over the channels with a floor (a NaN one, a record too short
-    for a spectrum, is left out whatever its place in the dict)."""
-    return max((r for r in ratio.values() if not math.isnan(r)), default=0.0)
-
-
 def _gray(o: Options, rd: Round, accepted: set[str]) -> bool:
     """Whether the round's residual is under the significance ratio but above the gray one
     before any effect is accepted: tested by fitting (residual.GRAY_RATIO)."""
-    worst = _worst(rd.ratio)
+    worst = rs.worst_ratio(rd.ratio)
     return not accepted and o.gray_ratio < worst <= o.significance_ratio
 
 
@@ -558,7 +552,7 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
         rounds.append(rd)
         if on_progress:
             on_progress(f"round {rnd}")
-        worst = _worst(rd.ratio)
+        worst = rs.worst_ratio(rd.ratio)
         room = len(effects) - (offsets is not None) < o.max_effects
         gray = room and _gray(o, rd, accepted)
         at_floor = (f"residual at the noise floor (RMSE/noise <= {o.significance_ratio:g} on "

@@ -22,8 +22,9 @@ from dynval import labels as lb
 from dynval import plotting as plot
 from dynval.discover import effects as fx
 from dynval.discover import parallel
+from dynval.discover import residual as rs
 from dynval.discover import trace as tr
-from dynval.discover.loop import DiscoverResult
+from dynval.discover.loop import DiscoverResult, Round
 
 log = logging.getLogger(__name__)
 signal: Any = importlib.import_module("scipy.signal")
@@ -62,6 +63,29 @@ def _evidence_list(rd: Any) -> list[dict[str, Any]]:
     return out
 
 
+def _verdict(effects: list[dict[str, Any]], unexplained: dict[str, Any],
+             last: Round | None) -> str:
+    """The report's one-line verdict from the effects found, the traits of a residual left
+    and the last round (its ratios and decision). The worst channel is the largest finite
+    RMSE / noise: a channel without a floor (NaN) is left out wherever it sits."""
+    if effects:
+        return ("the model lacks: " + "; ".join(e["label"] for e in effects)
+                + (f" (a residual above the noise floor remains: {unexplained['summary']})"
+                   if unexplained else ""))
+    worst = rs.worst_ratio(last.ratio, math.nan) if last is not None else math.nan
+    if last is not None and last.decision.startswith("residual at the noise floor"):
+        # the worst channel's figure with it: "at the floor" means under the significance
+        # ratio, and a reader must see how far under (a small effect at 1.4 x reads the same)
+        return ("no effect: the declared model explains the tests to the noise floor "
+                f"(worst channel {worst:.3g} x its floor"
+                + (f"; {len(last.fits)} candidates fitted, none improved the held-out "
+                   "tests enough to be accepted)" if last.fits else ")"))
+    return ("no effect in the library improves the held-out tests significantly, but "
+            f"the residual is {worst:.3g} x the noise floor: the model lacks something "
+            "this library cannot represent"
+            + (f"; the residual: {unexplained['summary']}" if unexplained else ""))
+
+
 def to_json(r: DiscoverResult, model_path: str = "", model_out: str = "",
             units: Mapping[str, str] | None = None) -> dict[str, Any]:
     """The JSON document; ``units``: channel -> unit as the recordings declare them (missing
@@ -90,28 +114,7 @@ def to_json(r: DiscoverResult, model_path: str = "", model_out: str = "",
                        "traits": {k: (_f(v) if isinstance(v, float) else v)
                                   for k, v in rd.traits.items()},
                        "candidates": _evidence_list(rd), "decision": rd.decision})
-    last = r.rounds[-1] if r.rounds else None
-    at_floor = last is not None and last.decision.startswith("residual at the noise floor")
-    if r.effects:
-        verdict = "the model lacks: " + "; ".join(e["label"] for e in r.effects)
-        if r.unexplained:
-            verdict += (" (a residual above the noise floor remains: "
-                        f"{r.unexplained['summary']})")
-    elif at_floor:
-        # the worst channel's figure with it: "at the floor" means under the significance
-        # ratio, and a reader must see how far under (a small effect at 1.4 x reads the same)
-        worst = max(last.ratio.values()) if last is not None and last.ratio else math.nan
-        verdict = ("no effect: the declared model explains the tests to the noise floor "
-                   f"(worst channel {worst:.3g} x its floor"
-                   + (f"; {len(last.fits)} candidates fitted, none improved the held-out "
-                      "tests enough to be accepted)" if last is not None and last.fits
-                      else ")"))
-    else:
-        worst = max(last.ratio.values()) if last is not None and last.ratio else math.nan
-        verdict = ("no effect in the library improves the held-out tests significantly, but "
-                   f"the residual is {worst:.3g} x the noise floor: the model lacks something "
-                   "this library cannot represent"
-                   + (f"; the residual: {r.unexplained['summary']}" if r.unexplained else ""))
+    verdict = _verdict(r.effects, r.unexplained, r.rounds[-1] if r.rounds else None)
     doc: dict[str, Any] = _clean({
         "format": SCHEMA,
         "model": model_path,

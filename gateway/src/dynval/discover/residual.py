@@ -34,6 +34,12 @@ SIGNIFICANCE_RATIO = 1.5
 GRAY_RATIO = 1.0
 
 
+def worst_ratio(ratio: dict[str, float], default: float = 0.0) -> float:
+    """The largest RMSE / noise over the channels with a floor (a NaN one, a record too short
+    for a spectrum, is left out whatever its place in the dict); ``default`` when none has."""
+    return max((r for r in ratio.values() if not math.isnan(r)), default=default)
+
+
 @dataclass(frozen=True)
 class Observer:
     """The noise model of the observer's Kalman gain: white force variance at each DOF (N^2)
