@@ -72,7 +72,9 @@ def extrapolation_rows(r30: loop.DiscoverResult, p: np.ndarray, v0: float) -> li
         pred = {k: rs.predict(m, td) for k, m in (("declared", r30.model0),
                                                   ("updated", r30.model))}
         hand = hand_columns(np.asarray(rec.channel("displacement").data), rec.fs_hz, v0) @ p
-        errs = [rms(f), *(rms(f - q["friction_force"]) for q in pred.values() if q), rms(f - hand)]
+        # a model the core refuses reads nan, so the columns keep their places
+        errs = [rms(f), *(rms(f - q["friction_force"]) if q else math.nan
+                          for q in pred.values()), rms(f - hand)]
         rows.append(f"| {Path(rel).stem} | " + " | ".join(f"{e:.3f}" for e in errs) + " |")
     return rows
 

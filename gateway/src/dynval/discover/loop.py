@@ -557,7 +557,7 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
         gray = room and _gray(o, rd, accepted)
         at_floor = (f"residual at the noise floor (RMSE/noise <= {o.significance_ratio:g} on "
                     "every channel")
-        if not any(r > o.significance_ratio for r in rd.ratio.values()) and not gray:
+        if worst <= o.significance_ratio and not gray:  # NaN ratios left out (no floor)
             rd.decision = f"{at_floor}): stop"
             break
         if not room:
