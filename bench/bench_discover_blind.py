@@ -208,6 +208,13 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False) -> str:
     absorbed = [w for w in wants if bl and w["type"] == "stiffness_change" and w["story"] >= 2]
     sought = [w for w in wants if w not in absorbed]
     ok = len(phys) == len(sought) and all(any(_found(e, w) for e in phys) for w in sought)
+    # right among the effects the tests do not tell apart from one found (its alternatives)
+    tied = not ok and len(phys) == len(sought) and all(
+        any(_found(e, w) or any(_found(a, w) for a in e["alternatives"] if "sign" not in w)
+            for e in phys) for w in sought)
+    ties = sum(len(e["alternatives"]) for e in phys)
+    if ties:
+        got += f" (+{ties} as well supported)"
     tm = dataclasses.replace(gen.truth_model(m, truth), outputs=m.outputs,
                              interpolation=m.interpolation, oversample=m.oversample)
     tm = dataclasses.replace(tm, outputs={c: dataclasses.replace(
@@ -223,7 +230,7 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False) -> str:
                        + (" (in the best-linear fit)" if w in absorbed else "")
                        for w in wants) or "none"
     return (f"| {seed} | {m.n_dof} DOF, {len(m.outputs)} sensors | {cond} | {want_s} | {got} "
-            f"| {'yes' if ok else 'no'} | {ratio:.2f} |")
+            f"| {'yes' if ok else 'tied' if tied else 'no'} | {ratio:.2f} |")
 
 
 def main() -> None:
@@ -246,12 +253,14 @@ def main() -> None:
         rows.append(run(seed, a.effects, a.only, a.free))
         print(rows[-1], flush=True)  # noqa: T201 (a benchmark's table)
     right = sum("| yes |" in r for r in rows)
+    tied = sum("| tied |" in r for r in rows)
     within = sum(float(r.rsplit("|", 2)[1]) <= 1.3 for r in rows)
     text = ("# discover on blind generated cases with real rigs' conditions (issue 16)\n\n"
             f"`python3 bench/bench_discover_blind.py --cases {a.cases} --first {a.first} "
             f"--effects {a.effects}{' --only ' + a.only if a.only else ''}"
             f"{' --free' if a.free else ''}`: "
-            f"right type and place in {right} of {len(rows)}; held-out error within 1.3 x the "
+            f"right type and place in {right} of {len(rows)} (and among the effects as well "
+            f"supported as the one named in {tied} more: 'tied'); held-out error within 1.3 x the "
             f"ideal in {within} of {len(rows)}.\n\n"
             "| seed | structure | conditions | truth | found | right | after / ideal |\n"
             "|---|---|---|---|---|---|---:|\n" + "\n".join(rows) + "\n")

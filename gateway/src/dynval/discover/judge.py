@@ -41,7 +41,10 @@ def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model
     simpler = simpler_to_fit(rd, best)
     if simpler:
         best = judge_all(s, rd, judge, simpler, best)
-    return simplest_nested(best, rd.fits, s.o.min_gain, judge.confirm)
+    best = simplest_nested(best, rd.fits, s.o.min_gain, judge.confirm)
+    if best is not None:
+        best["alternatives"] = alternatives(best, rd.fits, s.o.min_gain)
+    return best
 
 
 def simpler_to_fit(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
@@ -372,6 +375,26 @@ def with_shape(e: tr.Evidence) -> fx.Candidate:
     return fx.Candidate(c.type, dict(c.location), c.label, c.available, c.note, shape)
 
 
+def alternatives(best: dict[str, Any], fits: Sequence[dict[str, Any]], min_gain: float
+                 ) -> list[dict[str, Any]]:
+    """The round's other accepted fits, of another type or at another place and not a special
+    case of the winner or it of them (nested_in), whose held-out error is within half of
+    min_gain of the winner's: the tie discover itself cannot break (simplest_nested), so the
+    tests do not tell these effects apart (a missing mode under the input band reads as a
+    spring, a constant force on a free chain acts at any DOF). Best first, with the square
+    root of the held-out error ratio (an RMSE ratio)."""
+    win, err = best["candidate"], best["nsse_held_after"]
+    tied = [f for f in fits
+            if f["accepted"] and cand_key(f["candidate"]) != cand_key(win)
+            and f["nsse_held_after"] <= (1 + 0.5 * min_gain) * err
+            and not nested_in(f["candidate"], win) and not nested_in(win, f["candidate"])]
+    tied.sort(key=lambda f: f["nsse_held_after"])
+    return [{"type": f["candidate"].type, "location": dict(f["candidate"].location),
+             "label": f["candidate"].label,
+             "held_out_rmse_ratio": math.sqrt(f["nsse_held_after"] / err) if err > 0 else 1.0}
+            for f in tied]
+
+
 def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
                   spread: Sequence[float]) -> dict[str, Any]:
     """The accepted effect's JSON entry: its parameters, and each declared parameter that was
@@ -396,7 +419,9 @@ def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
             "label": res.cand.label, "law": et.law, "parameters": params,
             "readjusted": readjusted, "reference": info["reference"],
             "evidence": info["evidence"], "held_out_gain": info["held_gain"],
-            "delta_bic": info["delta_bic"]}
+            "delta_bic": info["delta_bic"], "alternatives": info.get("alternatives", [])}
+
+
 @dataclass
 class Step:
     """An accepted effect: the model before it, its fit's record, its index in the effects,

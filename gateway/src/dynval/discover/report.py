@@ -63,13 +63,26 @@ def _evidence_list(rd: Any) -> list[dict[str, Any]]:
     return out
 
 
+TIES_NAMED = 3  # alternatives named in the verdict; the effect's entry lists them all
+
+
+def _with_ties(effect: dict[str, Any]) -> str:
+    """An effect's label, with the effects these tests do not tell from it (alternatives)."""
+    alt = [a["label"] for a in effect.get("alternatives", [])]
+    if not alt:
+        return str(effect["label"])
+    more = f" and {len(alt) - TIES_NAMED} more" if len(alt) > TIES_NAMED else ""
+    return (f"{effect['label']} (or, as well supported by these tests: "
+            f"{' or '.join(alt[:TIES_NAMED])}{more})")
+
+
 def _verdict(effects: list[dict[str, Any]], unexplained: dict[str, Any],
              last: Round | None) -> str:
     """The report's one-line verdict from the effects found, the traits of a residual left
     and the last round (its ratios and decision). The worst channel is the largest finite
     RMSE / noise: a channel without a floor (NaN) is left out wherever it sits."""
     if effects:
-        return ("the model lacks: " + "; ".join(e["label"] for e in effects)
+        return ("the model lacks: " + "; ".join(_with_ties(e) for e in effects)
                 + (f" (a residual above the noise floor remains: {unexplained['summary']})"
                    if unexplained else ""))
     worst = rs.worst_ratio(last.ratio, math.nan) if last is not None else math.nan
@@ -440,9 +453,13 @@ def _html_effects(doc: dict[str, Any]) -> str:
         ra = ", ".join(f"{e(k)} {v['before']:.4g} &rarr; {v['value']:.4g} "
                        f"({100 * v['change_rel']:+.1f} %)"
                        for k, v in x.get("readjusted", {}).items())
+        ties = ", ".join(f"{e(a['label'])} (held-out RMSE {a['held_out_rmse_ratio']:.3f} x)"
+                         for a in x.get("alternatives", []))
         out.append(f"<li><b>{e(x['label'])}</b>: {ps} (held-out gain "
                    f"{100 * x['held_out_gain']:.1f} %, &Delta;BIC {x['delta_bic']:.0f})"
                    + (f"<br>re-adjusted with it: {ra}" if ra else "")
+                   + (f"<br>as well supported by these tests (within half the minimum gain; "
+                      f"a test that tells them apart is needed): {ties}" if ties else "")
                    + f"<br><small>{e(x['law'])}</small></li>")
     return "".join(out)
 
