@@ -73,14 +73,17 @@ def analyse(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str]) -> di
 def apply(m: mdl.Model, tests: Sequence[TestData], views: Sequence[TestData],
           chans: Sequence[str]) -> list[str]:
     """Give the acceleration channels whose means change from test to test an offset per test
-    (TestData.demean) on the tests and on their views. Returns a note for the report, or
+    (TestData.demean, with its mean residual under m) on the tests and on their views.
+    Returns a note for the report, or
     none. Not an effect: the offsets are not the structure's and a new test has its own."""
     spread = analyse(m, tests, chans)
     varying = sorted(c for c, s in spread.items() if s.p < P_VALUE)
     if not varying:
         return []
-    for t in [*tests, *views]:
-        t.demean = frozenset(varying)
+    for i, t in enumerate(tests):
+        offsets = {c: spread[c].per_test[i] for c in varying}
+        for v in [t, *(v for v in views if v.y is t.y)]:  # a test's views share its records
+            v.demean = offsets
     parts = [f"{c} ({min(spread[c].per_test):.3g} to {max(spread[c].per_test):.3g}, "
              f"F = {spread[c].f:.3g})" for c in varying]
     note = ("the mean residual of " + ", ".join(parts) + " changes from test to test more "

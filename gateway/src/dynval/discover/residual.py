@@ -70,9 +70,11 @@ class TestData:
     # cut from the middle of a run (segments.py): moving at its start, so its initial state is
     # estimated even where a slow mode's free motion lasts the whole record (initial.py)
     moving: bool = False
-    # acceleration channels whose offset changes from test to test: the mean of the residual
-    # over the counted samples is this test's offset, left out of predictions (acc_offsets.py)
-    demean: frozenset[str] = frozenset()
+    # acceleration channels whose offset changes from test to test, with this test's offset
+    # (its mean residual under the declared model): the mean of the residual over the
+    # counted samples is left out of predictions, and the observer reads the channel without
+    # the offset (acc_offsets.py)
+    demean: dict[str, float] = field(default_factory=dict)
     # the input interpolated per oversampling factor, once per test (input_for)
     _prepared: dict[int, mdl.PreparedInput] = field(default_factory=dict, init=False,
                                                     repr=False, compare=False)
@@ -86,6 +88,12 @@ class TestData:
             u = noise.simulated_input(m.input.kind, self.u, self.fs_hz)
             self._prepared[r] = mdl.prepare_input(m, u)
         return self._prepared[r]
+
+    def observed(self) -> dict[str, np.ndarray]:
+        """The channels as the observer reads them: without the offsets in demean (an
+        accelerometer's offset it read would hold its state off and bias its errors on the
+        other channels: a position encoder's by microns on a free chain)."""
+        return {c: y - self.demean[c] if c in self.demean else y for c, y in self.y.items()}
 
     def counted(self, a: np.ndarray) -> np.ndarray:
         """The samples of a record-length array that count for this test (or view)."""
@@ -146,11 +154,11 @@ def channel_scales(tests: Sequence[TestData], chans: Sequence[str]) -> dict[str,
 
 def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     """The model's open-loop (or observer) prediction, or None when the core refuses the
-    model; on the channels in t.demean, with the test's own offset (acc_offsets.py)."""
+    model; on the channels in t.demean, with the test's own mean residual (acc_offsets.py)."""
     try:
         p = (mdl.simulate(m, t.input_for(m), t.fs_hz) if t.observer is None else
-             mdl.predict_observed(m, t.input_for(m), t.y, t.fs_hz, t.observer.q_force_n2,
-                                  t.observer.r_meas))
+             mdl.predict_observed(m, t.input_for(m), t.observed(), t.fs_hz,
+                                  t.observer.q_force_n2, t.observer.r_meas))
     except ConfigError as exc:
         log.debug("%s: simulation refused: %s", t.name, exc)
         return None
