@@ -74,8 +74,8 @@ def apply(m: mdl.Model, tests: Sequence[TestData], views: Sequence[TestData],
           chans: Sequence[str]) -> list[str]:
     """Give the acceleration channels whose means change from test to test an offset per test
     (TestData.demean, with its mean residual under m) on the tests and on their views.
-    Returns a note for the report, or
-    none. Not an effect: the offsets are not the structure's and a new test has its own."""
+    Returns a note for the report, or none. Not an effect: the offsets are not the
+    structure's and a new test has its own."""
     spread = analyse(m, tests, chans)
     varying = sorted(c for c, s in spread.items() if s.p < P_VALUE)
     if not varying:
