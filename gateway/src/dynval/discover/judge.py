@@ -41,9 +41,10 @@ def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model
     simpler = simpler_to_fit(rd, best)
     if simpler:
         best = judge_all(s, rd, judge, simpler, best)
-    best = simplest_nested(best, rd.fits, s.o.min_gain, judge.confirm)
-    best = change_in_the_readjustment(best, rd.fits, cur_table.total(s.held_names),
+    winner = simplest_nested(best, rd.fits, s.o.min_gain, judge.confirm)
+    best = change_in_the_readjustment(winner, rd.fits, cur_table.total(s.held_names),
                                       s.o.min_gain, judge.confirm)
+    s.carried = {cand_key(winner["candidate"])} if winner is not best and winner else set()
     if best is not None:
         best["alternatives"] = alternatives(best, rd.fits, s.o.min_gain)
     return best

@@ -460,6 +460,7 @@ def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     chosen = _diverse([e for e in pool if e.r2 >= s.o.evidence_cut * top], s.o.top_k)
     chosen += [e for e in rd.second
                if offered(e.cand) and all(cand_key(e.cand) != cand_key(c.cand) for c in chosen)]
+    chosen += [e for e in pool if cand_key(e.cand) in s.carried and e not in chosen]
     if not accepted and not _gray(s.o, rd, accepted):
         # bounded cost: only where the answer would otherwise be "no effect" with a residual
         # the floor does not explain (in the gray zone evidence is weak by nature: a clean

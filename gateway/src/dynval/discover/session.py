@@ -135,6 +135,9 @@ class Session:
     # together (a best-linear model; a second effect found later) (their entry in the effects
     # list and their name there, '' for an appendage's link and mass: read back)
     effect_params: dict[str, tuple[int, str]] = field(default_factory=dict)
+    # a round's winner that gave the round to the linear change in its re-adjustment
+    # (judge.change_in_the_readjustment): fitted again next round, on top of the change
+    carried: set[str] = field(default_factory=set)
 
     @property
     def workers(self) -> int:
