@@ -394,8 +394,8 @@ def _trace(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
     sps = [tr.spectrum(r[c], fs, s.modes_hz, s.band) for r in res_cur.values() for c in s.chans]
     view = (tr.force_view(cur, s.fit_t) or tr.output_view(cur, s.fit_t, s.chans, s.scales)
             or tr.reaction_view(cur, s.fit_t))
-    if rnd > 1 and not any(r > s.o.significance_ratio for r in ratio.values()):
-        # the loop stops here: no candidate will be fitted, the scoring (two views' worth,
+    if rnd > 1 and rs.worst_ratio(ratio) <= min(s.o.later_gray_ratio, s.o.significance_ratio):
+        # the loop stops here (_gray): no candidate will be fitted, the scoring (two views' worth,
         # 5 s of a 6-DOF case) would only fill a table nobody reads (round 1's is kept: it
         # shows why "no effect")
         return Round(rnd, ratio, tr.describe(evs, sps), [], [], None, "", view, noise=noise)
@@ -477,9 +477,10 @@ def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
 
 def _gray(o: Options, rd: Round, accepted: set[str]) -> bool:
     """Whether the round's residual is under the significance ratio but above the gray one
-    before any effect is accepted: tested by fitting (residual.GRAY_RATIO)."""
+    (before any effect is accepted, or the later one after): tested by fitting
+    (residual.GRAY_RATIO, LATER_GRAY_RATIO)."""
     worst = rs.worst_ratio(rd.ratio)
-    return not accepted and o.gray_ratio < worst <= o.significance_ratio
+    return (o.later_gray_ratio if accepted else o.gray_ratio) < worst <= o.significance_ratio
 
 
 # the best evidence under this share of the residual above the noise: its ranking is not

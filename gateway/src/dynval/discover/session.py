@@ -27,6 +27,7 @@ class Options:
     max_worse: float = 0.05  # a held-out test where the effect never acts moves by fit noise
     significance_ratio: float = rs.SIGNIFICANCE_RATIO
     gray_ratio: float = rs.GRAY_RATIO  # under significance_ratio: tested by fitting (residual.py)
+    later_gray_ratio: float = rs.LATER_GRAY_RATIO  # the same after an effect is accepted
     noise: dict[str, float] | None = None  # stated noise RMS per channel (channel units)
     max_nfev: int = 40
     evidence_cut: float = 0.2  # fit only candidates with >= this share of the top evidence
