@@ -91,6 +91,22 @@ def test_a_readjustment_that_is_an_effect_gives_the_round_to_the_change() -> Non
     assert judge.change_in_the_readjustment(win, fits, 1.208, 0.10, lambda i: False) is win
 
 
+def test_a_change_at_the_winners_place_is_its_linear_part() -> None:
+    # a hardening spring in story 2 stiffens story 2 at every level tested: re-adjusting k2
+    # alone gains much, a stiffness change there ties it, and the spring keeps the round
+    # (blind seed 15: the change won, and the spring came in as a second effect)
+    win = _fit("cubic_stiffness", {"between": [1, 2], "story": 2}, 0.02, ref=0.10,
+               readjusted=("k1", "k2", "zeta1"))
+    same = _fit("stiffness_change", {"story": 2, "between": [1, 2]}, 0.10, ref=1.0)
+    assert judge.change_in_the_readjustment(win, [same, win], 1.0, 0.10, _yes) is win
+    below = _fit("stiffness_change", STORY1, 0.10, ref=1.0)
+    assert judge.change_in_the_readjustment(win, [below, win], 1.0, 0.10, _yes) is below
+    # a mass change at an appendage's DOF is its limit far above the band: the same place
+    app = _fit("appendage", {"dof": 1}, 0.0027, ref=0.0157, readjusted=("k1", "m1"))
+    mass = _fit("mass_change", {"dof": 1}, 0.0157, ref=0.0588)
+    assert judge.change_in_the_readjustment(app, [mass, app], 0.0588, 0.10, _yes) is app
+
+
 def test_a_linear_winner_is_kept() -> None:
     win = _fit("stiffness_change", STORY1, 0.05, ref=0.06, readjusted=("zeta1", "k2"))
     fits = [win, _fit("stiffness_change", {"story": 2, "between": [1, 2]}, 0.06)]

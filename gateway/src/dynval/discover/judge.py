@@ -235,20 +235,24 @@ def change_in_the_readjustment(best: dict[str, Any] | None, fits: Sequence[dict[
     there to take up what a best-linear declared model spread over its parameters: it lowers
     the held-out error little by itself. When the winner's reference (its re-adjusted
     parameters fitted alone) already lowers the current held-out error ``held_now`` by
-    min_gain, and an accepted change of one of those parameters alone (EffectType.changes)
-    comes within half of min_gain of that reference, the change is an effect of its own: it
-    wins the round and the winner's element is sought again on top of it. (A story's lost
-    stiffness beside a friction: a friction between DOF 1 and DOF 4 re-adjusting k1 -17 %
-    won, and the friction's place, DOF 4 to the ground, was found only as a second friction.)
-    """
+    min_gain, and an accepted change of one of those parameters alone (EffectType.changes),
+    away from the winner's own place, comes within half of min_gain of that reference, the
+    change is an effect of its own: it wins the round and the winner is sought again on top
+    of it (Session.carried). (A story's lost stiffness beside a friction: a friction between
+    DOF 1 and DOF 4 re-adjusting k1 -17 % won, and the friction's place, DOF 4 to the ground,
+    was found only as a second friction.) At the winner's place the change is the winner's
+    own linear part (a hardening spring stiffens its story at every level tested): it stays
+    in the re-adjustment."""
     if best is None or fx.by_type(best["candidate"].type).changes(best["candidate"]):
         return best
     ref = best["nsse_held_before"]
     if ref > (1 - min_gain) * held_now:
         return best
+    here = best["candidate"].location
     inside = sorted((f for f in fits if f["accepted"]
                      and fx.by_type(f["candidate"].type).changes(f["candidate"])
                      in best["readjusted"]
+                     and any(here.get(k) != v for k, v in f["candidate"].location.items())
                      and f["nsse_held_after"] <= (1 + 0.5 * min_gain) * ref),
                     key=lambda f: f["nsse_held_after"])
     return next((f for f in inside if confirm(f)), best)
