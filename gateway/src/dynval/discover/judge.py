@@ -44,7 +44,16 @@ def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model
     winner = simplest_nested(best, rd.fits, s.o.min_gain, judge.confirm)
     best = change_in_the_readjustment(winner, rd.fits, cur_table.total(s.held_names),
                                       s.o.min_gain, judge.confirm)
-    s.carried = {cand_key(winner["candidate"])} if winner is not best and winner else set()
+    s.carried = set()
+    if winner is not None and best is not None and best is not winner:
+        s.carried = {cand_key(winner["candidate"])}
+        msg = (f"round {rd.index}: {winner['candidate'].label} would win, but re-adjusting "
+               f"{', '.join(winner['readjusted'])} alone already lowers the held-out error by "
+               f"{1 - winner['nsse_held_before'] / cur_table.total(s.held_names):.0%}, as "
+               f"{best['candidate'].label} alone does: the change takes the round and the "
+               "other is fitted again next round on top of it")
+        log.info(msg)
+        s.notes.append(msg)
     if best is not None:
         best["alternatives"] = alternatives(best, rd.fits, s.o.min_gain)
     return best
