@@ -99,11 +99,11 @@ def test_a_channel_without_a_floor_does_not_decide_the_gray_zone() -> None:
     nan = float("nan")
     for ratio in ({"a": nan, "b": 1.2}, {"b": 1.2, "a": nan}):
         assert rs.worst_ratio(ratio) == 1.2
-        assert loop._gray(Options(), rd(ratio), set())
+        assert loop._gray(Options(), rd(ratio).ratio, False)
     assert rs.worst_ratio({"a": nan}) == 0.0
-    assert not loop._gray(Options(), rd({"a": nan}), set())
-    assert not loop._gray(Options(), rd({"a": nan, "b": 0.9}), set())
-    assert not loop._gray(Options(), rd({"b": 1.2}), {"contact"})  # after an accepted effect
+    assert not loop._gray(Options(), rd({"a": nan}).ratio, False)
+    assert not loop._gray(Options(), rd({"a": nan, "b": 0.9}).ratio, False)
+    assert not loop._gray(Options(), rd({"b": 1.2}).ratio, True)  # after an accepted effect
 
 
 def test_the_verdict_names_the_worst_channel_with_a_floor() -> None:

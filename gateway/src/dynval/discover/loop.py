@@ -394,8 +394,8 @@ def _trace(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
     sps = [tr.spectrum(r[c], fs, s.modes_hz, s.band) for r in res_cur.values() for c in s.chans]
     view = (tr.force_view(cur, s.fit_t) or tr.output_view(cur, s.fit_t, s.chans, s.scales)
             or tr.reaction_view(cur, s.fit_t))
-    if rnd > 1 and rs.worst_ratio(ratio) <= min(s.o.later_gray_ratio, s.o.significance_ratio):
-        # the loop stops here (_gray): no candidate will be fitted, the scoring (two views' worth,
+    if rnd > 1 and rs.worst_ratio(ratio) <= s.o.significance_ratio and not _gray(s.o, ratio, True):
+        # the loop stops here: no candidate will be fitted, the scoring (two views' worth,
         # 5 s of a 6-DOF case) would only fill a table nobody reads (round 1's is kept: it
         # shows why "no effect")
         return Round(rnd, ratio, tr.describe(evs, sps), [], [], None, "", view, noise=noise)
@@ -461,7 +461,7 @@ def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     chosen += [e for e in rd.second
                if offered(e.cand) and all(cand_key(e.cand) != cand_key(c.cand) for c in chosen)]
     chosen += [e for e in pool if cand_key(e.cand) in s.carried and e not in chosen]
-    if not accepted and not _gray(s.o, rd, accepted):
+    if not accepted and not _gray(s.o, rd.ratio, False):
         # bounded cost: only where the answer would otherwise be "no effect" with a residual
         # the floor does not explain (in the gray zone evidence is weak by nature: a clean
         # 5-DOF case fitted 4 more candidates for nothing)
@@ -475,12 +475,12 @@ def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     return chosen
 
 
-def _gray(o: Options, rd: Round, accepted: set[str]) -> bool:
+def _gray(o: Options, ratio: dict[str, float], after_effect: bool) -> bool:
     """Whether the round's residual is under the significance ratio but above the gray one
     (before any effect is accepted, or the later one after): tested by fitting
     (residual.GRAY_RATIO, LATER_GRAY_RATIO)."""
-    worst = rs.worst_ratio(rd.ratio)
-    return (o.later_gray_ratio if accepted else o.gray_ratio) < worst <= o.significance_ratio
+    worst = rs.worst_ratio(ratio)
+    return (o.later_gray_ratio if after_effect else o.gray_ratio) < worst <= o.significance_ratio
 
 
 # the best evidence under this share of the residual above the noise: its ranking is not
@@ -556,7 +556,7 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
             on_progress(f"round {rnd}")
         worst = rs.worst_ratio(rd.ratio)
         room = len(effects) - (offsets is not None) < o.max_effects
-        gray = room and _gray(o, rd, accepted)
+        gray = room and _gray(o, rd.ratio, bool(accepted))
         at_floor = (f"residual at the noise floor (RMSE/noise <= {o.significance_ratio:g} on "
                     "every channel")
         if worst <= o.significance_ratio and not gray:  # NaN ratios left out (no floor)
