@@ -42,15 +42,15 @@ def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model
     if simpler:
         best = judge_all(s, rd, judge, simpler, best)
     winner = simplest_nested(best, rd.fits, s.o.min_gain, judge.confirm)
-    best = change_in_the_readjustment(winner, rd.fits, cur_table.total(s.held_names),
-                                      s.o.min_gain, judge.confirm)
+    best, why = change_in_the_readjustment(winner, rd.fits, cur_table.total(s.held_names),
+                                           s.o.min_gain, judge)
     s.carried = set()
     if winner is not None and best is not None and best is not winner:
         s.carried = {cand_key(winner["candidate"])}
         msg = (f"round {rd.index}: {winner['candidate'].label} would win, but re-adjusting "
                f"{', '.join(winner['readjusted'])} alone already lowers the held-out error by "
-               f"{1 - winner['nsse_held_before'] / cur_table.total(s.held_names):.0%}, as "
-               f"{best['candidate'].label} alone does: the change takes the round and the "
+               f"{1 - winner['nsse_held_before'] / cur_table.total(s.held_names):.0%}, and "
+               f"{why}: {best['candidate'].label} takes the round and the "
                "other is fitted again next round on top of it")
         log.info(msg)
         s.notes.append(msg)
@@ -237,34 +237,53 @@ def simplest_nested(best: dict[str, Any] | None, fits: Sequence[dict[str, Any]],
 
 
 def change_in_the_readjustment(best: dict[str, Any] | None, fits: Sequence[dict[str, Any]],
-                               held_now: float, min_gain: float,
-                               confirm: Callable[[dict[str, Any]], bool]
-                               ) -> dict[str, Any] | None:
-    """The winner, or the linear change it carries in its re-adjustment. A re-adjustment is
-    there to take up what a best-linear declared model spread over its parameters: it lowers
-    the held-out error little by itself. When the winner's reference (its re-adjusted
-    parameters fitted alone) already lowers the current held-out error ``held_now`` by
-    min_gain, and an accepted change of one of those parameters alone (EffectType.changes),
-    away from the winner's own place, comes within half of min_gain of that reference, the
-    change is an effect of its own: it wins the round and the winner is sought again on top
-    of it (Session.carried). (A story's lost stiffness beside a friction: a friction between
-    DOF 1 and DOF 4 re-adjusting k1 -17 % won, and the friction's place, DOF 4 to the ground,
-    was found only as a second friction.) At the winner's place the change is the winner's
-    own linear part (a hardening spring stiffens its story at every level tested): it stays
-    in the re-adjustment."""
-    if best is None or fx.by_type(best["candidate"].type).changes(best["candidate"]):
-        return best
+                               held_now: float, min_gain: float, judge: Judge
+                               ) -> tuple[dict[str, Any] | None, str]:
+    """The winner, or the linear change it carries in its re-adjustment, with why (or "").
+    A re-adjustment is there to take up what a best-linear declared model spread over its
+    parameters: it lowers the held-out error little by itself. When the winner's reference
+    (its re-adjusted parameters fitted alone) already lowers the current held-out error
+    ``held_now`` by min_gain, an accepted change of one of those parameters alone
+    (EffectType.changes), away from the winner's own place, is an effect of its own if it
+    comes within half of min_gain of that reference, or if the winner moved that parameter the
+    same way and loses min_gain of its held-out error without moving it (the reference's other
+    parameters can mimic part of the winner: a lost story stiffness beside an added mass).
+    The change then wins the round and the winner is sought again on top of it
+    (Session.carried). (A story's lost stiffness beside a friction: a friction between DOF 1
+    and DOF 4 re-adjusting k1 -17 % won, and the friction's place, DOF 4 to the ground, was
+    found only as a second friction.) At the winner's place the change is the winner's own
+    linear part (a hardening spring stiffens its story at every level tested): it stays in
+    the re-adjustment. A linear winner is not replaced by a change that only ties its
+    reference (that reference is a change too)."""
+    if best is None:
+        return best, ""
     ref = best["nsse_held_before"]
     if ref > (1 - min_gain) * held_now:
-        return best
-    here = best["candidate"].location
+        return best, ""
+    linear = bool(fx.by_type(best["candidate"].type).changes(best["candidate"]))
     inside = sorted((f for f in fits if f["accepted"]
                      and fx.by_type(f["candidate"].type).changes(f["candidate"])
-                     in best["readjusted"]
-                     and any(here.get(k) != v for k, v in f["candidate"].location.items())
-                     and f["nsse_held_after"] <= (1 + 0.5 * min_gain) * ref),
+                     in best["readjusted"] and _away(f["candidate"], best["candidate"])),
                     key=lambda f: f["nsse_held_after"])
-    return next((f for f in inside if confirm(f)), best)
+    tied = None if linear else next(
+        (f for f in inside if f["nsse_held_after"] <= (1 + 0.5 * min_gain) * ref
+         and judge.confirm(f)), None)
+    if tied is not None:
+        return tied, f"{tied['candidate'].label} alone does as well"
+    for f in inside:
+        name = fx.by_type(f["candidate"].type).changes(f["candidate"])
+        without = judge.without_moving(best, f, name)
+        if (without is not None and best["nsse_held_after"] <= (1 - min_gain) * without
+                and judge.confirm(f)):
+            return f, (f"without moving {name} its held-out error is "
+                       f"{math.sqrt(without / best['nsse_held_after']):.2f} x (RMSE)")
+    return best, ""
+
+
+def _away(change: fx.Candidate, effect: fx.Candidate) -> bool:
+    """Whether a linear change is away from an effect's place (else it is the effect's own
+    linear part)."""
+    return any(effect.location.get(k) != v for k, v in change.location.items())
 
 
 class Judge:
@@ -367,6 +386,34 @@ class Judge:
                 info["reference"] = _reference_label(names, " from the candidate's values")
         info["confirmed"] = True
         return bool(info["accepted"])
+
+    def without_moving(self, info: dict[str, Any], change: dict[str, Any], name: str
+                       ) -> float | None:
+        """The held-out normalised SSE of a fit (``info``) done again from its own values
+        with the declared parameter ``name`` left at the current model's value (the others
+        re-adjusted); None if that fit fails, or if the fit did not move ``name`` the way
+        the fit of its change alone (``change``) did."""
+        res: ft.FitResult = info["fit"]
+        v0 = self.cur.parameters()[name]
+        if ((res.model.parameters()[name] - v0)
+                * (change["fit"].model.parameters()[name] - v0) <= 0):
+            return None
+        names = tuple(n for n in info["readjusted"] if n != name)
+        fitted = {n[: -len(ft.READJUSTED)]: v for n, v in zip(res.names, res.values,
+                                                                strict=True)
+                  if n.endswith(ft.READJUSTED) and n[: -len(ft.READJUSTED)] != name}
+        own = [v for n, v in zip(res.names, res.values, strict=True)
+               if not n.endswith(ft.READJUSTED)]
+        try:
+            r1 = ft.fit(self.cur.with_params(fitted), res.cand, own, self.fit_t, self.chans,
+                        self.scales, self.o.max_nfev, names, workers=self.workers)
+        except ConfigError as exc:
+            log.info("%s without re-adjusting %s failed: %s", res.cand.label, name, exc)
+            return None
+        tab, _ = rs.error_table(r1.model, self.held_t, self.chans, self.scales)
+        log.info("%s without re-adjusting %s: held-out %.4g (with it %.4g)", res.cand.label,
+                 name, tab.total(self.held_names), info["nsse_held_after"])
+        return tab.total(self.held_names)
 
     def warm_reference(self, res: ft.FitResult, names: tuple[str, ...]
                        ) -> rs.ErrorTable | None:
@@ -503,9 +550,12 @@ def backward(s: Session, steps: list[Step], cur: mdl.Model, cur_table: rs.ErrorT
         s.notes.append(msg)
         del effects[gone.entry]
         for st, (before, res) in zip(steps[k + 1:], refits, strict=True):
-            spread = ft.scatter(before, res, s.fit_t, s.chans, s.scales,
-                                st.info["readjusted"], workers=s.workers)
-            st.before, st.info, st.entry = before, {**st.info, "fit": res}, st.entry - 1
+            names = tuple(n[: -len(ft.READJUSTED)] for n in res.names
+                          if n.endswith(ft.READJUSTED))
+            spread = ft.scatter(before, res, s.fit_t, s.chans, s.scales, names,
+                                workers=s.workers)
+            st.before, st.entry = before, st.entry - 1
+            st.info = {**st.info, "fit": res, "readjusted": names}
             effects[st.entry] = effect_entry(res, st.info, before, spread)
         del steps[k]
     return cur, cur_table
@@ -515,16 +565,22 @@ def without(s: Session, steps: Sequence[Step], k: int, prediction: str
              ) -> tuple[mdl.Model, rs.ErrorTable, list[tuple[mdl.Model, ft.FitResult]]] | None:
     """The model without step k's effect: the later effects re-fitted on the model before it.
     (model, its error table, (model before, fit) of each re-fitted effect); None if a fit
-    fails."""
+    fails. A linear change left out keeps its parameter out of the later effects'
+    re-adjustments away from its place: re-adjusting it there would put the change back
+    under another name (a mass change re-adjusts every story stiffness)."""
+    gone: fx.Candidate = steps[k].info["candidate"]
+    param = fx.by_type(gone.type).changes(gone)
     m = steps[k].before
     refits = []
     for st in steps[k + 1:]:
         res: ft.FitResult = st.info["fit"]
         own = [v for n, v in zip(res.names, res.values, strict=True)
                if not n.endswith(ft.READJUSTED)]
+        names = tuple(n for n in st.info["readjusted"]
+                      if n != param or not _away(gone, res.cand))
         try:
-            r = ft.fit(m, res.cand, own, s.fit_t, s.chans, s.scales, s.o.max_nfev,
-                       st.info["readjusted"], workers=s.workers)
+            r = ft.fit(m, res.cand, own, s.fit_t, s.chans, s.scales, s.o.max_nfev, names,
+                       workers=s.workers)
         except ConfigError as exc:
             log.info("%s re-fitted without %s: %s", res.cand.label,
                      steps[k].info["candidate"].label, exc)

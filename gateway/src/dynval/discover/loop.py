@@ -257,6 +257,23 @@ def _follow_effect_params(s: Session, m: mdl.Model, effects: list[dict[str, Any]
                 effects[i]["parameters"][k]["value"] = v
 
 
+def _changes_as_final(start: mdl.Model, m: mdl.Model, effects: list[dict[str, Any]]) -> None:
+    """A stiffness or mass change reports the final model's parameter less the one before the
+    rounds (its value in its own round kept as value_in_its_round): later effects and the
+    joint re-adjustment may move the same parameter (a mass change re-adjusts every story
+    stiffness), and the model written is the one the user gets."""
+    p0, pm = start.parameters(), m.parameters()
+    for e in effects:
+        name = fx.by_type(e["type"]).changes(fx.Candidate(e["type"], e["location"], e["label"],
+                                                         True))
+        if not name or len(e["parameters"]) != 1:
+            continue
+        d = next(iter(e["parameters"].values()))
+        final = float(pm[name] - p0[name])
+        if final != d["value"]:
+            d["value_in_its_round"], d["value"] = d["value"], final
+
+
 OFFSET_SHARE = 0.05  # a channel's constant residual must hold this share of its energy
 
 
@@ -560,6 +577,7 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
     accepted: set[str] = set()
     steps: list[Step] = []
     timing: dict[str, float] = {}
+    start = cur
     for rnd in range(1, o.max_effects + 2):
         t0 = time.perf_counter()
         rd = _trace(s, cur, cur_table, rnd, noise)
@@ -612,6 +630,7 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
         accepted.add(cand_key(res_b.cand))
         rd.decision = f"accepted {res_b.cand.label}"
     cur, cur_table = backward(s, steps, cur, cur_table, effects, prediction)
+    _changes_as_final(start, cur, effects)
     after, res_after = s.table(cur)
     left = after.over_noise(s.fit_names + s.held_names, s.chans, noise)
     unexp = (ux.characterise(s.evals, res_after, s.chans, noise, s.modes_hz)
