@@ -11,9 +11,10 @@ gives the type and place found, and the held-out error after over the ideal's (t
 driven by the measured input, same initial-state handling). Writes bench/RESULTS.blind.md.
 ``--free``: every chain rides on rails or a weak position loop (a rigid-body or nearly rigid
 mode: it drifts open loop), driven by a force, half of them with an encoder at DOF 1.
+``--sweep``: every test a shaker's swept sine (synth.Sweep) instead of band-limited noise.
 
     python3 bench/bench_discover_blind.py [--cases 16] [--first 0] [--effects 0|1|2]
-        [--only KIND --out FILE] [--free]
+        [--only KIND --out FILE] [--free] [--sweep]
 """
 from __future__ import annotations
 
@@ -182,9 +183,18 @@ def _found(e: dict[str, Any], want: dict[str, Any]) -> bool:
         e["location"].get(k) == v for k, v in want.items() if k not in ("type", "sign"))
 
 
-def run(seed: int, count: int = 1, only: str = "", free: bool = False) -> str:
+def sweep(rng: np.random.Generator) -> gen.Sweep:
+    """A shaker's swept sine: from 5-15 Hz to 150-250 Hz over the record, logarithmic or
+    linear."""
+    return gen.Sweep(float(rng.uniform(5.0, 15.0)), float(rng.uniform(150.0, 250.0)),
+                     "logarithmic" if rng.random() < 0.5 else "linear")
+
+
+def run(seed: int, count: int = 1, only: str = "", free: bool = False,
+        swept: bool = False) -> str:
     """One blind case: its table row. ``count`` 2 draws two effects (another seed stream);
-    ``free`` frees the chain from the ground (its own draws, after the structure's)."""
+    ``free`` frees the chain from the ground (its own draws, after the structure's);
+    ``swept`` drives every test with a swept sine (its own draws) instead of random noise."""
     rng = np.random.default_rng((1000 if count <= 1 else 2000) + seed)
     m, table = structure(rng)
     if free:
@@ -192,9 +202,10 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False) -> str:
     truth, wants = effects(rng, m, count, only)
     cut, daq, bl = (bool(rng.random() < 0.5) for _ in range(3))
     n = 2 * N if cut else N
+    exc = sweep(np.random.default_rng(4000 + seed)) if swept else None
     recs = gen.generate(m, truth, n_tests=6, n_samples=n, seed=seed, fs_hz=FS,
                         levels_n_rms=(3.0, 1.8) if table else (12.0, 7.2),
-                        noise=0.0 if daq else 0.01)
+                        noise=0.0 if daq else 0.01, excitation=exc)
     if cut:
         recs = [Recording(r.name, r.fs_hz, [dataclasses.replace(
             c, data=np.ascontiguousarray(c.data[N:])) for c in r.channels]) for r in recs]
@@ -224,7 +235,9 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False) -> str:
     cond = ", ".join(c for c, on in (("free" if free and m.stiffness_n_per_m[0] == 0 else
                                        "position loop", free),
                                       ("cut from a run", cut), ("cheap DAQ", daq),
-                                     ("best-linear", bl), ("shake table", table)) if on) or "-"
+                                     ("best-linear", bl), ("shake table", table),
+                                     (f"sweep {exc.f0_hz:.0f}-{exc.f1_hz:.0f} Hz {exc.method[:3]}"
+                                      if exc else "", swept)) if on) or "-"
     want_s = "; ".join(w["type"] + " " + " ".join(f"{k} {v}" for k, v in w.items()
                                                    if k != "type")
                        + (" (in the best-linear fit)" if w in absorbed else "")
@@ -245,12 +258,14 @@ def main() -> None:
     ap.add_argument("--out", default=None)
     ap.add_argument("--free", action="store_true",
                     help="chains on rails or a weak position loop (see the docstring)")
+    ap.add_argument("--sweep", action="store_true",
+                    help="every test a swept sine (5-15 Hz to 150-250 Hz, log or linear)")
     a = ap.parse_args()
     out = a.out or str(ROOT / "bench" / {0: "RESULTS.blind-clean.md", 1: "RESULTS.blind.md",
                                          2: "RESULTS.blind-two.md"}[a.effects])
     rows = []
     for seed in range(a.first, a.first + a.cases):
-        rows.append(run(seed, a.effects, a.only, a.free))
+        rows.append(run(seed, a.effects, a.only, a.free, a.sweep))
         print(rows[-1], flush=True)  # noqa: T201 (a benchmark's table)
     right = sum("| yes |" in r for r in rows)
     tied = sum("| tied |" in r for r in rows)
@@ -258,7 +273,7 @@ def main() -> None:
     text = ("# discover on blind generated cases with real rigs' conditions (issue 16)\n\n"
             f"`python3 bench/bench_discover_blind.py --cases {a.cases} --first {a.first} "
             f"--effects {a.effects}{' --only ' + a.only if a.only else ''}"
-            f"{' --free' if a.free else ''}`: "
+            f"{' --free' if a.free else ''}{' --sweep' if a.sweep else ''}`: "
             f"right type and place in {right} of {len(rows)} (and among the effects as well "
             f"supported as the one named in {tied} more: 'tied'); held-out error within 1.3 x the "
             f"ideal in {within} of {len(rows)}.\n\n"

@@ -31,6 +31,23 @@ def test_sine_test_is_steady_at_its_level_and_frequency(declared: mdl.Model) -> 
     assert max(thirds) / min(thirds) < 1.01  # the free transient died out in the lead
 
 
+@pytest.mark.parametrize(("method", "mid_hz"), [("logarithmic", 50.0), ("linear", 252.5)])
+def test_sweep_test_runs_from_f0_to_f1_at_its_level(declared: mdl.Model, method: str,
+                                                     mid_hz: float) -> None:
+    """A 5 -> 500 Hz swept sine over 4 s: RMS the level, starting and ending at rest (cosine
+    ramps), its frequency half-way sqrt(5 x 500) = 50 Hz (logarithmic) or (5 + 500) / 2 Hz
+    (linear), read from the zero crossings of 0.2 s around the middle."""
+    fs = 2560.0
+    r = synth.generate(declared, synth.Truth(), n_tests=1, levels_n_rms=(5.0,), fs_hz=fs,
+                       n_samples=10240, noise=0.0, excitation=synth.Sweep(5.0, 500.0, method))[0]
+    f = r.channel("force_N").data
+    assert np.sqrt(np.mean(f * f)) == pytest.approx(5.0, rel=0.02)
+    assert abs(f[0]) < 0.01 and abs(f[-1]) < 0.2  # at rest (the DAQ filter's lag at the end)
+    mid = f[5120 - 256:5120 + 256]
+    crossings = np.count_nonzero(np.diff(np.signbit(mid)))
+    assert crossings / 2 / (512 / fs) == pytest.approx(mid_hz, rel=0.05)
+
+
 def test_hammer_test_impulse_and_response_start(declared: mdl.Model) -> None:
     """A 300 N, 4 ms half-sine at 0.1 s: impulse 300 x 0.008 / pi = 0.764 N s; nothing moves
     before the hit (1 % noise of a record that is mostly decay)."""

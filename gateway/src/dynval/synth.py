@@ -87,10 +87,33 @@ class Hammer:
     width_s: float = 0.004
 
 
-def excitation_force(exc: Sine | Hammer, rng: np.random.Generator, n: int, fs_hz: float,
+@dataclass(frozen=True)
+class Sweep:
+    """A swept-sine test (a shaker's chirp): from f0_hz to f1_hz over the record, linear or
+    logarithmic in frequency, its RMS the test's level, cosine ramps of ramp_s at both ends
+    (a sweep starts and ends at rest, so it carries its own start-up transient)."""
+
+    f0_hz: float
+    f1_hz: float
+    method: str = "logarithmic"
+    ramp_s: float = 0.25
+
+
+Excitation = Sine | Hammer | Sweep
+
+
+def excitation_force(exc: Excitation, rng: np.random.Generator, n: int, fs_hz: float,
                      level: float) -> np.ndarray:
-    """The force of a harmonic or hammer test at fs_hz, n samples (a Sine's lead included)."""
+    """The force of a harmonic, swept-sine or hammer test at fs_hz, n samples (a Sine's lead
+    included)."""
     t = np.arange(n) / fs_hz
+    if isinstance(exc, Sweep):
+        dur = n / fs_hz
+        ramp = np.minimum(1.0, np.minimum(t, dur - t) / exc.ramp_s).clip(0.0, 1.0)
+        ramp = 0.5 - 0.5 * np.cos(np.pi * ramp)
+        x = ramp * signal.chirp(t, exc.f0_hz, dur, exc.f1_hz, method=exc.method,
+                                phi=float(rng.uniform(0, 360)))
+        return np.asarray(level * x / np.sqrt(np.mean(x * x)))
     if isinstance(exc, Sine):
         ramp = 0.5 - 0.5 * np.cos(np.pi * np.minimum(t / 0.25, 1.0))
         return np.asarray(level * np.sqrt(2.0) * ramp
@@ -199,13 +222,14 @@ def simulate_truth_motion(m: mdl.Model, truth: Truth, force_fine: np.ndarray,
 def generate(m: mdl.Model, truth: Truth, *, n_tests: int = 10,
              levels_n_rms: tuple[float, ...] = (12.0, 7.2), n_samples: int = 8192,
              fs_hz: float = 640.0, fine: int = 16, noise: float = 0.01, seed: int = 0,
-             band_hz: tuple[float, float] = (20.0, 200.0), excitation: Sine | Hammer | None = None,
+             band_hz: tuple[float, float] = (20.0, 200.0), excitation: Excitation | None = None,
              onsets: list[np.ndarray] | None = None, daq: str = "butter8") -> list[Recording]:
     """n_tests measured tests (levels cycled: test i has input RMS levels[i % len(levels)],
     in the input's unit: N, m/s^2 for a shake table, m for a ground displacement; a Hammer's
     level is its peak force), as Recordings whose columns are the model's input channel
     (default 'force_N') and its acceleration, velocity and displacement outputs (other output
-    kinds are not generated). excitation: None, band-limited random; a Sine or a Hammer.
+    kinds are not generated). excitation: None, band-limited random; a Sine, a Sweep or
+    a Hammer.
     onsets: if a list, each test's contact_onsets (s from the record's start) are appended.
     daq: the DAQ's anti-alias filter (daq_filter: 'alias-free' for hammer tests)."""
     rng = np.random.default_rng(seed)
