@@ -43,6 +43,7 @@ import numpy as np
 log = logging.getLogger(__name__)
 signal: Any = importlib.import_module("scipy.signal")
 next_fast_len: Any = importlib.import_module("scipy.fft").next_fast_len
+_ndimage: Any = importlib.import_module("scipy.ndimage")
 
 REPEAT_CORR = 0.999  # inputs this correlated (and of equal RMS within 1 %) are repeats
 PERIOD_CORR = 0.995  # a lag whose input autocorrelation reaches this is a period
@@ -401,17 +402,67 @@ def without_sub_band_noise(u: np.ndarray, fs_hz: float) -> np.ndarray:
     return np.asarray(kept + (mean if abs(mean) > SUB_BAND_MEAN * slow else 0.0))
 
 
+IDLE_SEG = 256  # samples per STFT segment (Hann, half-overlapping): 0.4 s at 640 Hz
+IDLE_CONTRAST = 100.0  # a frequency whose input level over time spans this (98th over 20th
+# percentile) is switched on and off (a sweep passes it, a hammer hits); a stationary input
+# spans 2-3 x at every frequency, in its band and out of it
+IDLE_FLOOR = 4.0  # a cell within this x its frequency's idle level is the sensor's noise
+
+
+def idle_gain(u: np.ndarray, fs_hz: float) -> np.ndarray | None:
+    """The gain over the input's STFT cells (IDLE_SEG) that takes out its sensor's noise where
+    the excitation is idle: at each frequency the input switches on and off over time
+    (IDLE_CONTRAST), the cells within IDLE_FLOOR of its idle level (the 20th percentile over
+    time of the 3 x 3-cell smoothed power) go to 0, louder ones towards 1 (1 - IDLE_FLOOR x
+    idle / power); 1 at the other frequencies and in the two frames at either end. None when
+    no frequency switches (a random or harmonic input), the record is shorter than 8 segments
+    or not finite. Between a sweep's passes, the
+    measured input's noise drives every mode the simulations resolve for the whole record,
+    the true structure's only as long as the sweep is near: the true model lost to a
+    better-damped wrong one."""
+    top = float(np.max(np.abs(u))) if u.size >= 8 * IDLE_SEG else 0.0
+    if not (math.isfinite(top) and top > 0):  # short, empty, or a NaN the core counts
+        return None
+    _, _, z = signal.stft(u / top, fs=fs_hz, nperseg=IDLE_SEG)  # huge values: no overflow
+    power = _ndimage.uniform_filter(np.abs(z) ** 2, size=3, mode="nearest")
+    inner = power[:, 2:-2]  # the end frames hold the record's cut (every frequency jumps)
+    idle = np.percentile(inner, 20, axis=1)
+    on_off = np.percentile(inner, 98, axis=1) > IDLE_CONTRAST * np.maximum(idle, 1e-300)
+    if not on_off.any():
+        return None
+    gain = np.clip(1.0 - IDLE_FLOOR * idle[:, None] / np.maximum(power, 1e-300), 0.0, 1.0)
+    gain[~on_off] = 1.0
+    gain[:, :2] = gain[:, -2:] = 1.0
+    return np.asarray(gain)
+
+
+def _gated(x: np.ndarray, fs_hz: float, gain: np.ndarray | None) -> np.ndarray:
+    """x through an STFT gain (idle_gain; the same cells as its STFT); x when None."""
+    if gain is None:
+        return x
+    _, _, z = signal.stft(x, fs=fs_hz, nperseg=IDLE_SEG)
+    _, y = signal.istft(z * gain, fs=fs_hz, nperseg=IDLE_SEG)
+    return np.asarray(y[:x.size])
+
+
 def simulated_input(kind: str, u: np.ndarray, fs_hz: float) -> np.ndarray:
     """The measured input of kind ``kind`` (Model.input.kind) as discover's simulations take
-    it: a force or table acceleration without_sub_band_noise, a displacement as measured."""
-    return without_sub_band_noise(u, fs_hz) if kind in SUB_BAND_KINDS else u
+    it: a force or table acceleration without_sub_band_noise and without its noise where the
+    excitation is idle (idle_gain), a displacement as measured."""
+    if kind not in SUB_BAND_KINDS:
+        return u
+    x = without_sub_band_noise(u, fs_hz)
+    return _gated(x, fs_hz, idle_gain(x, fs_hz))
 
 
 def as_input_noise(kind: str, e: np.ndarray, u: np.ndarray, fs_hz: float) -> np.ndarray:
     """A noise record e added to the input u as the simulations take it (simulated_input):
-    without its part under u's band where u's is taken out."""
-    fc = sub_band_corner(u, fs_hz) if kind in SUB_BAND_KINDS else None
-    return e if fc is None else _high_pass(e, fs_hz, fc)
+    without its part under u's band where u's is taken out, and through u's idle gain."""
+    if kind not in SUB_BAND_KINDS:
+        return e
+    fc = sub_band_corner(u, fs_hz)
+    x, e = (u, e) if fc is None else (without_sub_band_noise(u, fs_hz), _high_pass(e, fs_hz, fc))
+    return _gated(e, fs_hz, idle_gain(x, fs_hz))
 
 
 def _level(f: np.ndarray, p: np.ndarray, lo: float, hi: float) -> float | None:
