@@ -20,7 +20,8 @@ Two generators:
 
 ``generate`` makes the report's three test types (Section 4.2): band-limited random (the
 default), harmonic (``Sine``: 71 Hz on the linear, 54 Hz on the nonlinear structure) and
-impact hammer (``Hammer``: put the model's input at the struck DOF, floor 1 in the report).
+impact hammer (``Hammer``: put the model's input at the struck DOF, floor 1 in the report),
+and a shaker's swept sine (``Sweep``), as many measured tests are.
 """
 from __future__ import annotations
 
