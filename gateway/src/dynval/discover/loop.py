@@ -303,11 +303,12 @@ def _sensor_offsets(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
     if not held1 < held0:
         return cur, cur_table, None
     names = [k.split(" ", 1)[1] for k in params]
-    # one force for several offsets is the simpler story; for one offset it is not, and
-    # must beat it by more than the tie margin: a displacement sensor's zero is arbitrary
-    # (an encoder's home), and on a weakly restrained structure a constant force only
-    # shifts that zero (cut records show no transient)
-    margin = 1.0 if len(names) > 1 else 1.0 - 0.5 * s.o.min_gain
+    # one force for several offsets is the simpler story; for one displacement sensor's
+    # offset it is not, and must beat it by more than the tie margin: that sensor's zero is
+    # arbitrary (an encoder's home), and on a weakly restrained structure a constant force
+    # only shifts it (cut records show no transient)
+    zero = len(names) == 1 and cur.outputs[names[0]].kind == "disp"
+    margin = 1.0 - 0.5 * s.o.min_gain if zero else 1.0
     physical = _a_force_instead(s, cur, res, held1)
     if physical is not None and physical[0] <= margin * held1:
         s.notes.append(f"one {physical[1]} explains the channels' mean residuals on the held-"
