@@ -31,7 +31,7 @@ from dynval import model as mdl
 from dynval import synth as gen
 from dynval.discover import initial, loop
 from dynval.discover import residual as rs
-from dynval.discover.session import settle_s
+from dynval.discover.session import settle_samples
 from dynval.io.recording import Recording
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -232,8 +232,7 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False,
     tm = dataclasses.replace(tm, outputs={c: dataclasses.replace(
         o, offset=r.model.outputs[c].offset) for c, o in m.outputs.items()})
     if r.prediction == "open loop":  # the true model's own initial states, as discover's
-        settle = int(settle_s([f for f in r.modes_hz if f > 0.05 * r.band_hz[0]]) * FS)
-        initial.apply(tm, r.tests, r.chans, r.scales, settle)
+        initial.apply(tm, r.tests, r.chans, r.scales, settle_samples(r.modes_hz, r.band_hz, FS))
     ideal = rs.error_table(tm, r.tests, r.chans, r.scales)[0].total(r.held_names)
     ratio = r.after.total(r.held_names) / ideal
     cond = ", ".join(c for c, on in (("free" if free and m.stiffness_n_per_m[0] == 0 else

@@ -315,7 +315,7 @@ def _sensor_offsets(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
                        "out tests as well as an offset per channel: no sensor offsets are "
                        "taken before the rounds (the force competes in them)")
         return cur, cur_table, None
-    if physical is not None:
+    if physical is not None and zero:  # the tie the margin broke for the sensor's zero
         s.notes.append(f"one {physical[1]} explains the mean residual of {names[0]} on the "
                        f"held-out tests about as well as its offset (held-out error "
                        f"{math.sqrt(physical[0] / held1):.3f} x): these tests cannot tell a "
@@ -387,8 +387,7 @@ def _floors(s: Session, m: mdl.Model, res: dict[str, dict[str, np.ndarray]],
     def respond(t: Any, e: np.ndarray) -> dict[str, np.ndarray] | None:
         # the input as the tests' simulations take it (TestData.input_for); in observer mode
         # the measurements stay: the change is that of the observer's one-step errors
-        u = nz.simulated_input(m.input.kind, t.u, t.fs_hz)
-        e = nz.as_input_noise(m.input.kind, e, t.u, t.fs_hz)
+        u, e = nz.simulated_input_and_noise(m.input.kind, t.u, e, t.fs_hz)
         obs = getattr(t, "observer", None)
         try:
             if obs is None:

@@ -394,8 +394,11 @@ def without_sub_band_noise(u: np.ndarray, fs_hz: float) -> np.ndarray:
     the low mode, and its mean deflects it, far more than anything in the band, and a wrong
     model that stiffens it wins."""
     fc = sub_band_corner(u, fs_hz)
-    if fc is None:
-        return u
+    return u if fc is None else _above(u, fs_hz, fc)
+
+
+def _above(u: np.ndarray, fs_hz: float, fc: float) -> np.ndarray:
+    """u above fc (without_sub_band_noise), its mean kept where it is a real static force."""
     mean = float(np.mean(u))
     kept = _high_pass(u, fs_hz, fc)
     slow = float(np.std(u - mean - kept))
@@ -449,20 +452,28 @@ def simulated_input(kind: str, u: np.ndarray, fs_hz: float) -> np.ndarray:
     """The measured input of kind ``kind`` (Model.input.kind) as discover's simulations take
     it: a force or table acceleration without_sub_band_noise and without its noise where the
     excitation is idle (idle_gain), a displacement as measured."""
-    if kind not in SUB_BAND_KINDS:
-        return u
-    x = without_sub_band_noise(u, fs_hz)
-    return _gated(x, fs_hz, idle_gain(x, fs_hz))
+    return _as_simulated(kind, u, fs_hz, ())[0]
 
 
-def as_input_noise(kind: str, e: np.ndarray, u: np.ndarray, fs_hz: float) -> np.ndarray:
-    """A noise record e added to the input u as the simulations take it (simulated_input):
-    without its part under u's band where u's is taken out, and through u's idle gain."""
+def simulated_input_and_noise(kind: str, u: np.ndarray, e: np.ndarray, fs_hz: float
+                              ) -> tuple[np.ndarray, np.ndarray]:
+    """(simulated_input of u, a noise record e added to u as the simulations take it:
+    without its part under u's band where u's is taken out, and through u's idle gain)."""
+    x, (en,) = _as_simulated(kind, u, fs_hz, (e,))
+    return x, en
+
+
+def _as_simulated(kind: str, u: np.ndarray, fs_hz: float, noises: tuple[np.ndarray, ...]
+                  ) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """u as the simulations take it and ``noises`` through the same filters (u's sub-band
+    corner and idle gain, each found once)."""
     if kind not in SUB_BAND_KINDS:
-        return e
+        return u, noises
     fc = sub_band_corner(u, fs_hz)
-    x, e = (u, e) if fc is None else (without_sub_band_noise(u, fs_hz), _high_pass(e, fs_hz, fc))
-    return _gated(e, fs_hz, idle_gain(x, fs_hz))
+    if fc is not None:
+        u, noises = _above(u, fs_hz, fc), tuple(_high_pass(e, fs_hz, fc) for e in noises)
+    gain = idle_gain(u, fs_hz)
+    return _gated(u, fs_hz, gain), tuple(_gated(e, fs_hz, gain) for e in noises)
 
 
 def _level(f: np.ndarray, p: np.ndarray, lo: float, hi: float) -> float | None:

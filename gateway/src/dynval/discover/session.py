@@ -109,6 +109,13 @@ def settle_s(modes_hz: Sequence[float], zeta: float = 0.01) -> float:
     return min(5.0, math.log(100.0) / (2 * math.pi * min(flex) * zeta)) if flex else 5.0
 
 
+def settle_samples(modes_hz: Sequence[float], band_hz: tuple[float, float], fs_hz: float
+                   ) -> int:
+    """The start-up window in samples (settle_s) over the modes that are not rigid-body-like
+    (above 5 % of the input band's lower edge)."""
+    return int(settle_s([f for f in modes_hz if f > 0.05 * band_hz[0]]) * fs_hz)
+
+
 def bic(nsse: float, n: float, p: int) -> float:
     return n * math.log(max(nsse, 1e-300) / n) + p * math.log(n)
 
@@ -171,7 +178,7 @@ def make_session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> Session
         raise ConfigError(f"the tests have different sample rates: {sorted(fs_set)}")
     band = tr.input_band(tests)
     modes_hz = [float(f) for f in mdl.natural_frequencies(m)]
-    settle = int(settle_s([f for f in modes_hz if f > 0.05 * band[0]]) * tests[0].fs_hz)
+    settle = settle_samples(modes_hz, band, tests[0].fs_hz)
     tests, cut = segments.bound(tests, settle)  # long records: evenly spaced segments
     fit_t, held_t, how = split(tests)
     return Session(o, tests, chans, rs.channel_scales(tests, chans), fit_t, held_t, band,
