@@ -26,8 +26,10 @@ def best_linear(m: mdl.Model, recs: list[Recording]) -> mdl.Model:
     """The linear model a user would fit to the tests: story stiffnesses and modal damping."""
     tests = rs.prepare(m, recs)
     chans = rs.common_channels(m, tests)
+    names = (*(f"k{i}" for i in range(2, m.n_dof + 1)),
+             *(f"zeta{i}" for i in range(1, m.n_dof + 1)))
     cal = ft.fit(m, fx.NONE.candidates(m)[0], [], tests, chans, rs.channel_scales(tests, chans),
-                 60, ("k2", "k3", "k4", "zeta1", "zeta2", "zeta3", "zeta4"))
+                 60, names)
     return cal.model
 
 

@@ -111,3 +111,26 @@ def test_weak_evidence_candidates_are_fitted_only_above_the_floor(
     assert judge.weak_to_fit(s, rd, None) == rd.weak
     assert "nothing it ranked first was accepted" in s.notes[-1]
     assert judge.weak_to_fit(s, _round(), None) == []  # no weak evidence this round
+
+
+def test_an_accepted_stiffness_change_has_the_elements_at_its_story_fitted_whatever_wins(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # blind sweep case 15: an appendage beat the story's stiffness change, and the hardening
+    # spring at that story was never fitted (the view, missing a DOF, ranked it low)
+    ev = [_ev("contact", [2, 3], 0.9), _ev("friction", [0, 1], 0.8),
+          _ev("cubic_stiffness", [0, 2], 0.7), _ev("stiffness_change", [1, 2], 0.6),
+          _ev("appendage", [0, 2], 0.5), _ev("contact", [1, 2], 0.4),
+          _ev("cubic_stiffness", [1, 2], 0.3), _ev("friction", [1, 2], 0.2)]
+    rd = session.Round(1, {}, {}, ev, [], None, "", noise=dict(NOISE))
+    change = {"candidate": ev[3].cand, "accepted": True}
+    rd.fits = [change, {"candidate": ev[2].cand, "accepted": True}]
+    best = {**_best("appendage", {"a1": (2.0, 2.0), "a2": (2.0, 2.0)}),
+            "candidate": ev[4].cand, "accepted": True}
+    s = _session(monkeypatch)
+    got = judge.rivals_to_fit(s, rd, best, set())
+    assert "each nonlinear element type is fitted at that story (3)" in s.notes[-1]
+    # at story 2 only (not each type's best-placed: the change does not win)
+    assert [(e.cand.type, e.cand.location["between"]) for e in got] == [
+        ("contact", [1, 2]), ("cubic_stiffness", [1, 2]), ("friction", [1, 2])]
+    change["accepted"] = False  # no accepted change: an appendage has no rivals
+    assert judge.rivals_to_fit(_session(monkeypatch), rd, best, set()) == []
