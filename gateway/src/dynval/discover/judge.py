@@ -195,15 +195,17 @@ def nonlinear_rivals(rd: Round, best: dict[str, Any] | None, accepted: set[str]
     if best is None:
         return []
     linear_wins = best["candidate"].type in LINEAR_CHANGES
-    places = [f["candidate"].location["between"]
-              for f in ([best] if linear_wins else []) + [f for f in rd.fits if f["accepted"]]
-              if f["candidate"].type in LINEAR_CHANGES and "between" in f["candidate"].location]
+    changes = [f["candidate"] for f in rd.fits if f["accepted"]]
+    if linear_wins:
+        changes.insert(0, best["candidate"])
+    places = list(dict.fromkeys(tuple(c.location["between"]) for c in changes
+                                if c.type in LINEAR_CHANGES and "between" in c.location))
     if not linear_wins and not places:
         return []
     done = accepted | {cand_key(f["candidate"]) for f in rd.fits}
     offered = [e for e in rd.evidence if cand_key(e.cand) not in done]
     picked = list(best_placed_nonlinear(offered).values()) if linear_wins else []
-    for where in dict.fromkeys(tuple(p) for p in places):
+    for where in places:
         picked += best_placed_nonlinear(
             [e for e in offered if tuple(e.cand.location.get("between", ())) == where]).values()
     return list({cand_key(e.cand): e for e in picked}.values())
