@@ -4,7 +4,7 @@ channels, the shake-table input and a best-linear declared model included, repor
 (JSON and the HTML page with its figures), wall time per case; target: under 60 s each on
 the 2-core CI machine. Writes bench/RESULTS.discover.md. Usage:
 
-    python3 bench/bench_discover.py [--repeat 1] [--out bench/RESULTS.discover.md]
+    python3 bench/bench_discover.py [--repeat 1] [--only TEXT] [--out bench/RESULTS.discover.md]
 """
 from __future__ import annotations
 
@@ -17,10 +17,7 @@ from pathlib import Path
 
 from dynval import model as mdl
 from dynval import synth
-from dynval.discover import effects as fx
-from dynval.discover import fit as ft
 from dynval.discover import loop, report
-from dynval.discover import residual as rs
 from dynval.io.recording import Recording
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -35,15 +32,6 @@ def chain(n: int, kind: str = "force") -> mdl.Model:
                                      "force_N" if kind == "force" else "table_mps2"),
                      outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, n + 1)},
                      fs_hz=640.0)
-
-
-def best_linear(m: mdl.Model, recs: list[Recording]) -> mdl.Model:
-    tests = rs.prepare(m, recs)
-    chans = rs.common_channels(m, tests)
-    names = tuple(f"k{i}" for i in range(2, m.n_dof + 1)) + tuple(
-        f"zeta{i}" for i in range(1, m.n_dof + 1))
-    return ft.fit(m, fx.NONE.candidates(m)[0], [], tests, chans,
-                  rs.channel_scales(tests, chans), 60, names).model
 
 
 def cases() -> dict[str, Callable[[], tuple[mdl.Model, list[Recording]]]]:
@@ -67,7 +55,14 @@ def cases() -> dict[str, Callable[[], tuple[mdl.Model, list[Recording]]]]:
         m = chain(4)
         recs = synth.generate(m, synth.Truth(elements=(mdl.CubicSpring(2, 3, 5e12),)),
                               n_tests=10, seed=4)
-        return best_linear(m, recs), recs
+        return synth.best_linear(m, recs), recs
+
+    def sweep_table_contact4() -> tuple[mdl.Model, list[Recording]]:
+        m = chain(4, "ground_acc")
+        recs = synth.generate(m, synth.Truth(elements=(mdl.Contact(1, 2, 1.5e-4, 5e-5, 8e5),)),
+                              n_tests=10, seed=7, levels_n_rms=(3.0, 1.8),
+                              excitation=synth.Sweep(8.0, 200.0))
+        return synth.best_linear(m, recs), recs
 
     def appendage4() -> tuple[mdl.Model, list[Recording]]:
         m = chain(4)
@@ -88,7 +83,9 @@ def cases() -> dict[str, Callable[[], tuple[mdl.Model, list[Recording]]]]:
             "positioning stage, friction + force offset (observer)": stage,
             "6-DOF force, 6 channels, cubic spring 4-5": cubic6,
             "4-DOF shake table, friction joint 1-2": table_joint4,
-            "4-DOF best-linear declared model, cubic spring 2-3": best_linear_cubic4}
+            "4-DOF best-linear declared model, cubic spring 2-3": best_linear_cubic4,
+            "4-DOF shake table, swept sine 8-200 Hz, best-linear, contact 1-2":
+                sweep_table_contact4}
 
 
 def run_case(m: mdl.Model, recs: list[Recording], folder: Path) -> tuple[float, str]:
@@ -103,11 +100,14 @@ def run_case(m: mdl.Model, recs: list[Recording], folder: Path) -> tuple[float, 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--only", default="", help="run the cases whose name holds this text")
     ap.add_argument("--out", default=str(ROOT / "bench" / "RESULTS.discover.md"))
     a = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for name, make in cases().items():
+            if a.only not in name:
+                continue
             m, recs = make()
             times, found = [], ""
             for _ in range(a.repeat):

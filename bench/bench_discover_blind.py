@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from bench_discover import best_linear  # the script's folder is on sys.path
 from dynval import model as mdl
 from dynval import synth as gen
 from dynval.discover import initial, loop
@@ -212,7 +211,7 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False,
             c, data=np.ascontiguousarray(c.data[N:])) for c in r.channels]) for r in recs]
     if daq:
         cheap_daq(recs, rng)
-    declared = best_linear(m, recs) if bl else m
+    declared = gen.best_linear(m, recs) if bl else m
     r = loop.discover(declared, recs)
     phys = [e for e in r.effects if e["type"] != "sensor_offset"]
     got = "; ".join(f"{e['type']} {e['location']}" for e in phys) or "no effect"

@@ -15,22 +15,25 @@ from lanl4dof import KS, declared
 
 from dynval import model as mdl
 from dynval import synth as gen
-from dynval.discover import effects as fx
-from dynval.discover import fit as ft
 from dynval.discover import loop
 from dynval.discover import residual as rs
-from dynval.io.recording import Recording
 
 
-def best_linear(m: mdl.Model, recs: list[Recording]) -> mdl.Model:
-    """The linear model a user would fit to the tests: story stiffnesses and modal damping."""
-    tests = rs.prepare(m, recs)
-    chans = rs.common_channels(m, tests)
-    names = (*(f"k{i}" for i in range(2, m.n_dof + 1)),
-             *(f"zeta{i}" for i in range(1, m.n_dof + 1)))
-    cal = ft.fit(m, fx.NONE.candidates(m)[0], [], tests, chans, rs.channel_scales(tests, chans),
-                 60, names)
-    return cal.model
+def test_the_best_linear_model_of_a_linear_truth_is_that_truth() -> None:
+    """synth.best_linear fits k2..kn and the modal ratios, keeping the masses and k1: on a
+    linear structure whose story 3 is 20 % softer and whose flexible modes are damped 3 % it
+    finds them (to 1 %), and leaves k1 and the masses as declared. (Mode 1, the 0.2 Hz mode
+    of k1 = 10 N/m, is far under the 20-200 Hz input: its ratio is not identified.)"""
+    m0 = declared()
+    zeta = (0.01, 0.03, 0.03, 0.03)
+    truth = m0.with_params({"k3": 0.8 * KS[2], **{f"zeta{i}": 0.03 for i in (2, 3, 4)}})
+    recs = gen.generate(m0, gen.Truth(k_scale={3: 0.8}, zeta=zeta, label="k3"), n_tests=2,
+                        seed=4)
+    fitted = gen.best_linear(m0, recs).parameters()
+    assert fitted["zeta2"] != m0.parameters()["zeta2"]  # 0.05 declared
+    for name, v in truth.parameters().items():
+        if name != "zeta1":
+            assert fitted[name] == pytest.approx(v, rel=0.01), name
 
 
 @pytest.mark.parametrize(("kind", "seed"), [("cubic", 1), ("cubic", 2), ("contact", 3)])
@@ -42,7 +45,7 @@ def test_best_linear_declared_model_gets_the_right_effect(kind: str, seed: int) 
                        mdl.Contact(story - 1, story, 0.9e-4, 1e-4, 1.925e6))
     m0 = declared()
     recs = gen.generate(m0, gen.Truth(elements=(el,), label=kind), n_tests=6, seed=seed)
-    mbl = best_linear(m0, recs)
+    mbl = gen.best_linear(m0, recs)
     assert mbl.parameters() != m0.parameters()  # the linear model did absorb something
     r = loop.discover(mbl, recs)
     assert len(r.effects) == 1, [e["label"] for e in r.effects]
@@ -89,7 +92,7 @@ def test_best_linear_spread_over_far_parameters_is_re_adjusted_jointly_at_the_en
     m0 = declared()
     el = mdl.Friction(0, 1, 1.5, 1e-4)
     recs = gen.generate(m0, gen.Truth(elements=(el,), label="friction"), n_tests=6, seed=7)
-    mbl = best_linear(m0, recs)
+    mbl = gen.best_linear(m0, recs)
     r = loop.discover(mbl, recs)
     assert r.effects and r.effects[0]["type"] in ("friction", "stick_slip")
     assert r.effects[0]["location"]["between"] == [0, 1]
@@ -113,7 +116,7 @@ def test_best_linear_declared_model_gets_a_mass_or_a_mode(kind: str, dof: int,
                gen.Truth(appendages=(gen.Appendage(dof, 0.1 * m0.masses_kg[dof - 1], 45.0,
                                                    0.02),), label=kind))
     recs = gen.generate(m0, truth_t, n_tests=6, seed=seed)
-    mbl = best_linear(m0, recs)
+    mbl = gen.best_linear(m0, recs)
     r = loop.discover(mbl, recs)
     phys = [e for e in r.effects if e["type"] != "sensor_offset"]
     assert phys, "an effect is found"

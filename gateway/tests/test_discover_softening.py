@@ -12,7 +12,6 @@ import dataclasses
 import numpy as np
 import pytest
 from lanl4dof import declared
-from test_discover_best_linear import best_linear
 from test_discover_two_effects import three_dof
 
 from dynval import model as mdl
@@ -40,7 +39,7 @@ def test_a_softening_story_is_a_cubic_spring_with_k3_below_zero(case: str, a: in
     m = three_dof() if case == "3dof" else declared()
     el = softening(m, a, b, 0.01, seed)
     recs = gen.generate(m, gen.Truth(elements=(el,)), n_tests=6, seed=seed)
-    r = loop.discover(best_linear(m, recs) if case.endswith("-bl") else m, recs)
+    r = loop.discover(gen.best_linear(m, recs) if case.endswith("-bl") else m, recs)
     assert [(e["type"], e["location"]["between"]) for e in r.effects] == [
         ("cubic_stiffness", [a, b])]
     k3 = r.effects[0]["parameters"]["k3_n_per_m3"]["value"]

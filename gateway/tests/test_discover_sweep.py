@@ -10,7 +10,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-from test_discover_best_linear import best_linear
 from test_discover_noise import cheap_daq
 
 from dynval import model as mdl
@@ -58,7 +57,7 @@ def test_a_hardening_spring_under_a_sweep_on_a_best_linear_model_is_the_cubic_al
     recs = gen.generate(m, truth, n_tests=6, n_samples=4096, seed=3, noise=0.0,
                         levels_n_rms=(3.0, 1.8), excitation=gen.Sweep(6.0, 170.0))
     cheap_daq(recs, np.random.default_rng(3), 0.03, 2.0)
-    declared = best_linear(m, recs)
+    declared = gen.best_linear(m, recs)
     assert declared.stiffness_n_per_m[1] > 2.5 * m.stiffness_n_per_m[1]
     r = loop.discover(declared, recs)
     assert [(e["type"], e["location"].get("story")) for e in r.effects] == [

@@ -36,6 +36,9 @@ import numpy as np
 
 from dynval import labels as lb
 from dynval import model as mdl
+from dynval.discover import effects as fx
+from dynval.discover import fit as ft
+from dynval.discover import residual as rs
 from dynval.errors import ConfigError
 from dynval.io.recording import Channel, Recording
 from dynval.model.structure import with_appendage
@@ -218,6 +221,20 @@ def simulate_truth_motion(m: mdl.Model, truth: Truth, force_fine: np.ndarray,
     motions = sorted({(o.kind, o.index) for o in m.outputs.values() if o.kind in MOTION_KINDS})
     y = mdl.simulate(truth_model(m, truth, motions), force_fine, fs_fine_hz, oversample=1)
     return {k[2:]: v for k, v in y.items()}
+
+
+def best_linear(m: mdl.Model, recs: Sequence[Recording], max_nfev: int = 60) -> mdl.Model:
+    """The declared model of the best-linear condition (issue 16, item 1): ``m`` with its
+    story stiffnesses k2..kn and its damping (modal ratios, or Rayleigh a and b) fitted to the
+    recordings by discover's output-error fit (``max_nfev`` evaluations), the masses and k1
+    (the ground spring, or the table's) kept: the linear model a user fits by hand to the same
+    tests, into which part of any nonlinearity goes. Raises ConfigError as fit.fit does."""
+    tests = rs.prepare(m, recs)
+    chans = rs.common_channels(m, tests)
+    names = (*(f"k{i}" for i in range(2, m.n_dof + 1)),
+             *(n for n in m.parameters() if n.startswith("zeta") or n in ("alpha", "beta")))
+    return ft.fit(m, fx.NONE.candidates(m)[0], [], tests, chans,
+                  rs.channel_scales(tests, chans), max_nfev, names).model
 
 
 def generate(m: mdl.Model, truth: Truth, *, n_tests: int = 10,
