@@ -85,6 +85,22 @@ def _dv_dz(p: fx.Param, v: float) -> float:
     return v * math.log(p.upper / p.lower) if p.log else p.upper - p.lower
 
 
+AT_BOUND = 0.03  # share of a parameter's [0, 1] search range that counts as its bound
+
+
+def at_bounds(params: Sequence[fx.Param], names: Sequence[str], values: Sequence[float]
+              ) -> list[str]:
+    """Of the fitted parameters ``names`` (values ``values``), those that ended within
+    AT_BOUND of either end of their search range ``params`` (by name; in the fit's [0, 1]
+    coordinates, log-scaled where the parameter is): the fit wanted to go further there, so
+    the effect's form is stretched (an appendage damped like a dashpot, a story stiffness at
+    1/100 of its declared value). Starts are never there (problem() keeps them inside
+    0.02..0.98 of the range's ends)."""
+    ranges = {p.name: p for p in params}
+    return [n for n, v in zip(names, values, strict=True)
+            if n in ranges and not AT_BOUND < _to_z(ranges[n], v) < 1.0 - AT_BOUND]
+
+
 def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
                     scales: dict[str, float]) -> np.ndarray | None:
     """(y - prediction) / scale / sqrt(n) of every channel and test, concatenated: its sum of

@@ -503,13 +503,19 @@ def alternatives(best: dict[str, Any], fits: Sequence[dict[str, Any]], min_gain:
 
 def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
                   spread: Sequence[float]) -> dict[str, Any]:
-    """The accepted effect's JSON entry: its parameters, and each declared parameter that was
-    re-adjusted with it (value before and after, relative change). Each uncertainty is the
+    """The accepted effect's JSON entry: its parameters, each declared parameter that was
+    re-adjusted with it (value before and after, relative change), and those of either kind
+    that ended at a bound of their search range (fit.at_bounds). Each uncertainty is the
     Gauss-Newton sigma and the test-to-test scatter's standard error combined (fit.scatter:
     the model-form part the first misses)."""
     et = fx.by_type(res.cand.type)
     params, readjusted = {}, {}
     declared = before.parameters()
+    own = [n for n in res.names if not n.endswith(ft.READJUSTED)]
+    readj = [n[: -len(ft.READJUSTED)] for n in res.names[len(own):]]
+    at_bound = [*ft.at_bounds(et.params(before, res.cand), own, res.values[:len(own)]),
+                *ft.at_bounds(ft.uncertain_params(before, readj), readj,
+                              res.values[len(own):])]
     for n, v, s, sc, u in zip(res.names, res.values, res.sigma, spread, res.units,
                               strict=True):
         unc = {"uncertainty": math.hypot(s, sc) if math.isfinite(sc) else s,
@@ -525,7 +531,8 @@ def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
             "label": res.cand.label, "law": et.law, "parameters": params,
             "readjusted": readjusted, "reference": info["reference"],
             "evidence": info["evidence"], "held_out_gain": info["held_gain"],
-            "delta_bic": info["delta_bic"], "alternatives": info.get("alternatives", [])}
+            "delta_bic": info["delta_bic"], "alternatives": info.get("alternatives", []),
+            "at_bound": at_bound}
 
 
 @dataclass

@@ -455,9 +455,13 @@ def _html_effects(doc: dict[str, Any]) -> str:
                        for k, v in x.get("readjusted", {}).items())
         ties = ", ".join(f"{e(a['label'])} (held-out RMSE {a['held_out_rmse_ratio']:.3f} x)"
                          for a in x.get("alternatives", []))
+        bound = ", ".join(e(n) for n in x.get("at_bound", []))
         out.append(f"<li><b>{e(x['label'])}</b>: {ps} (held-out gain "
                    f"{100 * x['held_out_gain']:.1f} %, &Delta;BIC {x['delta_bic']:.0f})"
                    + (f"<br>re-adjusted with it: {ra}" if ra else "")
+                   + (f"<br>at the end of its search range (the fit wanted to go further: "
+                      f"the effect may stand in for something else): {bound}"
+                      if bound else "")
                    + (f"<br>as well supported by these tests (within half the minimum gain; "
                       f"a test that tells them apart is needed): {ties}" if ties else "")
                    + f"<br><small>{e(x['law'])}</small></li>")
