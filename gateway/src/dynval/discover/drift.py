@@ -104,14 +104,15 @@ def observed(m: mdl.Model, band_hz: tuple[float, float]) -> bool:
 
 
 def observer_for(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
-                 scales: dict[str, float]) -> Observer:
+                 scales: dict[str, float], q_rel: float = Q_REL) -> Observer:
     """The Kalman gain's noise model (the module comment): the force noise where the input
     enters is at least the input sensor's own (noise.input_noise_psd), which the measured
     input carries into every prediction; a gain that assumes less trusts the model's drift
     too far, and a wrong model that holds the drift (a spring to the ground) beats the right
-    one on a cheap sensor's noise."""
+    one on a cheap sensor's noise. ``q_rel``: the force noise relative to the input's RMS
+    (Q_REL; larger for a gain that follows the data more: continuation.py)."""
     u = np.concatenate([t.u for t in tests])
-    slack = (Q_REL * float(np.std(u))) ** 2
+    slack = (q_rel * float(np.std(u))) ** 2
     psd = noise.input_noise_psd(tests)
     sensor = 0.0 if psd is None else psd * tests[0].fs_hz / 2
     if m.input.kind == "force":

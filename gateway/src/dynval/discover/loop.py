@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from dynval import model as mdl
-from dynval.discover import acc_offsets, initial
+from dynval.discover import acc_offsets, continuation, initial
 from dynval.discover import drift as dr
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
@@ -182,8 +182,10 @@ def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
     element parameters: a best-linear declared model spread part of the effect over
     parameters far from its location, which the candidate's local re-adjustment leaves, and
     the effect's value moves with them (a cubic spring's coefficient with the story
-    stiffness that had absorbed part of it). Tried when one Gauss-Newton step would lower
-    the fitting error by READJUST_GAIN (ft.first_order_gain); kept when the held-out
+    stiffness that had absorbed part of it). Fitted from the current values when one
+    Gauss-Newton step would lower the fitting error by READJUST_GAIN (ft.first_order_gain),
+    and through the observer's gains (continuation.py: a mode several bandwidths off is a
+    local minimum of the first), the lower fitting error taken; kept when the held-out
     error drops by READJUST_GAIN and the BIC over the fitting tests agrees; each change is
     reported in the notes; None when not kept."""
     pm = cur.parameters()
@@ -191,19 +193,25 @@ def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
                   or n.startswith("zeta") or n in ("alpha", "beta")
                   or (n.startswith("m") and n in s.readjusted) or n in s.effect_params)
     try:
-        # one Jacobian says whether a fit (several) can reach the gain: on a declared model
-        # that is not best-linear the re-adjustment rarely moves the error (6-DOF case:
-        # -0.1 %, 10 s)
+        # one Jacobian says whether a fit from here (several) can reach the gain: on a
+        # declared model that is not best-linear the re-adjustment rarely moves the error
+        # (6-DOF case: -0.1 %, 10 s)
         screen = ft.first_order_gain(cur, names, s.fit_t, s.chans, s.scales, s.workers)
-        if screen < READJUST_GAIN:
-            log.info("re-adjusting the declared parameters jointly: one Gauss-Newton step "
-                     "would lower the fitting error by %.2g %%: not tried", 100 * screen)
-            return None
-        cal = ft.fit(cur, fx.NONE.candidates(cur)[0], [], s.fit_t, s.chans, s.scales,
-                     s.o.max_nfev, names, workers=s.workers)
+        fits = [] if screen < READJUST_GAIN else [
+            ft.fit(cur, fx.NONE.candidates(cur)[0], [], s.fit_t, s.chans, s.scales,
+                   s.o.max_nfev, names, workers=s.workers)]
     except ConfigError as exc:
         log.info("re-adjusting the declared parameters failed: %s", exc)
         return None
+    if not fits:
+        log.info("re-adjusting the declared parameters jointly: one Gauss-Newton step "
+                 "would lower the fitting error by %.2g %%", 100 * screen)
+    far = continuation.fit(cur, names, s.fit_t, s.chans, s.scales, s.o.max_nfev, s.workers)
+    if far is not None:
+        fits.append(far)
+    if not fits:
+        return None
+    cal = min(fits, key=lambda f: f.nsse_fit)
     tab, res = s.table(cal.model)
     before, after = cur_table.total(s.held_names), tab.total(s.held_names)
     n_eff = sum(t.n for t in s.fit_t for _ in s.chans) / cal.n_eff_factor
@@ -216,8 +224,9 @@ def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
     new = cal.model.parameters()
     changes = ", ".join(f"{n} {pm[n]:.4g} -> {new[n]:.4g} ({100 * (new[n] / pm[n] - 1):+.1f} %)"
                         for n in names if pm[n] and abs(new[n] / pm[n] - 1) > 1e-3)
+    via = " through the observer's gains" if cal is far else ""
     s.notes.append(f"with the effects in, the declared stiffness and damping re-adjusted "
-                   f"jointly with the effects' own parameters (held-out error "
+                   f"jointly{via} with the effects' own parameters (held-out error "
                    f"{100 * (after / before - 1):+.1f} %): {changes}")
     log.info(s.notes[-1])
     return cal.model, tab, res
