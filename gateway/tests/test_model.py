@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import math
 import subprocess
 from pathlib import Path
 from typing import Any
@@ -407,3 +408,23 @@ def test_damping_matrix_symmetry_is_the_core_s_tolerance(rel: float, ok: bool) -
     else:
         with pytest.raises(ConfigError, match="damping.c_n_s_per_m.*not symmetric"):
             mdl.from_dict(d)
+
+
+@pytest.mark.parametrize("n", [1, 2, 31, 32, 33, 1000])
+def test_free_response_of_an_oscillator_is_the_damped_cosine(n: int) -> None:
+    """model.free_response (powers of the exact discretisation, taken in blocks): a 1-DOF
+    oscillator released from a unit displacement, and from a unit velocity, in closed form."""
+    k, mass, zeta, fs = 4.0e4, 2.0, 0.03, 640.0
+    m = mdl.Model(masses_kg=(mass,), stiffness_n_per_m=(k,),
+                  damping=mdl.Damping("modal", (zeta,)), input=mdl.Input("force", 1, "f"),
+                  outputs={"x": mdl.Output("disp", 1)}, fs_hz=fs)
+    r = mdl.free_response(m, fs, n)
+    wn = math.sqrt(k / mass)
+    wd = wn * math.sqrt(1 - zeta ** 2)
+    t = np.arange(n) / fs
+    decay = np.exp(-zeta * wn * t)
+    from_x = decay * (np.cos(wd * t) + zeta * wn / wd * np.sin(wd * t))
+    from_v = decay * np.sin(wd * t) / wd
+    assert r.shape == (n, 1, 2)
+    np.testing.assert_allclose(r[:, 0, 0], from_x, atol=1e-9)
+    np.testing.assert_allclose(r[:, 0, 1], from_v, atol=1e-9 / wn)

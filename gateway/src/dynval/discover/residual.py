@@ -82,6 +82,10 @@ class TestData:
     # counted samples is left out of predictions, and the observer reads the channel without
     # the offset (acc_offsets.py)
     demean: dict[str, float] = field(default_factory=dict)
+    # estimate the initial state again under every model predicted, the channels weighed by
+    # these scales (variable projection: a fit that moves the modes moves the free motion
+    # too, initial.py); None: the start above, fixed
+    free_start: dict[str, float] | None = None
     # the input interpolated per oversampling factor, once per test (input_for)
     _prepared: dict[int, mdl.PreparedInput] = field(default_factory=dict, init=False,
                                                     repr=False, compare=False)
@@ -169,11 +173,32 @@ def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     except ConfigError as exc:
         log.debug("%s: simulation refused: %s", t.name, exc)
         return None
-    if t.start is not None:
+    if t.free_start is not None and t.observer is None:
+        p = _with_free_start(m, t, p, t.free_start)
+    elif t.start is not None:
         p = {c: p[c] + t.start[c] if c in t.start else p[c] for c in p}
     for c in t.demean:
         p[c] = p[c] + float(np.mean(t.counted(t.y[c] - p[c])))
     return p
+
+
+def _with_free_start(m: mdl.Model, t: TestData, p: dict[str, np.ndarray],
+                     weights: dict[str, float]) -> dict[str, np.ndarray]:
+    """p plus the free motion from the initial state that best fits the residual (least
+    squares over the record, each channel in ``weights`` divided by its weight; a channel in
+    t.demean about its mean), as initial.estimate finds it."""
+    basis = mdl.free_response(m, t.fs_hz, t.u.size)  # n x n_out x 2 n_dof
+    outs = list(m.outputs)
+    a, r = [], []
+    for c, w in weights.items():
+        col = basis[:, outs.index(c), :]
+        e = t.y[c] - p[c]
+        if c in t.demean:
+            col, e = col - col.mean(axis=0), e - e.mean()
+        a.append(col / w)
+        r.append(e / w)
+    x0, *_ = np.linalg.lstsq(np.concatenate(a), np.concatenate(r), rcond=None)
+    return {c: p[c] + basis[:, outs.index(c), :] @ x0 if c in outs else p[c] for c in p}
 
 
 def residuals(m: mdl.Model, t: TestData, chans: Sequence[str]) -> dict[str, np.ndarray] | None:

@@ -364,12 +364,21 @@ def free_response(m: Model, fs_hz: float, n: int) -> np.ndarray:
     core.build_model(lin)
     ad, cy = core.matrix("AD"), core.matrix("CY")
     gains = np.array([o.gain for o in m.outputs.values()])[:, None]
-    out = np.empty((n, cy.shape[0], ad.shape[0]))
-    step = cy * gains
-    for k in range(n):
-        out[k] = step
-        step = step @ ad
-    return out
+    # CY AD^(jb + i) = (CY AD^(jb)) AD^i: b powers and n / b block starts, not n products
+    b = max(1, min(n, int(math.isqrt(max(n, 1)))))
+    powers = np.empty((b, *ad.shape))
+    powers[0] = np.eye(ad.shape[0])
+    for i in range(1, b):
+        powers[i] = powers[i - 1] @ ad
+    jump = powers[-1] @ ad
+    blocks = -(-n // b)
+    heads = np.empty((blocks, *cy.shape))
+    heads[0] = cy * gains
+    for j in range(1, blocks):
+        heads[j] = heads[j - 1] @ jump
+    out = np.matmul(heads[:, None], powers[None]).reshape(blocks * b, cy.shape[0],
+                                                         ad.shape[1])
+    return np.ascontiguousarray(out[:n])
 
 
 def oversample_factor(m: Model, oversample: int | None = None) -> int:
