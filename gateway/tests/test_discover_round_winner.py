@@ -39,6 +39,20 @@ def test_ties_are_accepted_fits_within_half_the_minimum_gain() -> None:
     assert alt[1]["location"] == {"dof": 1} and alt[1]["type"] == "appendage"
 
 
+def test_the_winners_type_elsewhere_refused_on_its_reference_is_a_tie() -> None:
+    """Blind sweep case 11 (best-linear): the appendage at DOF 2, the truth, was refused at a
+    9 % gain over re-adjusting DOF 2's parameters alone, yet ended 0.4 % under the winner at
+    DOF 3: named beside it. Refused fits of another type, or without gain or BIC support,
+    are not."""
+    win = _fit("appendage", {"dof": 3}, 1.0)
+    refused = {"accepted": False, "held_gain": 0.09, "delta_bic": -533.0}
+    fits = [win, {**_fit("appendage", {"dof": 2}, 0.996), **refused},
+            {**_fit("appendage", {"dof": 1}, 1.01), **refused, "delta_bic": 3.0},
+            {**_fit("appendage", {"dof": 1, "x": 1}, 1.01), **refused, "held_gain": -0.01},
+            {**_fit("mass_change", {"dof": 2}, 0.99), **refused}]
+    assert [a["label"] for a in judge.alternatives(win, fits, 0.10)] == ["appendage dof 2"]
+
+
 def test_a_special_case_of_the_winner_is_not_a_tie() -> None:
     # a mass change is an appendage far above the band (EffectType.simpler): simplest_nested
     # already chose between them, and the same effect with an offset is the same effect
