@@ -47,6 +47,7 @@ def test_the_winners_type_elsewhere_refused_on_its_reference_is_a_tie() -> None:
     win = _fit("appendage", {"dof": 3}, 1.0)
     refused = {"accepted": False, "held_gain": 0.09, "delta_bic": -533.0}
     fits = [win, {**_fit("appendage", {"dof": 2}, 0.996), **refused},
+            {**_fit("appendage", {"dof": 2}, 0.997), **refused},  # from another start
             {**_fit("appendage", {"dof": 1}, 1.01), **refused, "delta_bic": 3.0},
             {**_fit("appendage", {"dof": 1, "x": 1}, 1.01), **refused, "held_gain": -0.01},
             {**_fit("mass_change", {"dof": 2}, 0.99), **refused},

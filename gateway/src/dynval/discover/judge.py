@@ -507,10 +507,11 @@ def alternatives(best: dict[str, Any], fits: Sequence[dict[str, Any]], min_gain:
             and not nested_in(f["candidate"], win) and not nested_in(win, f["candidate"])
             and not (own and own in f.get("readjusted", ()))]
     tied.sort(key=lambda f: f["nsse_held_after"])
+    best_of = {f["candidate"].label: f for f in reversed(tied)}  # a place's fits from two starts
     return [{"type": f["candidate"].type, "location": dict(f["candidate"].location),
              "label": f["candidate"].label,
              "held_out_rmse_ratio": math.sqrt(f["nsse_held_after"] / err) if err > 0 else 1.0}
-            for f in tied]
+            for f in tied if best_of[f["candidate"].label] is f]
 
 
 def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
