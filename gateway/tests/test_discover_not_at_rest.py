@@ -79,3 +79,15 @@ def test_a_fit_that_moves_the_damping_moves_the_records_free_motion_with_it() ->
     assert fixed.parameters()["zeta1"] > 1.5 * 0.03  # the premise: measured 1.91 x
     assert free.parameters()["zeta1"] == pytest.approx(0.03, rel=0.05)
     assert held(free) < 1.01 * ideal < held(fixed)
+
+
+def test_a_prediction_that_overflowed_is_left_to_its_caller() -> None:
+    """A free start on a non-finite prediction (a diverging element) gives the prediction
+    back as it is, for residual_vector to refuse (no least squares on it: NaN states)."""
+    from dynval.discover import residual as rs
+    m = declared()
+    recs = gen.generate(m, gen.Truth(label="rest"), n_tests=1, n_samples=256, seed=2)
+    t = rs.prepare(m, recs)[0]
+    p = {c: np.full(t.u.size, np.inf) for c in m.outputs}
+    out = rs._with_free_start(m, t, p, {c: 1.0 for c in m.outputs})
+    assert all(np.all(np.isinf(out[c])) for c in m.outputs)

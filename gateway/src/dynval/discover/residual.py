@@ -197,7 +197,10 @@ def _with_free_start(m: mdl.Model, t: TestData, p: dict[str, np.ndarray],
             col, e = col - col.mean(axis=0), e - e.mean()
         a.append(col / w)
         r.append(e / w)
-    x0, *_ = np.linalg.lstsq(np.concatenate(a), np.concatenate(r), rcond=None)
+    aa, rr = np.concatenate(a), np.concatenate(r)
+    if not (np.all(np.isfinite(aa)) and np.all(np.isfinite(rr))):
+        return p  # a prediction that overflowed: the caller refuses it as it is
+    x0, *_ = np.linalg.lstsq(aa, rr, rcond=None)
     return {c: p[c] + basis[:, outs.index(c), :] @ x0 if c in outs else p[c] for c in p}
 
 
