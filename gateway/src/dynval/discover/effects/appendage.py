@@ -71,7 +71,7 @@ class Appendage(EffectType):
         f_lo = float(cand.shape.get("f_lo", 1.0))
         f_hi = float(cand.shape.get("f_hi", 1e3))
         return [Param("f_hz", "Hz", 0.7 * f_lo, 1.3 * f_hi, log=True),
-                Param("mass_kg", "kg", 1e-4 * mj, 2.0 * mj, log=True),
+                Param("mass_kg", "kg", 1e-4 * mj, 2.0 * mj, log=True, null=0.0),
                 Param("zeta", "1", 1e-3, 0.5, log=True)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:

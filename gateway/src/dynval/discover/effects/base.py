@@ -18,7 +18,10 @@ from dynval.model import elements as el
 class Param:
     """One parameter: name, unit, bounds in model units, and whether it is fitted in log.
     ``signed``: either sign, its magnitude in log between 0 and upper - lower (lower: the
-    magnitude below which the scale turns linear, through 0)."""
+    magnitude below which the scale turns linear, through 0). ``null``: for a parameter that
+    sets the effect's strength, its value where the effect vanishes (a contact's stiffness 0,
+    a change's delta 0, a sensor's current gain): a start far worse than no effect is moved
+    toward it (fit.temper); None for a parameter of the effect's shape (a gap, a frequency)."""
 
     name: str
     unit: str
@@ -26,6 +29,7 @@ class Param:
     upper: float
     log: bool = False
     signed: bool = False
+    null: float | None = None
 
 
 @dataclass(frozen=True)
@@ -176,9 +180,11 @@ def unit_force(type_name: str, x: np.ndarray | None = None, v: np.ndarray | None
 
 
 def element_param(type_name: str, name: str, lower: float, upper: float,
-                  log: bool = False, signed: bool = False) -> Param:
-    """A fit parameter of an element effect: its registry name and unit, the search bounds."""
-    return Param(name, el.spec(type_name).param(name).unit, lower, upper, log, signed)
+                  log: bool = False, signed: bool = False, null: float | None = None
+                  ) -> Param:
+    """A fit parameter of an element effect: its registry name and unit, the search bounds
+    (``null``: see Param)."""
+    return Param(name, el.spec(type_name).param(name).unit, lower, upper, log, signed, null)
 
 
 def add_element(m: mdl.Model, type_name: str, dof_a: int, dof_b: int,

@@ -50,7 +50,7 @@ class StiffnessChange(EffectType):
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         k = m.stiffness_n_per_m[cand.location["story"] - 1]
-        return [Param("dk_n_per_m", "N/m", -0.6 * k, 1.0 * k if k > 100 else 1e5)]
+        return [Param("dk_n_per_m", "N/m", -0.6 * k, 1.0 * k if k > 100 else 1e5, null=0.0)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         p = self.params(m, cand)[0]
@@ -96,7 +96,7 @@ class MassChange(EffectType):
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         mj = m.masses_kg[cand.location["dof"] - 1]
-        return [Param("dm_kg", "kg", -0.6 * mj, 1.5 * mj)]
+        return [Param("dm_kg", "kg", -0.6 * mj, 1.5 * mj, null=0.0)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         p = self.params(m, cand)[0]
@@ -157,11 +157,11 @@ class DampingChange(EffectType):
         if "coefficient" in cand.location:
             if cand.location["coefficient"] == "alpha":
                 a = float(m.damping.alpha_per_s or 0.0)
-                return [Param("dalpha_per_s", "1/s", -a, 10 * abs(a) + 1.0)]
+                return [Param("dalpha_per_s", "1/s", -a, 10 * abs(a) + 1.0, null=0.0)]
             b = float(m.damping.beta_s or 0.0)
-            return [Param("dbeta_s", "s", -b, 10 * abs(b) + 1e-3)]
+            return [Param("dbeta_s", "s", -b, 10 * abs(b) + 1e-3, null=0.0)]
         z = m.damping.zeta[cand.location["mode"] - 1]
-        return [Param("dzeta", "1", -z, 0.2)]
+        return [Param("dzeta", "1", -z, 0.2, null=0.0)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         p = self.params(m, cand)[0]
@@ -206,7 +206,7 @@ class SensorGain(EffectType):
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         g0 = m.outputs[cand.location["channel"]].gain
         lo, hi = sorted((0.5 * g0, 2.0 * g0))
-        return [Param("gain", "1", lo, hi)]
+        return [Param("gain", "1", lo, hi, null=g0)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         # missing force = -(1 - 1/g) b  =>  amp = -(1 - 1/g); reaction view: amp = 1 - g
@@ -254,7 +254,7 @@ class SensorOffset(EffectType):
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         b0 = m.outputs[cand.location["channel"]].offset
         span = 10 * abs(float(cand.shape.get("amp", 0.0))) + 1e-12
-        return [Param("offset", "channel unit", b0 - span, b0 + span)]
+        return [Param("offset", "channel unit", b0 - span, b0 + span, null=b0)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         return [m.outputs[cand.location["channel"]].offset + amp]

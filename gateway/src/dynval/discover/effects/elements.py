@@ -69,7 +69,8 @@ class Contact(EffectType):
         dscale = float(cand.shape.get("drift_rms_m", 1e-4))
         return [element_param("contact", "gap_m", 0.0, 10 * dscale),
                 element_param("contact", "delta_m", 1e-3 * dscale, 10 * dscale, log=True),
-                element_param("contact", "kb_n_per_m", 1e-3 * k, 20 * k, log=True)]
+                element_param("contact", "kb_n_per_m", 1e-3 * k, 20 * k, log=True,
+                              null=0.0)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         ps = self.params(m, cand)
@@ -150,7 +151,7 @@ class _OneCoefficient(_PairElement):
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         c = self._scale(cand, self.default_scale)
         name = el.spec(self.element).params[0].name
-        return [element_param(self.element, name, 1e-3 * c, 1e2 * c, log=True)]
+        return [element_param(self.element, name, 1e-3 * c, 1e2 * c, log=True, null=0.0)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         return [self._scale(cand, self.default_scale)]
@@ -195,7 +196,7 @@ class _FrictionOffset(_PairElement):
         if not cand.location.get("offset"):
             return ps
         span = 2 * ps[0].upper  # the law's force bound
-        return [*ps, Param("offset_force_n", "N", -span, span)]
+        return [*ps, Param("offset_force_n", "N", -span, span, null=0.0)]
 
     def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
         extra = [0.0] if cand.location.get("offset") else []
@@ -222,7 +223,7 @@ class Friction(_FrictionOffset):
     def law_params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         f = self._scale(cand, 1.0)
         vr = float(cand.shape.get("v_rms", 1e-2))
-        return [element_param("friction", "force_n", 1e-3 * f, 20 * f, log=True),
+        return [element_param("friction", "force_n", 1e-3 * f, 20 * f, log=True, null=0.0),
                 element_param("friction", "v_eps_m_per_s", 1e-3 * vr, 0.5 * vr, log=True)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
@@ -268,7 +269,8 @@ class StickSlipFriction(_FrictionOffset):
     def law_params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         f = self._scale(cand, 1.0)
         xs = float(cand.shape.get("x_rms", 1e-4))
-        return [element_param("stick_slip", "force_n", 1e-3 * f, 20 * f, log=True),
+        return [element_param("stick_slip", "force_n", 1e-3 * f, 20 * f, log=True,
+                              null=0.0),
                 element_param("stick_slip", "slip_m", 1e-4 * xs, 2.0 * xs, log=True)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
@@ -299,7 +301,8 @@ class CubicStiffness(_OneCoefficient):
         c = self._scale(cand, self.default_scale)
         # up to 1e4 x: a view that does not see every DOF (the output view) can put the
         # coefficient far under the true one (blind sweep case 15: 250 x)
-        return [element_param(self.element, "k3_n_per_m3", 1e-3 * c, 1e4 * c, signed=True)]
+        return [element_param(self.element, "k3_n_per_m3", 1e-3 * c, 1e4 * c, signed=True,
+                              null=0.0)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         return [self._sign(cand) * self._scale(cand, self.default_scale)]
@@ -345,7 +348,7 @@ class ForceOffset(_ElementEffect):
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
         span = 10 * abs(float(cand.shape.get("amp", 0.0))) + float(cand.shape.get("probe", 1.0))
-        return [element_param("constant_force", "force_n", -span, span)]
+        return [element_param("constant_force", "force_n", -span, span, null=0.0)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
         return [amp]
