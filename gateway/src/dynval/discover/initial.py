@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dynval import model as mdl
-from dynval.discover.residual import TestData, predict
+from dynval.discover.residual import TestData, free_motion_fit, predict
 
 log = logging.getLogger(__name__)
 
@@ -59,12 +59,10 @@ def estimate(m: mdl.Model, t: TestData, chans: Sequence[str], scales: dict[str, 
     p = predict(m, at_rest)
     if p is None:
         return None
-    n = t.u.size
-    basis = mdl.free_response(m, t.fs_hz, n)  # n x n_out x 2 n_dof
-    idx = [list(m.outputs).index(c) for c in chans]
-    a = np.concatenate([basis[:, j, :] / scales[c] for j, c in zip(idx, chans, strict=True)])
-    r = np.concatenate([(t.y[c] - p[c]) / scales[c] for c in chans])
-    x0, *_ = np.linalg.lstsq(a, r, rcond=None)
+    fm = free_motion_fit(m, t, p, {c: scales[c] for c in chans})
+    if fm is None:
+        return None
+    a, r, x0, n = fm.a, fm.r, fm.x0, t.u.size
     w = min(settle, n)
     head = np.concatenate([np.arange(k * n, k * n + w) for k in range(len(chans))])
     before = float(r[head] @ r[head])
@@ -73,7 +71,7 @@ def estimate(m: mdl.Model, t: TestData, chans: Sequence[str], scales: dict[str, 
     if not t.moving and (reduction < MIN_REDUCTION or
                          reduction < LATE_FACTOR * _late_share(a, r, n, w, len(chans))):
         return None
-    outs = {c: basis[:, j, :] @ x0 for j, c in enumerate(m.outputs)}
+    outs = {c: fm.basis[:, j, :] @ x0 for j, c in enumerate(m.outputs)}
     return Start(x0, outs, reduction)
 
 

@@ -184,10 +184,32 @@ def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
 
 def _with_free_start(m: mdl.Model, t: TestData, p: dict[str, np.ndarray],
                      weights: dict[str, float]) -> dict[str, np.ndarray]:
-    """p plus the free motion from the initial state that best fits the residual (least
-    squares over the record, each channel in ``weights`` divided by its weight; a channel in
-    t.demean about its mean), as initial.estimate finds it."""
-    basis = mdl.free_response(m, t.fs_hz, t.u.size)  # n x n_out x 2 n_dof
+    """p plus the free motion from the initial state that best fits the residual
+    (free_motion_fit over the channels in ``weights``)."""
+    fm = free_motion_fit(m, t, p, weights)
+    if fm is None:
+        return p  # a prediction that overflowed: the caller refuses it as it is
+    outs = list(m.outputs)
+    return {c: p[c] + fm.basis[:, outs.index(c), :] @ fm.x0 if c in outs else p[c] for c in p}
+
+
+@dataclass
+class FreeMotion:
+    """The least-squares initial state of a record and the arrays it was fitted on."""
+
+    basis: np.ndarray  # n x n_out x 2 n_dof: every output's free response to each state
+    a: np.ndarray  # the channels' columns stacked (each divided by its weight), N x 2 n_dof
+    r: np.ndarray  # their residuals stacked the same way
+    x0: np.ndarray  # the initial state (2 n_dof)
+
+
+def free_motion_fit(m: mdl.Model, t: TestData, p: dict[str, np.ndarray],
+                    weights: dict[str, float]) -> FreeMotion | None:
+    """The initial state whose free motion (model.free_response: linear in it, the core's
+    exact discretisation) best fits y - p over the record, each channel in ``weights``
+    divided by its weight (in that order); a channel in t.demean, whose prediction is set on
+    its mean anyway, about its mean. None when the arrays are not finite."""
+    basis = mdl.free_response(m, t.fs_hz, t.u.size)
     outs = list(m.outputs)
     a, r = [], []
     for c, w in weights.items():
@@ -199,9 +221,9 @@ def _with_free_start(m: mdl.Model, t: TestData, p: dict[str, np.ndarray],
         r.append(e / w)
     aa, rr = np.concatenate(a), np.concatenate(r)
     if not (np.all(np.isfinite(aa)) and np.all(np.isfinite(rr))):
-        return p  # a prediction that overflowed: the caller refuses it as it is
+        return None
     x0, *_ = np.linalg.lstsq(aa, rr, rcond=None)
-    return {c: p[c] + basis[:, outs.index(c), :] @ x0 if c in outs else p[c] for c in p}
+    return FreeMotion(basis, aa, rr, x0)
 
 
 def residuals(m: mdl.Model, t: TestData, chans: Sequence[str]) -> dict[str, np.ndarray] | None:
