@@ -122,7 +122,7 @@ def test_an_accepted_stiffness_change_has_the_elements_at_its_story_fitted_whate
           _ev("appendage", [0, 2], 0.5), _ev("contact", [1, 2], 0.4),
           _ev("cubic_stiffness", [1, 2], 0.3), _ev("friction", [1, 2], 0.2)]
     rd = session.Round(1, {}, {}, ev, [], None, "", noise=dict(NOISE))
-    change = {"candidate": ev[3].cand, "accepted": True}
+    change = {"candidate": ev[3].cand, "accepted": True, "nsse_held_after": 1.0}
     rd.fits = [change, {"candidate": ev[2].cand, "accepted": True}]
     best = {**_best("appendage", {"a1": (2.0, 2.0), "a2": (2.0, 2.0)}),
             "candidate": ev[4].cand, "accepted": True}
@@ -134,3 +134,26 @@ def test_an_accepted_stiffness_change_has_the_elements_at_its_story_fitted_whate
         ("contact", [1, 2]), ("cubic_stiffness", [1, 2]), ("friction", [1, 2])]
     change["accepted"] = False  # no accepted change: an appendage has no rivals
     assert judge.rivals_to_fit(_session(monkeypatch), rd, best, set()) == []
+
+
+def test_the_elements_are_fitted_at_the_best_accepted_changes_story_only(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # blind sweep case 1: stiffness changes at stories 1, 2 and 4 accepted for the truth's
+    # story 2 (a change next to it gains too); the elements at story 2 only, where the change
+    # ends lowest on the held-out tests
+    ev = [_ev("stiffness_change", [0, 1], 0.9), _ev("stiffness_change", [1, 2], 0.8),
+          _ev("appendage", [0, 3], 0.7), _ev("contact", [0, 1], 0.6),
+          _ev("contact", [1, 2], 0.5), _ev("friction", [0, 1], 0.4),
+          _ev("friction", [1, 2], 0.3)]
+    rd = session.Round(1, {}, {}, ev, [], None, "", noise=dict(NOISE))
+    rd.fits = [{"candidate": ev[0].cand, "accepted": True, "nsse_held_after": 0.5},
+               {"candidate": ev[1].cand, "accepted": True, "nsse_held_after": 0.2}]
+    best = {**_best("appendage", {"a1": (2.0, 2.0), "a2": (2.0, 2.0)}),
+            "candidate": ev[2].cand, "accepted": True}
+    got = judge.rivals_to_fit(_session(monkeypatch), rd, best, set())
+    assert [(e.cand.type, e.cand.location["between"]) for e in got] == [
+        ("contact", [1, 2]), ("friction", [1, 2])]
+    rd.fits[0]["nsse_held_after"] = 0.1  # story 1's change best now: its story instead
+    got = judge.rivals_to_fit(_session(monkeypatch), rd, best, set())
+    assert [(e.cand.type, e.cand.location["between"]) for e in got] == [
+        ("contact", [0, 1]), ("friction", [0, 1])]
