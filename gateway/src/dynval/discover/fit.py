@@ -201,26 +201,30 @@ TEMPER_RATIO = 3.0
 TEMPER_FACTORS = (0.3, 0.1, 0.03, 0.01, 0.003)  # of the strength, tried in turn
 
 
-def temper(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence[TestData],
-           chans: Sequence[str], scales: dict[str, float], nsse_without: float
+def temper(m: mdl.Model, cand: fx.Candidate, init: Sequence[float],
+           tests: Sequence[TestData], chans: Sequence[str], scales: dict[str, float]
            ) -> list[float]:
     """``init``, or, when the effect there leaves the tests' normalised SSE above TEMPER_RATIO x
-    ``nsse_without`` (the model without it), the start with its strength parameters
-    (Param.null) moved toward no effect by TEMPER_FACTORS in turn: the first back under that
-    ratio, else the best one tried (one simulation each)."""
+    that of ``m`` without it, the start with its strength parameters (Param.null) moved
+    toward no effect by TEMPER_FACTORS in turn: the first back under that ratio, else the
+    best one tried (one simulation each)."""
     ps = fx.by_type(cand.type).params(m, cand)
-    if len(ps) != len(init) or all(p.null is None for p in ps) or not nsse_without > 0:
+    if len(ps) != len(init) or all(p.null is None for p in ps):
         return list(init)
+    r0 = residual_vector(m, tests, chans, scales)
+    if r0 is None:
+        return list(init)
+    without = float(r0 @ r0)
     tried: list[tuple[float, list[float]]] = []
     for f in (1.0, *TEMPER_FACTORS):
         st = [v if p.null is None else p.null + f * (v - p.null)
               for p, v in zip(ps, init, strict=True)]
         for nsse, _ in screen_scored(m, cand, [st], tests, chans, scales):
             tried.append((nsse, st))
-            if nsse <= TEMPER_RATIO * nsse_without:
+            if nsse <= TEMPER_RATIO * without:
                 if f < 1.0:
                     log.info("%s: start's strength x %g (normalised SSE %.3g there, %.3g "
-                             "without the effect)", cand.label, f, tried[0][0], nsse_without)
+                             "without the effect)", cand.label, f, tried[0][0], without)
                 return st
     return min(tried, key=lambda p: p[0])[1] if tried else list(init)
 
@@ -339,8 +343,10 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
         uncertain: Sequence[str] = (), workers: int = 1) -> FitResult:
     """Fit the candidate's parameters, and with them the declared parameters named in
     ``uncertain`` (re-adjusted jointly, so an effect they had absorbed can show). The
-    Jacobian's columns run on up to ``workers`` processes (the same numbers on any count)."""
-    pb = problem(m, cand, init, tests, chans, scales, uncertain)
+    Jacobian's columns run on up to ``workers`` processes (the same numbers on any count).
+    A start far worse than no effect is weakened first (temper)."""
+    pb = problem(m, cand, temper(m, cand, init, tests, chans, scales), tests, chans, scales,
+                 uncertain)
     ps_all = pb.params
     fun_at, jac = forward_jacobian(pb.fun, workers)
     sol = min((least_squares(fun_at, z0, jac=jac, bounds=(0.0, 1.0), method="trf",

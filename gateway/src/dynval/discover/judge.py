@@ -359,9 +359,6 @@ class Judge:
         scan = [] if given else et.scan_starts(self.cur, cand, e.amp)
         if scan:
             starts += ft.screen(self.cur, cand, scan, self.fit_t, self.chans, self.scales, 1)
-        without = self.cur_table.total(self.fit_names)
-        starts = [ft.temper(self.cur, cand, s0, self.fit_t, self.chans, self.scales, without)
-                  for s0 in starts]
         res = None
         for init in starts:
             try:
