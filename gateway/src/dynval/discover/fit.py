@@ -195,7 +195,7 @@ def screen(m: mdl.Model, cand: fx.Candidate, starts: Sequence[Sequence[float]],
 # a start whose simulation leaves the fitting tests over this many times the normalised SSE of
 # the model without the effect lies in no basin of the effect: the evidence's amplitude is a
 # first-order reading of a noisy missing force (bench shake-table sweep, round 2 after the
-# contact: starts at 600-2500 x the current model's error, each fit crawling through 30-40
+# contact: starts at 40-2500 x the current model's error, each fit crawling through 30-40
 # evaluations to end above that error, 20-37 s a candidate)
 TEMPER_RATIO = 3.0
 TEMPER_FACTORS = (0.3, 0.1, 0.03, 0.01, 0.003)  # of the strength, tried in turn
