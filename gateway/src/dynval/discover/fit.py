@@ -219,13 +219,15 @@ def temper(m: mdl.Model, cand: fx.Candidate, init: Sequence[float],
     for f in (1.0, *TEMPER_FACTORS):
         st = [v if p.null is None else p.null + f * (v - p.null)
               for p, v in zip(ps, init, strict=True)]
-        for nsse, _ in screen_scored(m, cand, [st], tests, chans, scales):
-            tried.append((nsse, st))
-            if nsse <= TEMPER_RATIO * without:
-                if f < 1.0:
-                    log.info("%s: start's strength x %g (normalised SSE %.3g there, %.3g "
-                             "without the effect)", cand.label, f, tried[0][0], without)
-                return st
+        scored = screen_scored(m, cand, [st], tests, chans, scales)
+        if not scored:  # a start the core refuses: the next, weaker one
+            continue
+        tried.append((scored[0][0], st))
+        if scored[0][0] <= TEMPER_RATIO * without:
+            if f < 1.0:
+                log.info("%s: start's strength x %g (normalised SSE %.3g there, %.3g without "
+                         "the effect)", cand.label, f, scored[0][0], without)
+            return st
     return min(tried, key=lambda p: p[0])[1] if tried else list(init)
 
 
