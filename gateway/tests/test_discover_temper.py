@@ -6,6 +6,7 @@ no effect (Param.null) until the start is back under fit.TEMPER_RATIO x that err
 from __future__ import annotations
 
 import logging
+import math
 
 import pytest
 
@@ -114,3 +115,17 @@ def test_a_round_fits_a_spurious_candidate_from_its_weakened_start(
     without = table.total([t.name for t in fit_t])
     assert info["fit"].nsse_fit <= 1.01 * without
     assert not info["accepted"]
+
+
+@pytest.mark.parametrize("kb", [math.nan, 1e300])
+def test_a_start_the_core_refuses_at_every_strength_is_given_back_as_it_is(
+        case: tuple[mdl.Model, list[rs.TestData], list[str], dict[str, float]],
+        kb: float) -> None:
+    """A NaN or a huge finite stiffness: every weakened start is refused too (validation, or
+    a run that is not finite); temper gives the start back for the fit to penalise, no
+    exception."""
+    m, tests, chans, scales = case
+    start = [0.0, 1e-5, kb]
+    got = ft.temper(m, _contact(m), start, tests, chans, scales)
+    assert len(got) == 3 and got[:2] == start[:2]
+    assert got[2] == kb or (math.isnan(got[2]) and math.isnan(kb))
