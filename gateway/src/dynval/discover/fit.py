@@ -39,6 +39,12 @@ _PENALTY = 1e3  # residual value for a parameter set the core refuses
 # same parameters to 5 digits)
 FTOL = 1e-5
 READJUSTED = " (declared, re-adjusted)"  # suffix of a re-adjusted declared parameter's name
+# a candidate's fit is stopped when, at its pace over its last FUTILE_WINDOW iterations, its
+# remaining evaluations could not bring it under the fitting error it must beat (a fit that
+# ends above it is refused: its BIC cannot be lower). A trust-region fit's pace only slows, so
+# the projection is generous (blind sweep case 17: round 2's six candidates crawled 15-30
+# evaluations above the current model's error, every one refused)
+FUTILE_WINDOW = 3
 
 
 @dataclass
@@ -340,19 +346,44 @@ def first_order_gain(m: mdl.Model, names: Sequence[str], tests: Sequence[TestDat
     return max(0.0, 1.0 - float(fitted @ fitted) / rr)
 
 
+def futility_stop(beat: float, max_nfev: int) -> Callable[[Any], None]:
+    """least_squares' callback for a fit that must get under the normalised SSE ``beat``:
+    raises StopIteration (scipy's way to stop, keeping the last iterate) once it cannot at
+    its pace (FUTILE_WINDOW)."""
+    nsse: list[float] = []
+
+    def stop(intermediate_result: Any) -> None:  # the name scipy passes the result by
+        now = 2.0 * float(intermediate_result.cost)  # cost is half the sum of squares
+        nsse.append(now)
+        if now <= beat or len(nsse) <= FUTILE_WINDOW:
+            return
+        pace = (nsse[-1 - FUTILE_WINDOW] - now) / FUTILE_WINDOW
+        left = max_nfev - int(intermediate_result.nfev)
+        if pace * left < now - beat:
+            log.debug("fit stopped: normalised SSE %.4g, %.3g per iteration, %d evaluations "
+                      "left, %.4g to beat", now, pace, left, beat)
+            raise StopIteration
+
+    return stop
+
+
 def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence[TestData],
         chans: Sequence[str], scales: dict[str, float], max_nfev: int = 40,
-        uncertain: Sequence[str] = (), workers: int = 1) -> FitResult:
+        uncertain: Sequence[str] = (), workers: int = 1, beat: float | None = None
+        ) -> FitResult:
     """Fit the candidate's parameters, and with them the declared parameters named in
     ``uncertain`` (re-adjusted jointly, so an effect they had absorbed can show). The
     Jacobian's columns run on up to ``workers`` processes (the same numbers on any count).
-    A start far worse than no effect is weakened first (temper)."""
+    A start far worse than no effect is weakened first (temper). ``beat``: the fitting
+    tests' normalised SSE the fit must get under to be of use (a reference's): it is stopped
+    where it could not (futility_stop)."""
     pb = problem(m, cand, temper(m, cand, init, tests, chans, scales), tests, chans, scales,
                  uncertain)
     ps_all = pb.params
     fun_at, jac = forward_jacobian(pb.fun, workers)
     sol = min((least_squares(fun_at, z0, jac=jac, bounds=(0.0, 1.0), method="trf",
-                             x_scale=1.0, max_nfev=max_nfev, xtol=1e-6, ftol=FTOL)
+                             x_scale=1.0, max_nfev=max_nfev, xtol=1e-6, ftol=FTOL,
+                             callback=None if beat is None else futility_stop(beat, max_nfev))
                for z0 in (pb.z0, *pb.z_others)), key=lambda s: float(np.sum(s.fun ** 2)))
     vals = pb.values(sol.x)
     mm = pb.build(vals)

@@ -359,11 +359,13 @@ class Judge:
         scan = [] if given else et.scan_starts(self.cur, cand, e.amp)
         if scan:
             starts += ft.screen(self.cur, cand, scan, self.fit_t, self.chans, self.scales, 1)
+        _, ref_table, ref_p = self.reference(names)
+        beat = ref_table.total(self.fit_names)  # a fit left above it is refused (_verdict)
         res = None
         for init in starts:
             try:
                 r1 = ft.fit(self.cur, cand, init, self.fit_t, self.chans, self.scales,
-                            self.o.max_nfev, names)
+                            self.o.max_nfev, names, beat=beat)
             except ConfigError as exc:
                 log.info("%s: fit failed: %s", cand.label, exc)
                 continue
@@ -371,7 +373,6 @@ class Judge:
                 res = r1
         if res is None:
             return None
-        _, ref_table, ref_p = self.reference(names)
         tab, _ = rs.error_table(res.model, self.held_t, self.chans, self.scales)
         info = {"candidate": cand, "evidence": e.r2, "fit": res, "readjusted": names,
                 "table": tab, "confirmed": not names,
