@@ -7,6 +7,7 @@ ends at the ideal's error with the contact alone."""
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ from dynval.discover import effects as fx
 from dynval.discover import fit as ft
 from dynval.discover import loop
 from dynval.discover import residual as rs
+from dynval.discover import session as ss
 
 K = 399790.0
 NAMES = ("k1", "k2", "k3", "k4", "zeta1", "zeta2", "zeta3", "zeta4")
@@ -88,3 +90,31 @@ def test_a_contact_under_a_sweep_on_a_best_linear_model_ends_at_the_ideal() -> N
     ideal, _ = rs.error_table(dataclasses.replace(truth, elements=(el,)), r.tests, r.chans,
                               r.scales)
     assert r.after.total(r.held_names) / ideal.total(r.held_names) < 1.3
+
+
+def test_the_continuation_runs_until_one_joint_re_adjustment_is_kept(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """After a kept re-adjustment the modes are where the data put them: a later round's
+    re-adjustment is the plain fit from there (the continuation cost blind sweep case 15
+    118 s in its second round, not kept)."""
+    truth = _table_chain()
+    declared = truth.with_params({"k1": 1.2 * K, "k4": 1.5 * K, "zeta3": 0.03, "zeta4": 0.03})
+    recs = synth.generate(truth, synth.Truth(), n_tests=4, n_samples=4096, seed=3,
+                          levels_n_rms=(3.0,), excitation=synth.Sweep(8.0, 200.0))
+    s = ss.make_session(declared, recs, ss.Options(workers=1))
+    calls: list[int] = []
+    real = cont.fit
+
+    def counted(*a: Any, **k: Any) -> ft.FitResult | None:
+        calls.append(1)
+        return real(*a, **k)
+
+    monkeypatch.setattr(cont, "fit", counted)
+    table, _ = s.table(declared)
+    kept = loop._readjust_declared(s, declared, table)
+    assert kept is not None and s.readjust_kept and calls == [1]
+    got = kept[0].parameters()
+    assert got["k4"] == pytest.approx(K, rel=5e-3)  # the continuation's, not the plain fit's
+    again = loop._readjust_declared(s, kept[0], kept[1])
+    assert calls == [1]  # not run again
+    assert again is None  # nothing left to re-adjust
