@@ -117,3 +117,25 @@ def test_the_judge_asks_each_fit_to_beat_its_reference_fitting_error(
     info = judge.candidate(tr.Evidence(c, 0.5, 1.0, {}))
     assert info is not None and seen
     assert seen == [pytest.approx(ref_table.total([tests[0].name]), rel=1e-12)] * len(seen)
+
+
+def test_a_prediction_that_diverges_but_stays_finite_is_a_refused_point(
+        case: tuple[mdl.Model, list[rs.TestData], list[str], dict[str, float], float]) -> None:
+    """Blind free-chain case 23: the continuation's observer diverged at the current model to
+    residuals of 2.7e300, finite, whose squares overflowed inside least_squares (a traceback
+    from its SVD). Such a point is refused as a failed prediction is (fit's penalty)."""
+    m, tests, chans, scales, now = case
+    t = tests[0]
+    c = chans[0]
+    keep = t.y[c].copy()
+    try:
+        t.y[c][:] = 1e300  # residuals ~1e302 / scale: finite, their squares not
+        assert np.all(np.isfinite(t.y[c]))
+        assert ft.residual_vector(m, tests, chans, scales) is None
+        t.y[c][:] = keep + 1e3 * np.std(keep)  # large, but a sum of squares: kept
+        r = ft.residual_vector(m, tests, chans, scales)
+        assert r is not None and float(r @ r) > 1e3 * now
+    finally:
+        t.y[c][:] = keep
+    r = ft.residual_vector(m, tests, chans, scales)
+    assert r is not None and float(r @ r) == pytest.approx(now, rel=1e-12)

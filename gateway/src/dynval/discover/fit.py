@@ -110,18 +110,19 @@ def at_bounds(params: Sequence[fx.Param], names: Sequence[str], values: Sequence
 def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
                     scales: dict[str, float]) -> np.ndarray | None:
     """(y - prediction) / scale / sqrt(n) of every channel and test, concatenated: its sum of
-    squares is the tests' total normalised SSE."""
+    squares is the tests' total normalised SSE. None when a prediction fails or that sum is
+    not finite (a diverging prediction can stay finite, 1e300, and overflow every product the
+    fit takes of it: an observer's at a model free from the ground)."""
     parts = []
     for t in tests:
         p = predict(m, t)
         if p is None:
             return None
         for c in chans:
-            r = t.counted(t.y[c] - p[c]) / (scales[c] * math.sqrt(t.n))
-            if not np.all(np.isfinite(r)):
-                return None
-            parts.append(r)
-    return np.concatenate(parts)
+            parts.append(t.counted(t.y[c] - p[c]) / (scales[c] * math.sqrt(t.n)))
+    r = np.concatenate(parts)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return r if math.isfinite(float(r @ r)) else None
 
 
 def n_eff_factor(r: np.ndarray, maxlag: int = 64) -> float:
