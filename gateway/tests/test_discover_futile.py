@@ -123,7 +123,8 @@ def test_a_prediction_that_diverges_but_stays_finite_is_a_refused_point(
         case: tuple[mdl.Model, list[rs.TestData], list[str], dict[str, float], float]) -> None:
     """Blind free-chain case 23: the continuation's observer diverged at the current model to
     residuals of 2.7e300, finite, whose squares overflowed inside least_squares (a traceback
-    from its SVD). Such a point is refused as a failed prediction is (fit's penalty)."""
+    from its SVD), and one of 1e150 overflowed its products of the Jacobian. A point worse than
+a refused one is refused as a failed prediction is (fit's penalty)."""
     m, tests, chans, scales, now = case
     t = tests[0]
     c = chans[0]
@@ -132,7 +133,9 @@ def test_a_prediction_that_diverges_but_stays_finite_is_a_refused_point(
         t.y[c][:] = 1e300  # residuals ~1e302 / scale: finite, their squares not
         assert np.all(np.isfinite(t.y[c]))
         assert ft.residual_vector(m, tests, chans, scales) is None
-        t.y[c][:] = keep + 1e3 * np.std(keep)  # large, but a sum of squares: kept
+        t.y[c][:] = keep + 1e150  # squares finite, but worse than a refused point
+        assert ft.residual_vector(m, tests, chans, scales) is None
+        t.y[c][:] = keep + 100 * np.std(keep)  # large (1e4), but under a refused point: kept
         r = ft.residual_vector(m, tests, chans, scales)
         assert r is not None and float(r @ r) > 1e3 * now
     finally:

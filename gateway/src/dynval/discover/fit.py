@@ -111,8 +111,9 @@ def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str
                     scales: dict[str, float]) -> np.ndarray | None:
     """(y - prediction) / scale / sqrt(n) of every channel and test, concatenated: its sum of
     squares is the tests' total normalised SSE. None when a prediction fails or that sum is
-    not finite (a diverging prediction can stay finite, 1e300, and overflow every product the
-    fit takes of it: an observer's at a model free from the ground)."""
+    over a refused point's (_PENALTY^2, or not finite): a diverging prediction can stay
+    finite, 1e300, and overflow every product the fit takes of it (an observer's at a model
+    free from the ground)."""
     parts = []
     for t in tests:
         p = predict(m, t)
@@ -122,7 +123,7 @@ def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str
             parts.append(t.counted(t.y[c] - p[c]) / (scales[c] * math.sqrt(t.n)))
     r = np.concatenate(parts)
     with np.errstate(over="ignore", invalid="ignore"):
-        return r if math.isfinite(float(r @ r)) else None
+        return r if float(r @ r) <= _PENALTY ** 2 else None  # NaN and inf fail it too
 
 
 def n_eff_factor(r: np.ndarray, maxlag: int = 64) -> float:
