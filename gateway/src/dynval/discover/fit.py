@@ -115,15 +115,19 @@ def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str
     finite, 1e300, and overflow every product the fit takes of it (an observer's at a model
     free from the ground)."""
     parts = []
+    total = 0.0
     for t in tests:
         p = predict(m, t)
         if p is None:
             return None
         for c in chans:
-            parts.append(t.counted(t.y[c] - p[c]) / (scales[c] * math.sqrt(t.n)))
-    r = np.concatenate(parts)
-    with np.errstate(over="ignore", invalid="ignore"):
-        return r if float(r @ r) <= _PENALTY ** 2 else None  # NaN and inf fail it too
+            r = t.counted(t.y[c] - p[c]) / (scales[c] * math.sqrt(t.n))
+            with np.errstate(over="ignore", invalid="ignore"):
+                total += float(r @ r)
+            if not total <= _PENALTY ** 2:  # NaN and inf fail it too: the later tests unrun
+                return None
+            parts.append(r)
+    return np.concatenate(parts)
 
 
 def n_eff_factor(r: np.ndarray, maxlag: int = 64) -> float:
