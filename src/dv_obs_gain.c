@@ -91,6 +91,43 @@ static dv_status_t sda(size_t n, dv_real_t *a, dv_real_t *g, dv_real_t *h, dv_re
     return DV_EUNSTABLE;
 }
 
+/* Does gain l (ns x no) hold the filter? The estimate's error follows e+ = (I - L Cy) Ad e, so
+ * every eigenvalue of that matrix must lie in the unit disc. A mode the outputs do not see
+ * (a free chain's rigid-body mode through accelerations) keeps its eigenvalue 1 whatever the
+ * gain, and round-off puts a double eigenvalue there at 1 +- O(sqrt(eps)): hence the margin.
+ * Without a stabilising DARE solution the doubling can stop on round-off at a gain that
+ * makes the filter grow (largest modulus 2.3 on such a chain). w: 2 ns^2 + 3 ns elements. */
+static bool gain_holds(const dv_model_t *m, const dv_real_t *l, size_t ns, size_t no,
+                       dv_real_t *w)
+{
+    dv_real_t *cl = w;
+    dv_real_t *wr = cl + ns * ns;
+    dv_real_t *wi = wr + ns;
+    dv_real_t *work = wi + ns;
+    dv_real_t *t = work; /* I - L Cy, free again before the eigenvalues */
+    for (size_t i = 0; i < ns; i++) {
+        for (size_t k = 0; k < ns; k++) {
+            dv_real_t lc = DV_R(0.0);
+            for (size_t q = 0; q < no; q++) {
+                lc += l[i * no + q] * m->cy[q * ns + k];
+            }
+            t[i * ns + k] = (i == k ? DV_R(1.0) : DV_R(0.0)) - lc;
+        }
+    }
+    mm(ns, t, false, m->ad, false, cl);
+    dv_mat_t cm = {(uint16_t)ns, (uint16_t)ns, cl};
+    if (dv_mat_eig_real(&cm, wr, wi, work, DV_MAT_EIGR_WORK_LEN(ns)) != DV_OK) {
+        return false;
+    }
+    const dv_real_t edge = DV_R(1.0) + DV_R(16.0) * DV_SQRT(DV_REAL_EPS);
+    for (size_t i = 0; i < ns; i++) {
+        if (!(wr[i] * wr[i] + wi[i] * wi[i] <= edge * edge)) {
+            return false;
+        }
+    }
+    return true;
+}
+
 /* Steady-state Kalman gain L = P Cy^T (Cy P Cy^T + R)^-1 of the filter DARE. */
 dv_status_t dv_priv_obs_kalman_gain(dv_obs_t *o, const dv_obs_noise_t *nz, dv_real_t *w)
 {
@@ -185,7 +222,7 @@ dv_status_t dv_priv_obs_kalman_gain(dv_obs_t *o, const dv_obs_noise_t *nz, dv_re
             o->gain[i * no + q] = cp[q * ns + i];
         }
     }
-    return DV_OK;
+    return gain_holds(m, o->gain, ns, no, w) ? DV_OK : DV_EUNSTABLE;
 }
 
 bool dv_priv_obs_noise_ok(const dv_model_t *m, const dv_obs_noise_t *noise)

@@ -200,8 +200,13 @@ size_t dv_obs_scratch_len(const dv_model_t *m);
  *                      (dv_model_keep_step_only()), a negative or non-finite q, or an r <= 0
  *                      or non-finite
  * @retval DV_ESIZE     @p len too small
- * @retval DV_EUNSTABLE the DARE did not converge (an undetectable undamped mode, e.g. a free
- *                      rigid-body mode seen only through accelerations) or is singular
+ * @retval DV_EUNSTABLE the DARE did not converge or is singular, or the gain it gave does not
+ *                      hold the filter: an eigenvalue of (I - L Cy) Ad outside the unit disc
+ *                      by more than 16 sqrt(eps). A mode the outputs do not see (a free
+ *                      rigid-body mode seen only through accelerations) keeps its eigenvalue
+ *                      1 whatever the gain: such a gain is returned when it holds the rest,
+ *                      and the estimate drifts along that mode as the open loop would; the
+ *                      doubling may also refuse it (no stabilising DARE solution exists)
  */
 dv_status_t dv_obs_init(dv_obs_t *o, const dv_model_t *m, const dv_obs_noise_t *noise,
                         dv_real_t *buf, size_t len);

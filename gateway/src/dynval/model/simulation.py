@@ -192,9 +192,14 @@ def _checked_later(status: int) -> bool:
     return status in (_core.lib.DV_ENUMERIC, _core.lib.DV_EUNSTABLE)
 
 
-def _refused(m: Model, func: str, status: int, dt: float) -> ConfigError:
+# the Kalman gain's own refusal (dv_obs_init with a noise model)
+_GAIN_HINT = ("the gain found lets the filter grow, or its Riccati solver did not converge (a "
+              "mode the outputs do not see leaves the equation without a stabilising solution)")
+
+
+def _refused(m: Model, func: str, status: int, dt: float, hint: str | None = None) -> ConfigError:
     name = _core.status_name(status)
-    hint = _STATUS_HINT.get(name, "")
+    hint = _STATUS_HINT.get(name, "") if hint is None else hint
     return ConfigError(f"{m.source or '<model>'}: the core refused the model ({func}: {name}"
                        f"{'; ' + hint if hint else ''}; sample period {dt:g} s)")
 
@@ -348,7 +353,8 @@ def _kalman_gain(m: Model, dt_s: float, noise: Any) -> np.ndarray:
     buf = np.zeros(olen)
     st = lib.dv_obs_init(core.obs, core.cm, noise, _core.ptr(buf), olen)
     if st < 0:
-        raise _refused(m, "dv_obs_init (Kalman gain)", st, core.dt)
+        raise _refused(m, "dv_obs_init (Kalman gain)", st, core.dt,
+                       _GAIN_HINT if _core.status_name(st) == "DV_EUNSTABLE" else None)
     gain = np.zeros(2 * m.n_dof * len(m.outputs))
     _core.check(lib.dv_obs_get_gain(core.obs, _core.ptr(gain), gain.size), "dv_obs_get_gain")
     return gain
