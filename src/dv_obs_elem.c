@@ -57,6 +57,14 @@ static void nodes_x_free(const dv_obs_t *o, size_t ns, bool cubic, const dv_real
     }
 }
 
+/* gcc turns the short copy loops over the elements (nc <= DV_MAX_ELEM values) into memcpy and
+ * memset calls, a call per node that cost a tenth of a two-contact simulation; kept as loops */
+#if defined(__GNUC__) && !defined(__clang__)
+#define DV_OBS_NO_LIBCALLS __attribute__((optimize("no-tree-loop-distribute-patterns")))
+#else
+#define DV_OBS_NO_LIBCALLS
+#endif
+
 /* forced inline where speed is measured (x86 double); firmware builds keep the flash */
 #if DV_SIMD_X86
 #define DV_OBS_INLINE __attribute__((always_inline))
@@ -97,6 +105,7 @@ static inline DV_OBS_INLINE bool all_open(const dv_obs_t *o, dv_real_t *g, const
  * operations: the force-free part of X at every sub-node first (independent of the forces, so
  * it leaves the sequential chain through the nodes), then node by node the earlier forces and
  * the implicit force. */
+DV_OBS_NO_LIBCALLS
 static bool elem_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
 {
     const dv_model_t *m = o->m;
@@ -153,6 +162,7 @@ static bool elem_forces_1(dv_obs_t *o, dv_real_t *sv, size_t ns)
 /* Sub-node element forces g into sv[ns + nin ..], from x = sv[0..ns) and the input window
  * sv[ns .. ns + nin). Stick-slip elements read and advance the observer's element history.
  * True when every force is zero because every element stays open (all_open()). */
+DV_OBS_NO_LIBCALLS
 bool dv_priv_obs_elem_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
 {
     const dv_model_t *m = o->m;
@@ -185,12 +195,7 @@ bool dv_priv_obs_elem_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
         const size_t f0 = i * nc;
         for (size_t e = 0; e < nc; e++) {
             const size_t f = f0 + e;
-            const dv_real_t *srow = m->smat + f * nf;
-            dv_real_t s = xl[f];
-            for (size_t j = 0; j < f0; j++) {
-                s += srow[j] * g[j];
-            }
-            lin[e] = s;
+            lin[e] = xl[f]; /* the earlier nodes' forces are in already (below) */
             /* start: as in elem_forces_1() */
             cur[e] = i == 0u ? DV_R(0.0)
                              : (i == 1u ? g[f0 - nc + e]
@@ -215,6 +220,17 @@ bool dv_priv_obs_elem_forces(dv_obs_t *o, dv_real_t *sv, size_t ns)
         for (size_t e = 0; e < nc; e++) {
             xp[e] = xn[e];
             gp[e] = g[f0 + e];
+        }
+        /* this node's forces into every later node's X, in the order a row dot from the first
+         * node would add them (the same sums, bit for bit): the next node then waits for nc
+         * products, not for a dot over every earlier node */
+        for (size_t f = f0 + nc; f < nf; f++) {
+            const dv_real_t *srow = m->smat + f * nf + f0;
+            dv_real_t s = xl[f];
+            for (size_t e = 0; e < nc; e++) {
+                s += srow[e] * g[f0 + e];
+            }
+            xl[f] = s;
         }
     }
     for (size_t e = 0; e < nc; e++) {

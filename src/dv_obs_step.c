@@ -317,9 +317,9 @@ static void produce(dv_obs_t *o, const dv_real_t *y, uint32_t flags, bool use_ga
         }
         return;
     }
-    if (nf > 0u) {
-        dv_priv_obs_elem_forces(o, sv, ns);
-    }
+    /* every element open: the forces are zero (the vector kernel skips their columns) */
+    const bool open = nf > 0u && dv_priv_obs_elem_forces(o, sv, ns);
+    (void)open;
     /* the measurements the state rows see: y (correction), nothing (no gain folded), or the
      * prediction itself when a gain is folded but this step is open loop (x+ = x- + L (yhat -
      * yhat): the folded rows give back the open-loop ones) */
@@ -338,6 +338,11 @@ static void produce(dv_obs_t *o, const dv_real_t *y, uint32_t flags, bool use_ga
     if (ns == 8u && no == 4u) {
         /* the 4-DOF, 4-channel case: constant sizes, one call */
         kernel_8x4(o, nin + nf, nin + nf, ny, fx, fy, sv, ys, yhat, o->resid);
+#if DV_SIMD_X86
+    } else if (o->kern != DV_OBS_KERN_C &&
+               dv_priv_obs_kern_avx2(ns, no, open ? nin : nin + nf, nin + nf, ny, fx, fy, sv, ys, yhat)) {
+        /* any other size: the vector kernel */
+#endif
     } else {
         dv_real_t *yc = sv + ns + nin + nf;
         for (size_t q = 0; q < ny; q++) {

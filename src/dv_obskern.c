@@ -106,28 +106,131 @@ DV_TGT_AVX2 void dv_priv_obs_kern8x4_open_avx2(size_t iy, size_t ny, const doubl
     }
 }
 
-/* Up to 12 nodes in three vectors (the last one masked), column by column; node f of column j at
- * rx[(f / 8) bs + j cs + f % 8]. */
-DV_TGT_AVX2 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, size_t bs,
-                                        size_t cs, const double *sv, double *xl)
+/* Rows [4 v, 4 v + 4) of a column; the last vector (v = nv - 1) masked to the rows that exist,
+ * so no read goes past the column's matrix. */
+DV_TGT_AVX2 static inline __attribute__((always_inline)) __m256d
+rows4(const double *col, size_t v, size_t nv, __m256i last)
 {
-    if (nf > 12u) {
-        for (size_t f = 0; f < nf; f++) {
-            const double *r = rx + f / 8u * bs + f % 8u;
-            double a = r[ns * cs] * sv[ns] + r[(ns + 1u) * cs] * sv[ns + 1u];
-            for (size_t j = 0; j < ns; j++) {
-                a += r[j * cs] * sv[j];
-            }
-            xl[f] = a;
-        }
-        return;
-    }
-    /* lanes f < nf of the three vectors */
+    return v + 1u < nv ? _mm256_loadu_pd(col + 4u * v) : _mm256_maskload_pd(col + 4u * v, last);
+}
+
+/* The general step product: nv = ceil(ns / 4) state vectors, nyv = ceil(no / 4) output
+ * vectors, constants where the entry point below calls it, so the accumulators stay in
+ * registers. The inputs' sum (ready early) starts the even state columns' sum, the odd ones go
+ * in a second, so the chain from one state to the next is ns / 2 FMAs and one addition. The
+ * new state is stored lane by lane (store4(): the next step broadcasts it back). */
+DV_TGT_AVX2 static inline __attribute__((always_inline)) void
+kern_any(size_t nv, size_t nyv, size_t ns, size_t no, size_t nin, size_t iy, size_t ny,
+         const double *fx, const double *fy, double *sv, const double *y, double *yo)
+{
     const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
-    const __m256i m0 = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)nf), lane);
-    const __m256i m1 = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)nf - 4), lane);
-    const __m256i m2 = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)nf - 8), lane);
-    const double *r0 = rx, *r1 = rx + 4, *r2 = rx + bs;
+    const __m256i mx = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(ns - 4u * (nv - 1u))),
+                                          lane);
+    const __m256i my = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(no - 4u * (nyv - 1u))),
+                                          lane);
+    const double *in = sv + ns;
+    const double *fxi = fx + ns * ns;
+    const double *fyi = fy + no * ns;
+    __m256d a[4], b[4], ay[4];
+    for (size_t v = 0; v < nv; v++) {
+        a[v] = _mm256_setzero_pd();
+        b[v] = _mm256_setzero_pd();
+    }
+    for (size_t w = 0; w < nyv; w++) {
+        ay[w] = _mm256_setzero_pd();
+    }
+    for (size_t j = 0; j < nin; j++) {
+        const __m256d s = _mm256_broadcast_sd(in + j);
+        for (size_t v = 0; v < nv; v++) {
+            a[v] = _mm256_fmadd_pd(rows4(fxi + j * ns, v, nv, mx), s, a[v]);
+        }
+        for (size_t w = 0; w < nyv; w++) {
+            ay[w] = _mm256_fmadd_pd(rows4(fyi + j * no, w, nyv, my), s, ay[w]);
+        }
+    }
+    for (size_t j = 0; j < ny; j++) {
+        const __m256d s = _mm256_broadcast_sd(y + j);
+        for (size_t v = 0; v < nv; v++) {
+            a[v] = _mm256_fmadd_pd(rows4(fxi + (iy + j) * ns, v, nv, mx), s, a[v]);
+        }
+    }
+    for (size_t j = 0; j < ns; j += 2u) {
+        const __m256d s0 = _mm256_broadcast_sd(sv + j);
+        const __m256d s1 = _mm256_broadcast_sd(sv + j + 1u);
+        for (size_t v = 0; v < nv; v++) {
+            a[v] = _mm256_fmadd_pd(rows4(fx + j * ns, v, nv, mx), s0, a[v]);
+            b[v] = _mm256_fmadd_pd(rows4(fx + (j + 1u) * ns, v, nv, mx), s1, b[v]);
+        }
+        for (size_t w = 0; w < nyv; w++) {
+            ay[w] = _mm256_fmadd_pd(rows4(fy + j * no, w, nyv, my), s0, ay[w]);
+            ay[w] = _mm256_fmadd_pd(rows4(fy + (j + 1u) * no, w, nyv, my), s1, ay[w]);
+        }
+    }
+    for (size_t w = 0; w < nyv; w++) {
+        _mm256_maskstore_pd(yo + 4u * w, w + 1u < nyv ? _mm256_set1_epi64x(-1) : my, ay[w]);
+    }
+    for (size_t v = 0; v < nv; v++) {
+        const __m256d x = _mm256_add_pd(a[v], b[v]);
+        if (4u * v + 4u <= ns) {
+            store4(sv + 4u * v, x);
+        } else { /* ns is even: two rows left */
+            const __m128d lo = _mm256_castpd256_pd128(x);
+            _mm_storel_pd(sv + 4u * v, lo);
+            __asm__ volatile("" ::: "memory");
+            _mm_storeh_pd(sv + 4u * v + 1u, lo);
+        }
+    }
+}
+
+DV_TGT_AVX2 bool dv_priv_obs_kern_avx2(size_t ns, size_t no, size_t nin, size_t iy, size_t ny,
+                                       const double *fx, const double *fy, double *sv,
+                                       const double *y, double *yo)
+{
+    const size_t nv = (ns + 3u) / 4u;
+    const size_t nyv = (no + 3u) / 4u;
+    /* constant vector counts: each case its own unrolled loops */
+#define DV_KERN_ANY(NV, NYV)                                                                    \
+    case (NV) * 8u + (NYV):                                                                     \
+        kern_any(NV, NYV, ns, no, nin, iy, ny, fx, fy, sv, y, yo);                             \
+        return true
+    switch (nv * 8u + nyv) {
+        DV_KERN_ANY(1u, 1u);
+        DV_KERN_ANY(1u, 2u);
+        DV_KERN_ANY(1u, 3u);
+        DV_KERN_ANY(1u, 4u);
+        DV_KERN_ANY(2u, 1u);
+        DV_KERN_ANY(2u, 2u);
+        DV_KERN_ANY(2u, 3u);
+        DV_KERN_ANY(2u, 4u);
+        DV_KERN_ANY(3u, 1u);
+        DV_KERN_ANY(3u, 2u);
+        DV_KERN_ANY(3u, 3u);
+        DV_KERN_ANY(3u, 4u);
+        DV_KERN_ANY(4u, 1u);
+        DV_KERN_ANY(4u, 2u);
+        DV_KERN_ANY(4u, 3u);
+        DV_KERN_ANY(4u, 4u);
+    default: /* more than 16 states or outputs (DV_MAX_DOF, DV_MAX_OUT raised): not served */
+        return false;
+    }
+#undef DV_KERN_ANY
+}
+
+/* The force-free X of nodes [f0, f0 + 12) (those < nf) in three vectors, column by column;
+ * node f of column j at rx[(f / 8) bs + j cs + f % 8] (f0 a multiple of 4, so no vector
+ * straddles a block of 8). */
+DV_TGT_AVX2 static inline __attribute__((always_inline)) void
+xfree12(const double *rx, size_t f0, size_t nf, size_t ns, size_t bs, size_t cs,
+        const double *sv, double *xl)
+{
+    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
+    const long long left = (long long)(nf - f0);
+    const __m256i m0 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(left), lane);
+    const __m256i m1 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(left - 4), lane);
+    const __m256i m2 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(left - 8), lane);
+    const double *r0 = rx + f0 / 8u * bs + f0 % 8u;
+    const double *r1 = rx + (f0 + 4u) / 8u * bs + (f0 + 4u) % 8u;
+    const double *r2 = rx + (f0 + 8u) / 8u * bs + (f0 + 8u) % 8u;
     const __m256d w0 = _mm256_broadcast_sd(sv + ns), w1 = _mm256_broadcast_sd(sv + ns + 1u);
     const size_t ja = ns * cs, jb = (ns + 1u) * cs;
     __m256d a0 = _mm256_mul_pd(_mm256_maskload_pd(r0 + ja, m0), w0);
@@ -142,9 +245,18 @@ DV_TGT_AVX2 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, 
         a1 = _mm256_fmadd_pd(_mm256_maskload_pd(r1 + j * cs, m1), v, a1);
         a2 = _mm256_fmadd_pd(_mm256_maskload_pd(r2 + j * cs, m2), v, a2);
     }
-    _mm256_maskstore_pd(xl, m0, a0);
-    _mm256_maskstore_pd(xl + 4, m1, a1);
-    _mm256_maskstore_pd(xl + 8, m2, a2);
+    _mm256_maskstore_pd(xl + f0, m0, a0);
+    _mm256_maskstore_pd(xl + f0 + 4u, m1, a1);
+    _mm256_maskstore_pd(xl + f0 + 8u, m2, a2);
+}
+
+/* Twelve nodes at a time. */
+DV_TGT_AVX2 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, size_t bs,
+                                        size_t cs, const double *sv, double *xl)
+{
+    for (size_t f0 = 0; f0 < nf; f0 += 12u) {
+        xfree12(rx, f0, nf, ns, bs, cs, sv, xl);
+    }
 }
 
 /* The modal prediction: C T q as sum_k pred[k] (q permuted by lane ^ k) (struct dv_obs_modal),

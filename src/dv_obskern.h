@@ -20,6 +20,17 @@ void dv_priv_obs_kern8x4_open_avx2(size_t iy, size_t ny, const dv_real_t *fx,
                                    const dv_real_t *fy, dv_real_t *sv, const dv_real_t *y,
                                    dv_real_t *yo, dv_real_t *resid);
 
+/* The step product of any size with AVX2 + FMA: kernel() in dv_obs_step.c (fx: ns-row
+ * column-major state rows over [x, inputs, y], fy: no-row column-major output rows over
+ * [x, inputs]), even ns <= 2 DV_MAX_DOF, no <= DV_MAX_OUT. The first nin input columns are
+ * used and the ny measurement columns start at input column iy >= nin (the element-force
+ * columns between are skipped when every force is zero); sv[0..ns) becomes the new state and
+ * yo the prediction. False (nothing done) above 16 states or 16 outputs. Only call when
+ * dv_priv_simd_kern() != 0. */
+bool dv_priv_obs_kern_avx2(size_t ns, size_t no, size_t nin, size_t iy, size_t ny,
+                           const dv_real_t *fx, const dv_real_t *fy, dv_real_t *sv,
+                           const dv_real_t *y, dv_real_t *yo);
+
 /* The force-free X at every element sub-node (dv_obs_elem.c nodes_x_free(), first-order hold):
  * xl = R [x; u[k-1]; u[k]], the vector = sv[0 .. ns + 2), node f of column j of R at
  * rx[(f / 8) bs + j cs + f % 8]: the model's column-major rows (bs 8, cs nf) or the modal form's
