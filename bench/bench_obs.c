@@ -12,7 +12,11 @@
  * obs_step_4dof_contact_lanl: the contact model's steps on data it did not make, the independent
  * simulation of the report's structure with a bumper (../shared/data/synthetic/lanl4dof-bumper,
  * test_high_01: its force and four accelerations); listed only when the environment variable
- * DV_BENCH_DATA names that data directory (bench/run.py sets it when ../shared is there). */
+ * DV_BENCH_DATA names that data directory (bench/run.py sets it when ../shared is there).
+ * obs_step_5dof / obs_step_5dof_two_contacts: the general path (any size but 8 states and 4
+ * outputs): a 5-DOF chain (6-7.2 kg, 4e5-3.2e5 N/m, 2 % modal damping, force at DOF 1, five
+ * accelerations) with the gain, linear, and with two gap elements on story 2 (one per side,
+ * gap 20 um, Delta 10 um, 1e6 N/m, 8 sub-steps: 18 nodes) that this force engages. */
 #include "bench_util.h"
 
 #include "dynval/dv_model.h"
@@ -21,11 +25,12 @@
 enum { NREC = 8192, NBUF = 40000 };
 
 static dv_real_t mbuf[NBUF], mbuf2[NBUF], obuf[NBUF], obuf2[NBUF];
-static dv_real_t force[NREC], ymeas[NREC * 4], yout[NREC * 4], yres[NREC * 4];
+static dv_real_t force[NREC], ymeas[NREC * 8], yout[NREC * 8], yres[NREC * 8];
 
 static dv_input_hold_t g_hold = DV_HOLD_FOH;
 
 static int g_engaged; /* the worst case: a bumper at zero gap on both sides, engaged every step */
+static int g_chain5;  /* the 5-DOF chain instead of the report's structure */
 
 /* The bumper test's force and accelerations into force / ymeas (NREC rows); 0 on success. */
 static int load_lanl(void)
@@ -56,8 +61,39 @@ static int load_lanl(void)
     return k == NREC ? 0 : -1;
 }
 
+/* The 5-DOF chain of the header comment; contact: its two gap elements on story 2. */
+static void chain5(dv_model_desc_t *d, int contact, double kscale)
+{
+    dv_model_desc_default(d);
+    d->n_dof = 5;
+    for (int i = 0; i < 5; i++) {
+        d->mass_kg[i] = (dv_real_t)(6.0 + 0.3 * i);
+        d->k_n_per_m[i] = (dv_real_t)(4.0e5 * kscale * (1.0 - 0.05 * i));
+        d->zeta[i] = (dv_real_t)0.02;
+        d->out[i].kind = DV_OUT_ACC;
+        d->out[i].index = (uint16_t)i;
+    }
+    d->n_out = 5;
+    if (contact) {
+        d->n_elem = 2;
+        d->n_sub = 8;
+        for (int e = 0; e < 2; e++) {
+            d->elem[e].dof_a = 1;
+            d->elem[e].dof_b = 2;
+            d->elem[e].side = e ? DV_SIDE_NEG : DV_SIDE_POS;
+            d->elem[e].gap_m = (dv_real_t)2e-5;
+            d->elem[e].delta_m = (dv_real_t)1e-5;
+            d->elem[e].kb_n_per_m = (dv_real_t)1e6;
+        }
+    }
+}
+
 static void lanl(dv_model_desc_t *d, int contact, uint16_t nsub, double kscale)
 {
+    if (g_chain5) {
+        chain5(d, contact, kscale);
+        return;
+    }
     static const double m[4] = {6.54, 6.66, 6.86, 6.80};
     static const double z[4] = {0.01, 0.05, 0.01, 0.01};
     dv_model_desc_default(d);
@@ -130,7 +166,8 @@ int main(int argc, char **argv)
                                   "sim_record_8192_contact", "obs_step_4dof_cubic",
                                   "obs_step_4dof_contact_cubic", "sim_record_8192_cubic",
                                   "obs_step_4dof_contact_engaged", "obs_block_4dof",
-                                  "obs_step_4dof_contact_lanl"};
+                                  "obs_step_4dof_contact_lanl", "obs_step_5dof",
+                                  "obs_step_5dof_two_contacts"};
     const int ncase = (int)(sizeof cases / sizeof cases[0]);
     if (argc == 2 && strcmp(argv[1], "--list") == 0) {
         for (int i = 0; i < ncase; i++) {
@@ -177,13 +214,14 @@ int main(int argc, char **argv)
         return 2;
     }
     const int contact = which == 1 || which == 2 || which == 4 || which == 6 || which == 8 ||
-                        which == 10;
+                        which == 10 || which == 12;
     const uint16_t nsub = which == 2 ? 16 : 8;
     const int is_step = which <= 2 || which == 5 || which == 6 || which == 8 || which == 9 ||
-                        which == 10;
+                        which >= 10;
     const int block = which == 9; /* the same steps through dv_obs_update_block() */
     if (which >= 5 && which <= 7) g_hold = DV_HOLD_CUBIC;
     g_engaged = which == 8;
+    g_chain5 = which >= 11;
     dv_model_t m;
     dv_obs_t o;
     if (setup(&m, &o, contact, nsub, is_step) != 0 || (which == 10 && load_lanl() != 0)) {
@@ -200,7 +238,7 @@ int main(int argc, char **argv)
             if (block) {
                 dv_obs_update_block(&o, force, ymeas, NREC, yout, yres);
             } else {
-                for (int k = 0; k < NREC; k++) dv_obs_step(&o, force[k], ymeas + 4 * k);
+                for (int k = 0; k < NREC; k++) dv_obs_step(&o, force[k], ymeas + o.no * k);
             }
             acc += (double)o.resid[3];
             t[r] = (bench_now_ns() - t0) / NREC;

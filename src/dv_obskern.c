@@ -106,6 +106,15 @@ DV_TGT_AVX2 void dv_priv_obs_kern8x4_open_avx2(size_t iy, size_t ny, const doubl
     }
 }
 
+/* The loops over a kernel's vectors unrolled early, so each accumulator of the arrays below
+ * gets a register of its own (left to the late unroller, gcc kept them on the stack and the
+ * state's chain went through memory). */
+#if defined(__GNUC__) && !defined(__clang__)
+#define DV_UNROLL4 _Pragma("GCC unroll 4")
+#else
+#define DV_UNROLL4
+#endif
+
 /* Rows [4 v, 4 v + 4) of a column; the last vector (v = nv - 1) masked to the rows that exist,
  * so no read goes past the column's matrix. */
 DV_TGT_AVX2 static inline __attribute__((always_inline)) __m256d
@@ -132,24 +141,29 @@ kern_any(size_t nv, size_t nyv, size_t ns, size_t no, size_t nin, size_t iy, siz
     const double *fxi = fx + ns * ns;
     const double *fyi = fy + no * ns;
     __m256d a[4], b[4], ay[4];
+    DV_UNROLL4
     for (size_t v = 0; v < nv; v++) {
         a[v] = _mm256_setzero_pd();
         b[v] = _mm256_setzero_pd();
     }
+    DV_UNROLL4
     for (size_t w = 0; w < nyv; w++) {
         ay[w] = _mm256_setzero_pd();
     }
     for (size_t j = 0; j < nin; j++) {
         const __m256d s = _mm256_broadcast_sd(in + j);
+        DV_UNROLL4
         for (size_t v = 0; v < nv; v++) {
             a[v] = _mm256_fmadd_pd(rows4(fxi + j * ns, v, nv, mx), s, a[v]);
         }
+        DV_UNROLL4
         for (size_t w = 0; w < nyv; w++) {
             ay[w] = _mm256_fmadd_pd(rows4(fyi + j * no, w, nyv, my), s, ay[w]);
         }
     }
     for (size_t j = 0; j < ny; j++) {
         const __m256d s = _mm256_broadcast_sd(y + j);
+        DV_UNROLL4
         for (size_t v = 0; v < nv; v++) {
             a[v] = _mm256_fmadd_pd(rows4(fxi + (iy + j) * ns, v, nv, mx), s, a[v]);
         }
@@ -157,18 +171,22 @@ kern_any(size_t nv, size_t nyv, size_t ns, size_t no, size_t nin, size_t iy, siz
     for (size_t j = 0; j < ns; j += 2u) {
         const __m256d s0 = _mm256_broadcast_sd(sv + j);
         const __m256d s1 = _mm256_broadcast_sd(sv + j + 1u);
+        DV_UNROLL4
         for (size_t v = 0; v < nv; v++) {
             a[v] = _mm256_fmadd_pd(rows4(fx + j * ns, v, nv, mx), s0, a[v]);
             b[v] = _mm256_fmadd_pd(rows4(fx + (j + 1u) * ns, v, nv, mx), s1, b[v]);
         }
+        DV_UNROLL4
         for (size_t w = 0; w < nyv; w++) {
             ay[w] = _mm256_fmadd_pd(rows4(fy + j * no, w, nyv, my), s0, ay[w]);
             ay[w] = _mm256_fmadd_pd(rows4(fy + (j + 1u) * no, w, nyv, my), s1, ay[w]);
         }
     }
+    DV_UNROLL4
     for (size_t w = 0; w < nyv; w++) {
         _mm256_maskstore_pd(yo + 4u * w, w + 1u < nyv ? _mm256_set1_epi64x(-1) : my, ay[w]);
     }
+    DV_UNROLL4
     for (size_t v = 0; v < nv; v++) {
         const __m256d x = _mm256_add_pd(a[v], b[v]);
         if (4u * v + 4u <= ns) {
