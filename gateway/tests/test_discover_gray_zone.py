@@ -119,3 +119,34 @@ def test_the_verdict_names_the_worst_channel_with_a_floor() -> None:
         assert "the residual is 1.2 x the noise floor" in report._verdict([], {}, last)
     last = Round(1, {"a": nan}, {}, [], [], None, "residual at the noise floor: stop", None)
     assert "(worst channel nan x its floor)" in report._verdict([], {}, last)
+
+
+def test_a_second_effect_left_just_over_the_floor_is_fitted() -> None:
+    """After an effect is accepted the floor still reads high (a fitted effect leaves a few %
+    of its own): a 5-DOF shake table under a cheap DAQ, declared best-linear, with an added
+    mass at DOF 2 and a v|v| damper on story 4 (blind two-effect case 15, its damper weaker).
+    The mass change is accepted first and leaves the residual at 1.19 x its floor; at the
+    former later gray ratio (1.3) the loop stopped there ("at the noise floor", the damper
+    missed); now that round is fitted, the damper is found and the next round reads 1.07 x."""
+    m = mdl.Model(masses_kg=(6.629, 7.804, 2.977, 2.781, 5.849),
+                  stiffness_n_per_m=(4.527e5, 2.515e5, 4.821e5, 4.280e5, 4.556e5),
+                  damping=mdl.Damping("modal", (0.0104, 0.0220, 0.0135, 0.0305, 0.0393)),
+                  input=mdl.Input("ground_acc", 0, "table_mps2"),
+                  outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, 6)},
+                  fs_hz=FS)
+    truth = gen.Truth(m_add_kg={2: 0.806}, elements=(mdl.VVDamper(3, 4, 2000.0),))
+    rng = np.random.default_rng(15)
+    recs = gen.generate(m, truth, n_tests=6, n_samples=8192, seed=15, fs_hz=FS,
+                        levels_n_rms=(3.0, 1.8), noise=0.0)
+    cheap_daq(recs, rng, offset=0.03, hum=2.0)
+    r = loop.discover(gen.best_linear(m, recs), recs)
+    found = sorted((e["type"], str(e["location"].get("dof", e["location"].get("between"))))
+                   for e in r.effects if e["type"] != "sensor_offset")
+    assert found == [("mass_change", "2"), ("vv_damping", "[3, 4]")]
+    second = r.rounds[1]
+    assert rs.LATER_GRAY_RATIO < max(second.ratio.values()) < 1.3  # 1.19 x: fitted now
+    tm = dataclasses.replace(gen.truth_model(m, truth), outputs={
+        c: dataclasses.replace(o, offset=r.model.outputs[c].offset)
+        for c, o in m.outputs.items()}, interpolation=m.interpolation, oversample=m.oversample)
+    ideal = rs.error_table(tm, r.tests, r.chans, r.scales)[0].total(r.held_names)
+    assert r.after.total(r.held_names) < 1.3 * ideal
