@@ -1,9 +1,11 @@
-/* Observer step kernel with AVX2 + FMA (x86-64, double builds; see dv_obskern.h). The product
- * is the portable kernel_8x4()'s, column by column: one broadcast of the column's entry of the
- * step vector, then fused multiply-adds on the two 4-row halves of the state rows and on the
- * 4 output rows. The state columns, the only ones on the chain from one step to the next,
- * go in four independent partial sums of two columns each, with the inputs' sum (ready early)
- * as the first one's start, so the chain is two FMAs and two additions long. */
+/* Observer step kernels with AVX2 + FMA (x86-64, double builds; see dv_obskern.h): the 8 x 4
+ * one below, one for any other size (kern_any()), the elements' force-free node X, and the
+ * AVX-512 modal step. The 8 x 4 product is the portable kernel_8x4()'s, column by column: one
+ * broadcast of the column's entry of the step vector, then fused multiply-adds on the two
+ * 4-row halves of the state rows and on the 4 output rows. The state columns, the only ones on
+ * the chain from one step to the next, go in four independent partial sums of two columns
+ * each, with the inputs' sum (ready early) as the first one's start, so the chain is two FMAs
+ * and two additions long. */
 #include "dv_obskern.h"
 
 #if DV_SIMD_X86
