@@ -103,7 +103,8 @@ def test_a_channel_without_a_floor_does_not_decide_the_gray_zone() -> None:
     assert rs.worst_ratio({"a": nan}) == 0.0
     assert not loop._gray(Options(), rd({"a": nan}).ratio, False)
     assert not loop._gray(Options(), rd({"a": nan, "b": 0.9}).ratio, False)
-    assert not loop._gray(Options(), rd({"b": 1.2}).ratio, True)  # after an accepted effect
+    assert loop._gray(Options(), rd({"b": 1.2}).ratio, True)  # after an accepted effect
+    assert not loop._gray(Options(), rd({"b": 1.05}).ratio, True)  # ... only above 1.1
 
 
 def test_the_verdict_names_the_worst_channel_with_a_floor() -> None:
