@@ -339,8 +339,9 @@ static void produce(dv_obs_t *o, const dv_real_t *y, uint32_t flags, bool use_ga
         /* the 4-DOF, 4-channel case: constant sizes, one call */
         kernel_8x4(o, nin + nf, nin + nf, ny, fx, fy, sv, ys, yhat, o->resid);
 #if DV_SIMD_X86
-    } else if (o->kern != DV_OBS_KERN_C &&
-               dv_priv_obs_kern_avx2(ns, no, open ? nin : nin + nf, nin + nf, ny, fx, fy, sv, ys, yhat)) {
+    } else if (o->kern != DV_OBS_KERN_C && dv_priv_obs_kern_avx2(ns, no, open ? nin : nin + nf,
+                                                                 nin + nf, ny, fx, fy, sv, ys,
+                                                                 yhat)) {
         /* any other size: the vector kernel */
 #endif
     } else {
