@@ -16,17 +16,25 @@
  * keep each of those loads served by store-to-load forwarding from one store of its own size
  * (a load from part of a wide store is not always forwarded, and stalls when it is not).
  * The empty asm statements stop the compiler from merging the stores again. */
+DV_TGT_AVX2 static inline void store2(double *p, __m128d v)
+{
+    _mm_storel_pd(p, v);
+    __asm__ volatile("" ::: "memory");
+    _mm_storeh_pd(p + 1, v);
+}
+
 DV_TGT_AVX2 static inline void store4(double *p, __m256d v)
 {
-    const __m128d lo = _mm256_castpd256_pd128(v);
-    const __m128d hi = _mm256_extractf128_pd(v, 1);
-    _mm_storel_pd(p, lo);
+    store2(p, _mm256_castpd256_pd128(v));
     __asm__ volatile("" ::: "memory");
-    _mm_storeh_pd(p + 1, lo);
-    __asm__ volatile("" ::: "memory");
-    _mm_storel_pd(p + 2, hi);
-    __asm__ volatile("" ::: "memory");
-    _mm_storeh_pd(p + 3, hi);
+    store2(p + 2, _mm256_extractf128_pd(v, 1));
+}
+
+/* The lanes of a 4-vector whose index is below n (n <= 0: none, n >= 4: all): the mask of a
+ * vector's rows that exist. */
+DV_TGT_AVX2 static inline __m256i lanes_below(long long n)
+{
+    return _mm256_cmpgt_epi64(_mm256_set1_epi64x(n), _mm256_set_epi64x(3, 2, 1, 0));
 }
 
 DV_TGT_AVX2 static inline __attribute__((always_inline)) void
@@ -134,11 +142,8 @@ DV_TGT_AVX2 static inline __attribute__((always_inline)) void
 kern_any(size_t nv, size_t nyv, size_t ns, size_t no, size_t nin, size_t iy, size_t ny,
          const double *fx, const double *fy, double *sv, const double *y, double *yo)
 {
-    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
-    const __m256i mx = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(ns - 4u * (nv - 1u))),
-                                          lane);
-    const __m256i my = _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(no - 4u * (nyv - 1u))),
-                                          lane);
+    const __m256i mx = lanes_below((long long)(ns - 4u * (nv - 1u)));
+    const __m256i my = lanes_below((long long)(no - 4u * (nyv - 1u)));
     const double *in = sv + ns;
     const double *fxi = fx + ns * ns;
     const double *fyi = fy + no * ns;
@@ -194,10 +199,7 @@ kern_any(size_t nv, size_t nyv, size_t ns, size_t no, size_t nin, size_t iy, siz
         if (4u * v + 4u <= ns) {
             store4(sv + 4u * v, x);
         } else { /* ns is even: two rows left */
-            const __m128d lo = _mm256_castpd256_pd128(x);
-            _mm_storel_pd(sv + 4u * v, lo);
-            __asm__ volatile("" ::: "memory");
-            _mm_storeh_pd(sv + 4u * v + 1u, lo);
+            store2(sv + 4u * v, _mm256_castpd256_pd128(x));
         }
     }
 }
@@ -243,11 +245,10 @@ DV_TGT_AVX2 static inline __attribute__((always_inline)) void
 xfree12(const double *rx, size_t f0, size_t nf, size_t ns, size_t bs, size_t cs,
         const double *sv, double *xl)
 {
-    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
     const long long left = (long long)(nf - f0);
-    const __m256i m0 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(left), lane);
-    const __m256i m1 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(left - 4), lane);
-    const __m256i m2 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(left - 8), lane);
+    const __m256i m0 = lanes_below(left);
+    const __m256i m1 = lanes_below(left - 4);
+    const __m256i m2 = lanes_below(left - 8);
     const double *r0 = rx + f0 / 8u * bs + f0 % 8u;
     const double *r1 = rx + (f0 + 4u) / 8u * bs + (f0 + 4u) % 8u;
     const double *r2 = rx + (f0 + 8u) / 8u * bs + (f0 + 8u) % 8u;

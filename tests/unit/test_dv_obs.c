@@ -696,7 +696,8 @@ static double filter_growth(const dv_model_t *m, const dv_real_t *l, size_t n_st
         double nrm = 0;
         for (size_t i = 0; i < ns; i++) nrm += e[i] * e[i];
         nrm = sqrt(nrm);
-        worst = isfinite(nrm) && nrm > worst ? nrm : (isfinite(nrm) ? worst : INFINITY);
+        if (!isfinite(nrm)) return INFINITY;
+        worst = fmax(worst, nrm);
     }
     return worst;
 }
