@@ -124,7 +124,7 @@ def test_a_prediction_that_diverges_but_stays_finite_is_a_refused_point(
     """Blind free-chain case 23: the continuation's observer diverged at the current model to
     residuals of 2.7e300, finite, whose squares overflowed inside least_squares (a traceback
     from its SVD), and one of 1e150 overflowed its products of the Jacobian. A point worse than
-a refused one is refused as a failed prediction is (fit's penalty)."""
+    a refused one is refused as a failed prediction is (fit's penalty)."""
     m, tests, chans, scales, now = case
     t = tests[0]
     c = chans[0]

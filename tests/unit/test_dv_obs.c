@@ -205,8 +205,8 @@ static void chain_desc(dv_model_desc_t *d, int n, int no, int contact, dv_real_t
 // The vector kernel of any size (AVX2 + FMA; the general path: other than 8 states and 4
 // outputs) against the portable kernel, on chains of 3, 5 and 7 DOF with all or some channels
 // measured, open loop and with the gain, linear and with two contacts engaging: the same
-// arithmetic up to rounding (FMA, summation order). On a CPU without AVX2 both runs take the
-// portable kernel.
+// arithmetic up to rounding (FMA, summation order), lost samples (NaN) included. On a CPU
+// without AVX2 both runs take the portable kernel.
 static void test_obs_vector_kernel_any_size_matches_portable(void **state)
 {
     (void)state;
@@ -241,22 +241,33 @@ static void test_obs_vector_kernel_any_size_matches_portable(void **state)
                 assert_int_equal(dv_obs_init(&o, &m, gain ? &nz : NULL, obuf, NBUF), DV_OK);
                 assert_int_equal(o.path, DV_OBS_PATH_GENERAL);
                 const unsigned simd = (unsigned)o.kern;
+                // with the gain, every 97th sample's first channel lost (NaN): predicted, not
+                // corrected there (the kernels' open-loop step with a gain folded in), counted
+                const double ysig = rms(yt, (size_t)no * NS);
+                if (gain) {
+                    for (size_t k = 0; k < NS; k += 97) yt[(size_t)no * k] = (dv_real_t)NAN;
+                }
                 for (int pass = 0; pass < 2; pass++) {
                     dv_real_t *r = pass ? r2 : r1;
                     if (pass) o.kern = DV_OBS_KERN_C;
                     dv_obs_reset(&o);
                     for (size_t k = 0; k < NS; k++) {
-                        assert_int_equal(dv_obs_step(&o, force_r[k], yt + (size_t)no * k), DV_OK);
+                        const dv_status_t want = gain && k % 97 == 0 ? DV_ENUMERIC : DV_OK;
+                        assert_int_equal(dv_obs_step(&o, force_r[k], yt + (size_t)no * k), want);
                         assert_int_equal(dv_obs_get(&o, NULL, r + (size_t)no * k, (size_t)no),
                                          DV_OK);
                     }
+                    assert_int_equal(o.n_bad_meas, gain ? (NS + 96) / 97 : 0);
                 }
                 const size_t len = (size_t)no * NS;
                 double e = 0, rr = rms(r2, len);
-                for (size_t i = 0; i < len; i++) e = fmax(e, fabs((double)r1[i] - r2[i]));
+                for (size_t i = 0; i < len; i++) {
+                    assert_true(isfinite(r1[i]) && isfinite(r2[i]));
+                    e = fmax(e, fabs((double)r1[i] - r2[i]));
+                }
                 fprintf(stderr, "kernel %u vs portable, %d DOF, %d outputs (contact %d, gain %d): "
                         "max |dr| / rms r = %.3g\n", simd, n, no, contact, gain, e / rr);
-                assert_true(rr > 1e-3 * rms(yt, len)); // the residuals are not trivial
+                assert_true(rr > 1e-3 * ysig); // the residuals are not trivial
                 assert_true(e <= (sizeof(dv_real_t) == 8 ? 1e-9 : 1e-4) * rr);
             }
         }
