@@ -64,6 +64,13 @@ def cases() -> dict[str, Callable[[], tuple[mdl.Model, list[Recording]]]]:
                               excitation=synth.Sweep(8.0, 200.0))
         return synth.best_linear(m, recs), recs
 
+    def sweep_table_contact6() -> tuple[mdl.Model, list[Recording]]:
+        m = chain(6, "ground_acc")
+        recs = synth.generate(m, synth.Truth(elements=(mdl.Contact(1, 2, 1.5e-4, 5e-5, 8e5),)),
+                              n_tests=10, seed=8, levels_n_rms=(3.0, 1.8),
+                              excitation=synth.Sweep(8.0, 200.0))
+        return synth.best_linear(m, recs), recs
+
     def appendage4() -> tuple[mdl.Model, list[Recording]]:
         m = chain(4)
         app = synth.Appendage(3, 0.4, 45.0, 0.02)
@@ -85,7 +92,9 @@ def cases() -> dict[str, Callable[[], tuple[mdl.Model, list[Recording]]]]:
             "4-DOF shake table, friction joint 1-2": table_joint4,
             "4-DOF best-linear declared model, cubic spring 2-3": best_linear_cubic4,
             "4-DOF shake table, swept sine 8-200 Hz, best-linear, contact 1-2":
-                sweep_table_contact4}
+                sweep_table_contact4,
+            "6-DOF shake table, swept sine 8-200 Hz, best-linear, contact 1-2":
+                sweep_table_contact6}
 
 
 def run_case(m: mdl.Model, recs: list[Recording], folder: Path) -> tuple[float, str]:
