@@ -157,3 +157,38 @@ def test_the_elements_are_fitted_at_the_best_accepted_changes_story_only(
     got = judge.rivals_to_fit(_session(monkeypatch), rd, best, set())
     assert [(e.cand.type, e.cand.location["between"]) for e in got] == [
         ("contact", [0, 1]), ("friction", [0, 1])]
+
+
+def _change(between: list[int], gain: float, worst: float, dbic: float = -100.0,
+            accepted: bool = False) -> dict[str, Any]:
+    cand = fx.Candidate("stiffness_change", {"between": between}, f"k {between}", True)
+    return {"candidate": cand, "accepted": accepted, "held_gain": gain,
+            "held_worst_test_change": worst, "delta_bic": dbic, "nsse_held_after": 1 - gain}
+
+
+def test_a_change_refused_for_one_worse_test_has_the_elements_at_its_story_fitted(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # 6-DOF blind case 2: a softening spring at story 1; k1's change gained 56 % but made one
+    # held-out test 38 % worse (refused), the view placed every element at story 4, nothing
+    # was accepted, and discover answered "no effect" at 3.8 x the ideal's held-out error
+    ev = [_ev("contact", [3, 4], 0.9), _ev("cubic_stiffness", [3, 4], 0.8),
+          _ev("stiffness_change", [0, 1], 0.7), _ev("cubic_stiffness", [0, 1], 0.3),
+          _ev("friction", [0, 1], 0.2), _ev("stiffness_change", [2, 3], 0.1),
+          _ev("contact", [2, 3], 0.05)]
+    rd = session.Round(1, {}, {}, ev, [], None, "", noise=dict(NOISE))
+    o = session.Options()
+    rd.fits = [_change([0, 1], 0.56, 0.38), _change([2, 3], 0.50, 0.34),
+               {"candidate": ev[1].cand, "accepted": False}]
+    assert judge.level_dependent(rd, o) is rd.fits[0]  # the lower held-out error of the two
+    s = _session(monkeypatch)
+    got = judge.rivals_to_fit(s, rd, None, set())
+    assert [(e.cand.type, e.cand.location["between"]) for e in got] == [
+        ("cubic_stiffness", [0, 1]), ("friction", [0, 1])]
+    assert "one held-out test gets +38% worse" in s.notes[-1]
+    # not when the change's gain is under min_gain, its BIC is higher, or no test got worse
+    # than max_worse allows (then it was refused for another reason, or accepted)
+    for f in ({"held_gain": o.min_gain - 0.01}, {"delta_bic": 5.0},
+              {"held_worst_test_change": o.max_worse}):
+        rd.fits = [{**_change([0, 1], 0.56, 0.38), **f}]
+        assert judge.level_dependent(rd, o) is None
+        assert judge.rivals_to_fit(_session(monkeypatch), rd, None, set()) == []
