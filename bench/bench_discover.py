@@ -57,17 +57,10 @@ def cases() -> dict[str, Callable[[], tuple[mdl.Model, list[Recording]]]]:
                               n_tests=10, seed=4)
         return synth.best_linear(m, recs), recs
 
-    def sweep_table_contact4() -> tuple[mdl.Model, list[Recording]]:
-        m = chain(4, "ground_acc")
+    def sweep_table_contact(n: int, seed: int) -> tuple[mdl.Model, list[Recording]]:
+        m = chain(n, "ground_acc")
         recs = synth.generate(m, synth.Truth(elements=(mdl.Contact(1, 2, 1.5e-4, 5e-5, 8e5),)),
-                              n_tests=10, seed=7, levels_n_rms=(3.0, 1.8),
-                              excitation=synth.Sweep(8.0, 200.0))
-        return synth.best_linear(m, recs), recs
-
-    def sweep_table_contact6() -> tuple[mdl.Model, list[Recording]]:
-        m = chain(6, "ground_acc")
-        recs = synth.generate(m, synth.Truth(elements=(mdl.Contact(1, 2, 1.5e-4, 5e-5, 8e5),)),
-                              n_tests=10, seed=8, levels_n_rms=(3.0, 1.8),
+                              n_tests=10, seed=seed, levels_n_rms=(3.0, 1.8),
                               excitation=synth.Sweep(8.0, 200.0))
         return synth.best_linear(m, recs), recs
 
@@ -92,9 +85,9 @@ def cases() -> dict[str, Callable[[], tuple[mdl.Model, list[Recording]]]]:
             "4-DOF shake table, friction joint 1-2": table_joint4,
             "4-DOF best-linear declared model, cubic spring 2-3": best_linear_cubic4,
             "4-DOF shake table, swept sine 8-200 Hz, best-linear, contact 1-2":
-                sweep_table_contact4,
+                lambda: sweep_table_contact(4, 7),
             "6-DOF shake table, swept sine 8-200 Hz, best-linear, contact 1-2":
-                sweep_table_contact6}
+                lambda: sweep_table_contact(6, 8)}
 
 
 def run_case(m: mdl.Model, recs: list[Recording], folder: Path) -> tuple[float, str]:
