@@ -267,7 +267,8 @@ def main() -> None:
     ap.add_argument("--sweep", action="store_true",
                     help="every test a swept sine (5-15 Hz to 150-250 Hz, log or linear)")
     ap.add_argument("--dofs", type=int, default=0, choices=(0, 2, 6, 7),
-                    help="every chain this size (default: 3-5 DOF, drawn; 7 at most: an appendage adds one)")
+                    help="every chain this size (default: 3-5 DOF, drawn; 7 at most: an "
+                    "appendage adds one)")
     a = ap.parse_args()
     out = a.out or str(ROOT / "bench" / {0: "RESULTS.blind-clean.md", 1: "RESULTS.blind.md",
                                          2: "RESULTS.blind-two.md"}[a.effects])

@@ -152,8 +152,10 @@ def rivals_to_fit(s: Session, rd: Round, best: dict[str, Any] | None, accepted: 
     (level_dependent). A note says which."""
     if best is None:
         split = level_dependent(rd, s.o)
-        rivals = nonlinear_at(rd, split, accepted) if split is not None else []
-        if rivals and split is not None:
+        if split is None:
+            return []
+        rivals = nonlinear_at(_not_fitted(rd, accepted), split)
+        if rivals:
             msg = (f"round {rd.index}: nothing was accepted, but {split['candidate'].label} "
                    f"lowers the held-out error by {split['held_gain']:.0%} while one held-out "
                    f"test gets {split['held_worst_test_change']:+.0%} worse: a stiffness that "
@@ -234,7 +236,7 @@ def nonlinear_rivals(rd: Round, best: dict[str, Any] | None, accepted: set[str]
     offered = _not_fitted(rd, accepted)
     picked = list(best_placed_nonlinear(offered).values()) if linear_wins else []
     if top is not None:
-        picked += nonlinear_at(rd, top, accepted)
+        picked += nonlinear_at(offered, top)
     return list({cand_key(e.cand): e for e in picked}.values())
 
 
@@ -243,12 +245,13 @@ def _not_fitted(rd: Round, accepted: set[str]) -> list[tr.Evidence]:
     return [e for e in rd.evidence if cand_key(e.cand) not in done]
 
 
-def nonlinear_at(rd: Round, change: dict[str, Any], accepted: set[str]) -> list[tr.Evidence]:
-    """Each nonlinear element type's candidate at a story change's place, not fitted yet."""
+def nonlinear_at(offered: Sequence[tr.Evidence], change: dict[str, Any]
+                 ) -> list[tr.Evidence]:
+    """Each nonlinear element type's candidate among ``offered`` (_not_fitted) at a story
+    change's place."""
     where = tuple(change["candidate"].location["between"])
     return list(best_placed_nonlinear(
-        [e for e in _not_fitted(rd, accepted)
-         if tuple(e.cand.location.get("between", ())) == where]).values())
+        [e for e in offered if tuple(e.cand.location.get("between", ())) == where]).values())
 
 
 def best_placed_nonlinear(evidence: Sequence[tr.Evidence]) -> dict[str, tr.Evidence]:
