@@ -48,6 +48,7 @@ from dynval.discover.judge import (
     best_placed_nonlinear,
     cand_key,
     effect_entry,
+    with_shape,
 )
 from dynval.discover.session import (
     DiscoverResult,
@@ -672,26 +673,35 @@ def _discover(m: mdl.Model, recs: Sequence[Recording], o: Options,
                           open_loop_before)
 
 
-_LINEAR = ("stiffness_change", "mass_change")
 SECOND_TESTS = 2  # fitting tests the output view's second opinion is scored on
 
 
 def _screen_linear(m: mdl.Model, evs: Sequence[tr.Evidence], tests: Sequence[rs.TestData],
                    chans: Sequence[str], scales: dict[str, float], nsse_now: float,
                    keep: int = 2) -> list[tr.Evidence]:
-    """The ``keep`` linear candidates (stiffness and mass changes) not yet in the pool whose
-    grid of relative changes (EffectType.starts, one simulation each) lowers the fitting
-    tests' normalised SSE the most (at least by a tenth)."""
+    """The candidates not yet in the pool of the types that move the modes
+    (EffectType.moves_modes) whose starts (EffectType.starts and scan_starts, one simulation
+    each) lower the fitting tests' normalised SSE the most, at least by a tenth: the best
+    ``keep`` changes of a declared parameter (stiffness, mass) and the best of each other
+    such type (an appendage: its first-order evidence is weakest where its new mode sits
+    between two declared ones, 6-DOF blind sweep case 7)."""
     scored = []
     for e in evs:
-        if e.cand.type not in _LINEAR:
-            continue
         et = fx.by_type(e.cand.type)
-        sc = ft.screen_scored(m, e.cand, et.starts(m, e.cand, e.amp), tests, chans, scales)
+        if not et.moves_modes:
+            continue
+        cand = with_shape(e)  # the view's band: an appendage's scan spans it
+        starts = [*et.starts(m, cand, e.amp), *et.scan_starts(m, cand, e.amp)]
+        sc = ft.screen_scored(m, cand, starts, tests, chans, scales)
         if sc and sc[0][0] < 0.9 * nsse_now:
             scored.append((sc[0][0], e))
     scored.sort(key=lambda p: p[0])
-    return [e for _, e in scored[:keep]]
+    declared = [e for _, e in scored if fx.by_type(e.cand.type).changes(e.cand)][:keep]
+    best_other: dict[str, tr.Evidence] = {}
+    for _, e in scored:
+        if not fx.by_type(e.cand.type).changes(e.cand):
+            best_other.setdefault(e.cand.type, e)
+    return declared + list(best_other.values())
 
 
 def _direct_evidence(evidence: list[tr.Evidence], residuals: list[dict[str, np.ndarray]]

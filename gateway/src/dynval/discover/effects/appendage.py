@@ -39,6 +39,7 @@ class Appendage(EffectType):
            "lacks): fixed-base frequency f, damping ratio zeta, mass m_a; a new DOF joined by "
            "a dv_model link")
     simpler = ("mass_change",)  # an appendage far above the band moves with its DOF
+    moves_modes = True  # a new mode beside the declared ones
     _N_GRID = 28
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:

@@ -207,6 +207,10 @@ class EffectType:
     # a nonlinear element: it may act at a few instants only (a rarely closing contact), where
     # a noisy evidence view swamps it
     nonlinear = False
+    # a linear change that moves the resonances: its first-order evidence ranks it low where
+    # it shifts one by more than the mode's bandwidth, so the loop screens every candidate of
+    # it by simulation (its starts and scan_starts, one simulation each)
+    moves_modes = False
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         raise NotImplementedError

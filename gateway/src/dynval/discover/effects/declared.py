@@ -30,6 +30,7 @@ class StiffnessChange(EffectType):
     type = "stiffness_change"
     location_kind = "story"
     law = "k_s -> k_s + dk: extra story force dk X (linear)"
+    moves_modes = True
 
     def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
                  ) -> tuple[str, ...]:
@@ -75,6 +76,7 @@ class MassChange(EffectType):
     type = "mass_change"
     location_kind = "dof"
     law = "m_j -> m_j + dm: extra inertia force dm a_j at DOF j"
+    moves_modes = True
 
     def readjust(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
                  ) -> tuple[str, ...]:
