@@ -16,10 +16,9 @@ import pytest
 
 from dynval import model as mdl
 from dynval import synth as gen
-from dynval.discover import continuation
+from dynval.discover import continuation, judge, session
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
-from dynval.discover import judge, session
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
 
