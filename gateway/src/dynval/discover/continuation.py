@@ -60,9 +60,7 @@ def fit_candidate(m: mdl.Model, cand: fx.Candidate, init: Sequence[float],
             seen = [dataclasses.replace(t, observer=obs, start=None) for t in tests]
             res = ft.fit(base, cand, own, seen, chans, scales, max_nfev, names, workers)
             own = res.values[:len(own)]
-            base = m.with_params({n[: -len(ft.READJUSTED)]: v
-                                  for n, v in zip(res.names, res.values, strict=True)
-                                  if n.endswith(ft.READJUSTED)})
+            base = m.with_params(res.readjusted())
         return ft.fit(base, cand, own, tests, chans, scales, max_nfev, names, workers)
     except ConfigError as exc:
         log.info("%s through the observer's gains failed: %s", cand.label, exc)

@@ -62,6 +62,11 @@ class FitResult:
     n_eff_factor: float = 1.0
     extra: dict[str, float] = field(default_factory=dict)
 
+    def readjusted(self) -> dict[str, float]:
+        """The declared parameters the fit re-adjusted, by their model name, at its values."""
+        return {n[: -len(READJUSTED)]: v for n, v in zip(self.names, self.values, strict=True)
+                if n.endswith(READJUSTED)}
+
 
 def _to_value(p: fx.Param, z: float) -> float:
     z = min(max(z, 0.0), 1.0)

@@ -486,9 +486,7 @@ class Judge:
                 * (change["fit"].model.parameters()[name] - v0) <= 0):
             return None
         names = tuple(n for n in info["readjusted"] if n != name)
-        fitted = {n[: -len(ft.READJUSTED)]: v for n, v in zip(res.names, res.values,
-                                                                strict=True)
-                  if n.endswith(ft.READJUSTED) and n[: -len(ft.READJUSTED)] != name}
+        fitted = {n: v for n, v in res.readjusted().items() if n != name}
         own = [v for n, v in zip(res.names, res.values, strict=True)
                if not n.endswith(ft.READJUSTED)]
         try:
@@ -506,9 +504,7 @@ class Judge:
                        ) -> rs.ErrorTable | None:
         """The error table of the declared parameters ``names`` re-fitted without the
         effect, starting from the values the candidate's fit gave them."""
-        fitted = {n[: -len(ft.READJUSTED)]: v for n, v in zip(res.names, res.values,
-                                                                strict=True)
-                  if n.endswith(ft.READJUSTED)}
+        fitted = res.readjusted()
         try:
             cal = ft.fit(self.cur.with_params(fitted), fx.NONE.candidates(self.cur)[0], [],
                          self.fit_t, self.chans, self.scales, self.o.max_nfev, names,

@@ -683,8 +683,8 @@ def _screen_linear(m: mdl.Model, evs: Sequence[tr.Evidence], tests: Sequence[rs.
     (EffectType.moves_modes) whose starts (EffectType.starts and scan_starts, one simulation
     each) lower the fitting tests' normalised SSE the most, at least by a tenth: the best
     ``keep`` changes of a declared parameter (stiffness, mass) and the best of each other
-    such type (an appendage: its first-order evidence is weakest where its new mode sits
-    between two declared ones, 6-DOF blind sweep case 7)."""
+    such type that screens better than all of them (an appendage: its first-order evidence
+    is weakest where its new mode sits between two declared ones, 6-DOF blind sweep case 7)."""
     scored = []
     for e in evs:
         et = fx.by_type(e.cand.type)
