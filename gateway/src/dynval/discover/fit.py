@@ -17,7 +17,7 @@ import importlib
 import logging
 import math
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -303,20 +303,23 @@ class Problem:
 
 def problem(m: mdl.Model, cand: fx.Candidate, init: Sequence[float],
             tests: Sequence[TestData], chans: Sequence[str], scales: dict[str, float],
-            uncertain: Sequence[str] = ()) -> Problem:
+            uncertain: Sequence[str] = (), declared_start: Mapping[str, float] | None = None
+            ) -> Problem:
     """The fit's problem (see fit)."""
     et = fx.by_type(cand.type)
     ps = et.params(m, cand)
     xs = uncertain_params(m, uncertain)
     cur = m.parameters()
-    init_all = [*init, *(float(cur[p.name]) for p in xs)]
+    now = [float(cur[p.name]) for p in xs]
+    given = declared_start or {}
+    init_all = [*init, *(given.get(p.name, v) for p, v in zip(xs, now, strict=True))]
     ps_all = [*ps, *xs]
     def to_z(values: Sequence[float]) -> np.ndarray:
         return np.array([min(max(_to_z(p, v), 0.02), 0.98)
                          for p, v in zip(ps_all, values, strict=True)])
 
     z0 = to_z(init_all)
-    z_others = [to_z([*o, *init_all[len(ps):]]) for o in et.other_starts(m, cand, init)]
+    z_others = [to_z([*o, *now]) for o in et.other_starts(m, cand, init)]
     n_res = sum(t.n for t in tests for c in chans)
     npar = len(ps)
 
@@ -380,16 +383,19 @@ def futility_stop(beat: float, max_nfev: int) -> Callable[[Any], None]:
 
 def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence[TestData],
         chans: Sequence[str], scales: dict[str, float], max_nfev: int = 40,
-        uncertain: Sequence[str] = (), workers: int = 1, beat: float | None = None
-        ) -> FitResult:
+        uncertain: Sequence[str] = (), workers: int = 1, beat: float | None = None,
+        declared_start: Mapping[str, float] | None = None) -> FitResult:
     """Fit the candidate's parameters, and with them the declared parameters named in
     ``uncertain`` (re-adjusted jointly, so an effect they had absorbed can show). The
     Jacobian's columns run on up to ``workers`` processes (the same numbers on any count).
     A start far worse than no effect is weakened first (temper). ``beat``: the fitting
     tests' normalised SSE the fit must get under to be of use (a reference's): it is stopped
-    where it could not (futility_stop)."""
-    pb = problem(m, cand, temper(m, cand, init, tests, chans, scales), tests, chans, scales,
-                 uncertain)
+    where it could not (futility_stop). ``declared_start``: values of some of ``uncertain``
+    the start ``init`` takes instead of m's (its other starts, EffectType.other_starts, keep
+    m's; the search ranges are m's)."""
+    base = m.with_params(dict(declared_start)) if declared_start else m
+    pb = problem(m, cand, temper(base, cand, init, tests, chans, scales), tests, chans, scales,
+                 uncertain, declared_start)
     ps_all = pb.params
     fun_at, jac = forward_jacobian(pb.fun, workers)
     sol = min((least_squares(fun_at, z0, jac=jac, bounds=(0.0, 1.0), method="trf",

@@ -62,6 +62,10 @@ class Evidence:
     r2: float
     amp: float
     shape: dict[str, float] = field(default_factory=dict)
+    # the equation-error estimate with the declared story stiffnesses and modal damping
+    # re-adjusted jointly: (the effect's amplitude, the change of each declared parameter by
+    # name); see score()
+    joint: tuple[float, dict[str, float]] | None = None
 
 
 @dataclass
@@ -458,6 +462,15 @@ def _output_gain_basis(view: ForceView, cand: fx.Candidate) -> np.ndarray | None
 _NUISANCE = ("stiffness_change", "damping_change")
 
 
+def _declared_name(cand: fx.Candidate) -> str:
+    """The declared parameter a nuisance basis's coefficient adds to (a story stiffness k<s>
+    in N/m, a modal damping ratio zeta<i>), '' for one that adds to none by itself (a
+    Rayleigh coefficient's basis)."""
+    if cand.type == "stiffness_change":
+        return fx.by_type(cand.type).changes(cand)
+    return f"zeta{cand.location['mode']}" if "mode" in cand.location else ""
+
+
 def score(view: ForceView, cands: Sequence[fx.Candidate], workers: int = 1
           ) -> list[Evidence]:
     """Evidence of each candidate: the partial R^2 of its best-shaped basis on the missing
@@ -482,19 +495,31 @@ def score(view: ForceView, cands: Sequence[fx.Candidate], workers: int = 1
             return [] if g is None else [({"reaction": 1.0}, g)]
         return [(sh, image(b)) for sh, b in fx.by_type(cand.type).basis(view.states, cand)]
 
-    nuis = []
+    nuis, nuis_params = [], []
     for cand in cands:
         if cand.type in _NUISANCE:
             for _, bv in bases(cand):
                 nuis.append(bv)
+                nuis_params.append(_declared_name(cand))
     q = np.zeros((f.size, 0))
+    to_coef = np.zeros((0, 0))  # q' g -> the nuisance columns' coefficients of g (a's pinv)
     if nuis:
         a = np.column_stack(nuis)
-        u, sv, _ = np.linalg.svd(a, full_matrices=False)
-        q = u[:, sv > 1e-9 * (sv[0] if sv.size else 1.0)]
-    f_res = f - q @ (q.T @ f)
+        u, sv, vt = np.linalg.svd(a, full_matrices=False)
+        keep = sv > 1e-9 * (sv[0] if sv.size else 1.0)
+        q = u[:, keep]
+        to_coef = vt[keep].T / sv[keep]
+    qf = q.T @ f
+    f_res = f - q @ qf
     r2_n = 1.0 - float(f_res @ f_res) / ff
     fr = float(f_res @ f_res) or 1e-300
+
+    def joint(bv: np.ndarray, qb: np.ndarray, amp: float) -> tuple[float, dict[str, float]]:
+        # the candidate's coefficient in the regression on [nuisances, basis] is its
+        # projection with the nuisances out (Frisch-Waugh-Lovell); the nuisances' own
+        # coefficients are those of f - amp bv: a best-linear stiffness's absorbed part
+        dk = to_coef @ (qf - amp * qb)
+        return amp, {n: float(d) for n, d in zip(nuis_params, dk, strict=True) if n}
 
     def evidence(cand: fx.Candidate) -> Evidence:
         plain = cand.type in _NUISANCE
@@ -523,7 +548,8 @@ def score(view: ForceView, cands: Sequence[fx.Candidate], workers: int = 1
                 # spring's evidence, against a best-linear model's stiffness too
                 shape = {**shape, "sign": 1.0 if proj >= 0 else -1.0}
             if r2 > best.r2:
-                best = Evidence(cand, r2, amp, dict(shape))
+                best = Evidence(cand, r2, amp, dict(shape),
+                                None if plain else joint(bv, qb, proj / brr))
         best.shape.update(fx.by_type(cand.type).motion_scales(view.states, cand))
         return best
 
