@@ -62,9 +62,9 @@ class Evidence:
     r2: float
     amp: float
     shape: dict[str, float] = field(default_factory=dict)
-    # the equation-error estimate with the declared story stiffnesses and modal damping
-    # re-adjusted jointly: (the effect's amplitude, the change of each declared parameter by
-    # name); see score()
+    # a nonlinear element's equation-error estimate with the declared story stiffnesses and
+    # modal damping re-adjusted jointly: (the effect's amplitude, the change of each declared
+    # parameter by name); see score()
     joint: tuple[float, dict[str, float]] | None = None
 
 
@@ -523,6 +523,7 @@ def score(view: ForceView, cands: Sequence[fx.Candidate], workers: int = 1
 
     def evidence(cand: fx.Candidate) -> Evidence:
         plain = cand.type in _NUISANCE
+        nonlinear = fx.by_type(cand.type).nonlinear
         best = Evidence(cand, 0.0, 0.0)
         for shape, bv in bases(cand):
             bb = float(bv @ bv)
@@ -548,8 +549,10 @@ def score(view: ForceView, cands: Sequence[fx.Candidate], workers: int = 1
                 # spring's evidence, against a best-linear model's stiffness too
                 shape = {**shape, "sign": 1.0 if proj >= 0 else -1.0}
             if r2 > best.r2:
+                # a linear change's basis is nearly collinear with the nuisances' (a mass
+                # against the stiffnesses in a band): no joint estimate for it
                 best = Evidence(cand, r2, amp, dict(shape),
-                                None if plain else joint(bv, qb, proj / brr))
+                                joint(bv, qb, proj / brr) if nonlinear else None)
         best.shape.update(fx.by_type(cand.type).motion_scales(view.states, cand))
         return best
 
