@@ -67,6 +67,11 @@ class FitResult:
         return {n[: -len(READJUSTED)]: v for n, v in zip(self.names, self.values, strict=True)
                 if n.endswith(READJUSTED)}
 
+    def own(self) -> dict[str, float]:
+        """The effect's own parameters (not the re-adjusted declared ones), at its values."""
+        return {n: v for n, v in zip(self.names, self.values, strict=True)
+                if not n.endswith(READJUSTED)}
+
 
 def _to_value(p: fx.Param, z: float) -> float:
     z = min(max(z, 0.0), 1.0)

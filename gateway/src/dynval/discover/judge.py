@@ -140,8 +140,7 @@ def siblings(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
     if best is None or best["candidate"].type not in PLACE_FREE:
         return []
     win: ft.FitResult = best["fit"]
-    start = {START + n: v for n, v in zip(win.names, win.values, strict=True)
-             if not n.endswith(ft.READJUSTED)}
+    start = {START + n: v for n, v in win.own().items()}
     out = []
     for f in rd.fits:
         c: fx.Candidate = f["candidate"]
@@ -435,17 +434,17 @@ class Judge:
                                              self.chans, self.scales, self.o.max_nfev,
                                              self.workers)
             starts = []
-        for init in starts:
+        for i, init in enumerate(starts):
             try:
                 # workers: the Jacobian's columns on the cores when this fit is a map's
-                # only task (a map inside a map's task runs serially: parallel.py)
+                # only task (a map inside a map's task runs serially: parallel.py); the
+                # joint start's declared values go with its first start only
                 r1 = ft.fit(self.cur, cand, init, self.fit_t, self.chans, self.scales,
                             self.o.max_nfev, names, workers=self.workers, beat=beat,
-                            declared_start=declared)
+                            declared_start=declared if i == 0 else None)
             except ConfigError as exc:
                 log.info("%s: fit failed: %s", cand.label, exc)
                 continue
-            declared = {}  # the joint start's declared values go with its first start only
             if res is None or r1.nsse_fit < res.nsse_fit:
                 res = r1
         if res is None:
@@ -531,8 +530,7 @@ class Judge:
             return None
         names = tuple(n for n in info["readjusted"] if n != name)
         fitted = {n: v for n, v in res.readjusted().items() if n != name}
-        own = [v for n, v in zip(res.names, res.values, strict=True)
-               if not n.endswith(ft.READJUSTED)]
+        own = list(res.own().values())
         try:
             r1 = ft.fit(self.cur.with_params(fitted), res.cand, own, self.fit_t, self.chans,
                         self.scales, self.o.max_nfev, names, workers=self.workers)
@@ -697,8 +695,7 @@ def backward(s: Session, steps: list[Step], cur: mdl.Model, cur_table: rs.ErrorT
         s.notes.append(msg)
         del effects[gone.entry]
         for st, (before, res) in zip(steps[k + 1:], refits, strict=True):
-            names = tuple(n[: -len(ft.READJUSTED)] for n in res.names
-                          if n.endswith(ft.READJUSTED))
+            names = tuple(res.readjusted())
             spread = ft.scatter(before, res, s.fit_t, s.chans, s.scales, names,
                                 workers=s.workers)
             st.before, st.entry = before, st.entry - 1
@@ -721,8 +718,7 @@ def without(s: Session, steps: Sequence[Step], k: int, prediction: str
     refits = []
     for st in steps[k + 1:]:
         res: ft.FitResult = st.info["fit"]
-        own = [v for n, v in zip(res.names, res.values, strict=True)
-               if not n.endswith(ft.READJUSTED)]
+        own = list(res.own().values())
         names = tuple(n for n in st.info["readjusted"]
                       if n != param or not _away(gone, res.cand))
         try:

@@ -259,8 +259,7 @@ def _added_params(before: mdl.Model, res: ft.FitResult) -> dict[str, str]:
     alone): its elements' parameters the fit moved (e<i>.<name>: a parameter the fit held is
     left out, and a friction's force is not taken for its force offset's), an appendage's
     link and mass (l<i>.*, m<j>: its frequency, mass and damping are read back from them)."""
-    fitted = {n: v for n, v in zip(res.names, res.values, strict=True)
-              if not n.endswith(ft.READJUSTED)}
+    fitted = res.own()
     old = before.parameters()
     out = {}
     for n, v in res.model.parameters().items():
