@@ -47,7 +47,8 @@ def test_an_appendage_is_named_with_its_place_frequency_and_mass(
         model: Callable[[], mdl.Model], seed: int, app: gen.Appendage) -> None:
     m = model()
     truth = gen.Truth(appendages=(app,))
-    r = loop.discover(m, gen.generate(m, truth, n_tests=6, seed=seed, fs_hz=m.fs_hz or 640.0))
+    r = loop.discover(m, gen.generate(m, truth, n_tests=6, n_samples=4096, seed=seed,
+                                              fs_hz=m.fs_hz or 640.0))
     assert [(e["type"], e["location"]["dof"]) for e in r.effects] == [("appendage", app.dof)]
     p = r.effects[0]["parameters"]
     assert p["f_hz"]["value"] == pytest.approx(app.f_hz, rel=0.02)

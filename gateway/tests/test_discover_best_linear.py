@@ -44,7 +44,8 @@ def test_best_linear_declared_model_gets_the_right_effect(kind: str, seed: int) 
                        if kind == "cubic" else
                        mdl.Contact(story - 1, story, 0.9e-4, 1e-4, 1.925e6))
     m0 = declared()
-    recs = gen.generate(m0, gen.Truth(elements=(el,), label=kind), n_tests=6, seed=seed)
+    recs = gen.generate(m0, gen.Truth(elements=(el,), label=kind), n_tests=6, n_samples=4096,
+                        seed=seed)
     mbl = gen.best_linear(m0, recs)
     assert mbl.parameters() != m0.parameters()  # the linear model did absorb something
     r = loop.discover(mbl, recs)
@@ -73,7 +74,8 @@ def test_stiffness_loss_with_the_physical_damping_fixed(story: int, loss: float,
     truth = dataclasses.replace(m0.with_params({f"k{story}": KS[story - 1] * (1 - loss)}),
                                 damping=mdl.Damping("matrix",
                                                     c_n_s_per_m=tuple(tuple(r) for r in c0)))
-    recs = gen.generate(truth, gen.Truth(label="kloss"), n_tests=6, seed=seed)
+    recs = gen.generate(truth, gen.Truth(label="kloss"), n_tests=6, n_samples=4096,
+                        seed=seed)
     r = loop.discover(m0, recs)
     assert [(e["type"], e["location"]["story"]) for e in r.effects] == [
         ("stiffness_change", story)]
@@ -91,7 +93,8 @@ def test_best_linear_spread_over_far_parameters_is_re_adjusted_jointly_at_the_en
     after/ideal 1.57 -> 1.00 and 1.65 -> 1.00)."""
     m0 = declared()
     el = mdl.Friction(0, 1, 1.5, 1e-4)
-    recs = gen.generate(m0, gen.Truth(elements=(el,), label="friction"), n_tests=6, seed=7)
+    recs = gen.generate(m0, gen.Truth(elements=(el,), label="friction"), n_tests=6,
+                        n_samples=4096, seed=7)
     mbl = gen.best_linear(m0, recs)
     r = loop.discover(mbl, recs)
     assert r.effects and r.effects[0]["type"] in ("friction", "stick_slip")
@@ -115,7 +118,7 @@ def test_best_linear_declared_model_gets_a_mass_or_a_mode(kind: str, dof: int,
                if kind == "mass" else
                gen.Truth(appendages=(gen.Appendage(dof, 0.1 * m0.masses_kg[dof - 1], 45.0,
                                                    0.02),), label=kind))
-    recs = gen.generate(m0, truth_t, n_tests=6, seed=seed)
+    recs = gen.generate(m0, truth_t, n_tests=6, n_samples=4096, seed=seed)
     mbl = gen.best_linear(m0, recs)
     r = loop.discover(mbl, recs)
     phys = [e for e in r.effects if e["type"] != "sensor_offset"]

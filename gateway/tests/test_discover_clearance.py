@@ -31,7 +31,7 @@ def test_a_clearance_is_one_contact_closing_both_ways(case: str, a: int, b: int,
     m = three_dof() if case == "3dof" else declared()
     gap = 1.8 * drift_rms(m, a, b, seed)
     el = mdl.Contact(a, b, gap, 5e-5, m.stiffness_n_per_m[b - 1], "both")
-    recs = gen.generate(m, gen.Truth(elements=(el,)), n_tests=6, seed=seed)
+    recs = gen.generate(m, gen.Truth(elements=(el,)), n_tests=6, n_samples=4096, seed=seed)
     r = loop.discover(gen.best_linear(m, recs) if case.endswith("-bl") else m, recs)
     assert [(e["type"], e["location"]["between"], e["location"]["side"])
             for e in r.effects] == [("contact", [a, b], "both")]

@@ -42,7 +42,7 @@ def encoder_chain(masses: tuple[float, ...], ks: tuple[float, ...], zeta: tuple[
 def test_friction_on_a_drifting_carriage_is_found_with_the_observer(seed: int) -> None:
     force = float(np.random.default_rng(seed).uniform(1.0, 2.0))
     recs = gen.generate(carriage(), gen.Truth(elements=(mdl.Friction(0, 1, force, 1e-3),)),
-                        n_tests=4, seed=seed)
+                        n_tests=4, n_samples=4096, seed=seed)
     r = loop.discover(carriage(), recs)
     assert r.prediction == "observer"
     assert any("drifts" in n for n in r.notes)

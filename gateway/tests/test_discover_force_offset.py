@@ -33,7 +33,7 @@ def test_friction_and_a_force_offset_on_a_positioning_stage(seed: int, offset: f
     els = (mdl.Friction(0, 1, force, 1e-3), mdl.ConstantForce(0, 1, offset))
     truth = dataclasses.replace(carriage(), elements=els)
     r = loop.discover(carriage(), gen.generate(carriage(), gen.Truth(elements=els), n_tests=4,
-                                               seed=seed))
+                                               n_samples=4096, seed=seed))
     assert r.prediction == "observer"
     assert [(e["type"], e["location"]["between"], e["location"].get("offset"))
             for e in r.effects] == [("friction", [0, 1], True)]
@@ -46,7 +46,8 @@ def test_friction_and_a_force_offset_on_a_positioning_stage(seed: int, offset: f
 def test_friction_without_offset_keeps_the_simpler_law() -> None:
     force = 1.5
     r = loop.discover(carriage(), gen.generate(
-        carriage(), gen.Truth(elements=(mdl.Friction(0, 1, force, 1e-3),)), n_tests=4, seed=5))
+        carriage(), gen.Truth(elements=(mdl.Friction(0, 1, force, 1e-3),)), n_tests=4,
+        n_samples=4096, seed=5))
     assert [(e["type"], e["location"].get("offset")) for e in r.effects] == [("friction", None)]
     # +2.9 % (see test_discover_drift: the trade with the law's velocity scale)
     assert r.effects[0]["parameters"]["force_n"]["value"] == pytest.approx(force, rel=0.04)
@@ -85,7 +86,7 @@ def test_a_force_transducer_bias_on_a_grounded_structure() -> None:
     bias = 0.8  # N: the force acting is the measured one + 0.8 N
     els = (mdl.ConstantForce(0, 1, bias),)
     r = loop.discover(grounded(), gen.generate(grounded(), gen.Truth(elements=els), n_tests=4,
-                                               seed=11))
+                                               n_samples=4096, seed=11))
     assert r.prediction == "open loop"
     assert [(e["type"], e["location"]["dof"]) for e in r.effects] == [("force_offset", 1)]
     assert r.effects[0]["parameters"]["force_n"]["value"] == pytest.approx(bias, rel=0.03)

@@ -123,7 +123,7 @@ def test_a_joint_on_a_table_with_its_dof_unmeasured_is_found() -> None:
     m = on_a_table()
     part = dataclasses.replace(m, outputs={k: v for k, v in ACC.items() if k != "acc2_mps2"})
     el = mdl.Friction(1, 2, 2.0, 1e-4)
-    recs = gen.generate(part, gen.Truth(elements=(el,)), n_tests=6, seed=3,
+    recs = gen.generate(part, gen.Truth(elements=(el,)), n_tests=6, n_samples=4096, seed=3,
                         levels_n_rms=(3.0, 1.8))
     r = loop.discover(part, recs)
     assert [(e["type"], e["location"]["between"]) for e in r.effects] == [("friction", [1, 2])]

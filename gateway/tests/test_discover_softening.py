@@ -38,7 +38,7 @@ def test_a_softening_story_is_a_cubic_spring_with_k3_below_zero(case: str, a: in
                                                                 seed: int) -> None:
     m = three_dof() if case == "3dof" else declared()
     el = softening(m, a, b, 0.01, seed)
-    recs = gen.generate(m, gen.Truth(elements=(el,)), n_tests=6, seed=seed)
+    recs = gen.generate(m, gen.Truth(elements=(el,)), n_tests=6, n_samples=4096, seed=seed)
     r = loop.discover(gen.best_linear(m, recs) if case.endswith("-bl") else m, recs)
     assert [(e["type"], e["location"]["between"]) for e in r.effects] == [
         ("cubic_stiffness", [a, b])]

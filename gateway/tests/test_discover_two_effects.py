@@ -63,7 +63,8 @@ def test_friction_and_an_appendage_at_one_dof_are_both_found() -> None:
     m = three_dof()
     fr = mdl.Friction(0, 3, 1.4, 1e-4)
     app = gen.Appendage(3, 0.42, 32.8, 0.02)
-    recs = gen.generate(m, gen.Truth(elements=(fr,), appendages=(app,)), n_tests=6, seed=6)
+    recs = gen.generate(m, gen.Truth(elements=(fr,), appendages=(app,)), n_tests=6,
+                        n_samples=4096, seed=6)
     r = loop.discover(m, recs)
     found = sorted((e["type"], str(e["location"].get("dof"))) for e in r.effects)
     assert found == [("appendage", "3"), ("friction", "3")]

@@ -29,7 +29,7 @@ def chain(masses: tuple[float, ...], ks: tuple[float, ...]) -> mdl.Model:
 
 def test_an_unmeasured_harmonic_force_is_characterised() -> None:
     m = declared()
-    recs = gen.generate(m, gen.Truth(), n_tests=6, seed=4)
+    recs = gen.generate(m, gen.Truth(), n_tests=6, n_samples=4096, seed=4)
     at_dof2 = dataclasses.replace(m, input=mdl.Input("force", 2, "force_N"))
     for i, rec in enumerate(recs):
         t = np.arange(rec.n_samples) / 640.0
@@ -51,7 +51,8 @@ def test_an_unmeasured_harmonic_force_is_characterised() -> None:
 def test_an_appendage_at_the_top_is_named_not_left() -> None:
     ka = 0.8 * (2 * np.pi * 45.0) ** 2
     truth = chain((6.54, 6.66, 6.86, 6.80, 0.8), (10.0, 399790.0, 399790.0, 399790.0, ka))
-    recs = gen.generate(truth, gen.Truth(label="appendage"), n_tests=6, seed=4)
+    recs = gen.generate(truth, gen.Truth(label="appendage"), n_tests=6, n_samples=4096,
+                        seed=4)
     m = chain((6.54, 6.66, 6.86, 6.80), (10.0, 399790.0, 399790.0, 399790.0))
     r = loop.discover(m, recs)
     assert [(e["type"], e["location"]["dof"]) for e in r.effects] == [("appendage", 4)]
