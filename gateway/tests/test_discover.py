@@ -79,7 +79,7 @@ def test_generator_truth_differs_from_the_c_model_only_by_the_effect() -> None:
 
 
 # ---- the loop on each available effect type ------------------------------------------------
-@pytest.mark.parametrize("seed", [11, 12])
+@pytest.mark.parametrize("seed", [11])  # more seeds: bench_discover_blind (CI time)
 def test_discover_stiffness_loss(seed: int) -> None:
     rng = np.random.default_rng(seed)
     story = int(rng.integers(2, 5))
@@ -104,7 +104,7 @@ def test_discover_added_mass(seed: int) -> None:
     assert held_reduction(r) > 0.9
 
 
-@pytest.mark.parametrize("seed", [31, 32])
+@pytest.mark.parametrize("seed", [31])  # more seeds: bench_discover_blind (CI time)
 def test_discover_sensor_gain(seed: int) -> None:
     rng = np.random.default_rng(seed)
     ch = f"acc{int(rng.integers(1, 5))}_mps2"
@@ -121,8 +121,9 @@ def test_discover_sensor_gain(seed: int) -> None:
     assert r.model.outputs[ch].gain == pytest.approx(g, abs=0.005)
 
 
-@pytest.mark.parametrize("seed", [41, 42])
-def test_discover_contact(seed: int) -> None:
+# seed 41's gap closes rarely: at 4096 samples its held-out gain fell to 13 %; at 8192, > 50 %
+@pytest.mark.parametrize(("seed", "n_samples"), [(41, 8192), (42, N_SAMPLES)])
+def test_discover_contact(seed: int, n_samples: int) -> None:
     rng = np.random.default_rng(seed)
     story = int(rng.integers(2, 5))
     side = str(rng.choice(["pos", "neg"]))
@@ -131,7 +132,7 @@ def test_discover_contact(seed: int) -> None:
     kb = float(rng.uniform(1.0e6, 2.5e6))
     truth = gen.Truth(elements=(mdl.Contact(story - 1, story, gap, delta, kb, side),),
                       label="contact")
-    r = run(truth, seed, 8192)  # the full size: a rarely closing gap needs its closures
+    r = run(truth, seed, n_samples)
     e = only_effect(r)
     assert e["type"] == "contact"
     assert (e["location"]["story"], e["location"]["side"]) == (story, side)
@@ -139,7 +140,7 @@ def test_discover_contact(seed: int) -> None:
     assert held_reduction(r) > 0.5
 
 
-@pytest.mark.parametrize("seed", [51, 52])
+@pytest.mark.parametrize("seed", [51])  # more: bench_discover_blind --effects 0 (CI time)
 def test_discover_clean_data_reports_no_effect(seed: int) -> None:
     r = run(gen.Truth(), seed)
     assert r.effects == []
@@ -171,7 +172,7 @@ def test_trace_ranks_element_effects_first(truth: gen.Truth, want: tuple[str, in
     assert top.cand.available
 
 
-@pytest.mark.parametrize("seed", [61, 62])
+@pytest.mark.parametrize("seed", [61])  # more seeds: bench_discover_blind (CI time)
 def test_discover_friction(seed: int) -> None:
     rng = np.random.default_rng(seed)
     dof = int(rng.integers(1, 5))

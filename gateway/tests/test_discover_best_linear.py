@@ -36,7 +36,8 @@ def test_the_best_linear_model_of_a_linear_truth_is_that_truth() -> None:
             assert fitted[name] == pytest.approx(v, rel=0.01), name
 
 
-@pytest.mark.parametrize(("kind", "seed"), [("cubic", 1), ("cubic", 2), ("contact", 3)])
+# ("cubic", 1) passed too: dropped for CI time (more: bench_discover_blind)
+@pytest.mark.parametrize(("kind", "seed"), [("cubic", 2), ("contact", 3)])
 def test_best_linear_declared_model_gets_the_right_effect(kind: str, seed: int) -> None:
     rng = np.random.default_rng(seed)
     story = int(rng.integers(2, 5))

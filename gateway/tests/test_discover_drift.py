@@ -38,7 +38,7 @@ def encoder_chain(masses: tuple[float, ...], ks: tuple[float, ...], zeta: tuple[
                      fs_hz=640.0)
 
 
-@pytest.mark.parametrize("seed", [2, 3])
+@pytest.mark.parametrize("seed", [2])  # more seeds: bench_discover_blind --free (CI time)
 def test_friction_on_a_drifting_carriage_is_found_with_the_observer(seed: int) -> None:
     force = float(np.random.default_rng(seed).uniform(1.0, 2.0))
     recs = gen.generate(carriage(), gen.Truth(elements=(mdl.Friction(0, 1, force, 1e-3),)),

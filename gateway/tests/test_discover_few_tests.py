@@ -29,7 +29,7 @@ def test_segment_split_views_cover_each_record_once() -> None:
     assert fit[0].counted(u)[0] == 0.0 and held[0].counted(u)[0] == 125.0
 
 
-@pytest.mark.parametrize("seed", [81, 82])
+@pytest.mark.parametrize("seed", [81])  # seed 82 (found too): dropped for CI time
 def test_two_tests_bumper_closing_only_at_high_level_is_found(seed: int) -> None:
     rng = np.random.default_rng(seed)
     story = int(rng.integers(2, 5))

@@ -27,7 +27,8 @@ def _ideal_ratio(r: loop.DiscoverResult, truth: mdl.Model) -> float:
     return r.after.total(r.held_names) / ideal.total(r.held_names)
 
 
-@pytest.mark.parametrize(("seed", "offset"), [(2, -0.6), (3, 0.4)])
+# (3, 0.4) passed too: dropped for CI time
+@pytest.mark.parametrize(("seed", "offset"), [(2, -0.6)])
 def test_friction_and_a_force_offset_on_a_positioning_stage(seed: int, offset: float) -> None:
     force = float(np.random.default_rng(seed).uniform(1.0, 2.0))
     els = (mdl.Friction(0, 1, force, 1e-3), mdl.ConstantForce(0, 1, offset))

@@ -67,7 +67,7 @@ def test_the_workers_variable_sets_the_processes(monkeypatch: pytest.MonkeyPatch
 
 def test_discover_gives_the_same_report_on_one_and_on_two_processes() -> None:
     truth = gen.Truth(elements=(mdl.Friction(0, 1, 1.5, 1e-3),))
-    recs = gen.generate(carriage(), truth, n_tests=4, seed=5)
+    recs = gen.generate(carriage(), truth, n_tests=4, n_samples=4096, seed=5)
     docs = []
     for workers in (1, 2):
         doc = report.to_json(loop.discover(carriage(), recs, loop.Options(workers=workers)))
