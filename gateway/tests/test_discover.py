@@ -104,7 +104,7 @@ def test_discover_added_mass(seed: int) -> None:
     assert held_reduction(r) > 0.9
 
 
-@pytest.mark.parametrize("seed", [31])  # more seeds: bench_discover_blind (CI time)
+@pytest.mark.parametrize("seed", [31])  # seed 32 (found too): dropped for CI time
 def test_discover_sensor_gain(seed: int) -> None:
     rng = np.random.default_rng(seed)
     ch = f"acc{int(rng.integers(1, 5))}_mps2"
