@@ -142,3 +142,32 @@ def test_a_prediction_that_diverges_but_stays_finite_is_a_refused_point(
         t.y[c][:] = keep
     r = ft.residual_vector(m, tests, chans, scales)
     assert r is not None and float(r @ r) == pytest.approx(now, rel=1e-12)
+
+
+def test_a_fit_stopped_on_xtol_goes_on_from_there_with_the_evaluations_left(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """fit._solve: an xtol stop (a collapsed trust region) is restarted once from its end
+    point with the evaluations left, the lower SSE kept and the evaluations summed; any other
+    stop, or too few evaluations left, is returned as it is."""
+    from scipy.optimize import OptimizeResult
+
+    calls: list[tuple[list[float], int]] = []
+    script: list[tuple[int, int, float]] = []  # (status, nfev, cost) of each call in turn
+
+    def fake(fun: Any, z: Any, **kw: Any) -> OptimizeResult:
+        calls.append(([float(v) for v in z], int(kw["max_nfev"])))
+        status, nfev, cost = script.pop(0)
+        return OptimizeResult(x=np.asarray(z) + 0.1, status=status, nfev=nfev, cost=cost)
+
+    monkeypatch.setattr(ft, "least_squares", fake)
+    ident = (lambda z: z, lambda z: np.eye(z.size))
+    script[:] = [(ft._XTOL_STOP, 8, 3.0), (2, 12, 2.0)]
+    sol = ft._solve(*ident, np.array([0.5]), 40, None)
+    assert calls == [([0.5], 40), ([0.6], 32)]  # from the end point, with the 32 left
+    assert (sol.cost, sol.nfev) == (2.0, 20)
+    calls.clear()
+    script[:] = [(2, 8, 3.0)]  # ftol: a converged fit, as it is
+    assert ft._solve(*ident, np.array([0.5]), 40, None).cost == 3.0 and len(calls) == 1
+    calls.clear()
+    script[:] = [(ft._XTOL_STOP, 40 - ft.MIN_RESTART_NFEV + 1, 3.0)]  # too few left
+    assert ft._solve(*ident, np.array([0.5]), 40, None).nfev == 38 and len(calls) == 1
