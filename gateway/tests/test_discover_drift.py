@@ -234,3 +234,29 @@ def test_a_cheap_force_sensors_noise_under_the_band_does_not_drive_a_position_lo
         assert np.std(used["x1_m"]) < 0.1 * np.std(t.y["x1_m"] - raw["x1_m"])
         for c in ("a1_mps2", "a2_mps2", "a3_mps2"):
             assert np.std(used[c]) < 1.02 * np.std(t.y[c] - raw[c])
+
+
+def test_the_joint_re_adjustment_leaves_a_rigid_body_modes_ratio(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """loop._readjust_declared re-adjusts the damping the tests inform (fx.damping_params):
+    a rigid-body mode's ratio damps nothing, and a fit free to move it wandered (blind free
+    case 3: zeta1 0.9996 -> 3.79); the flexible modes' ratios and the stiffnesses are in."""
+    from dynval.discover import continuation
+    from dynval.discover import fit as ft
+    from dynval.discover import session as ss
+
+    m = dataclasses.replace(free_chain(PARTIAL), damping=mdl.Damping("modal",
+                                                                     (0.5, 0.02, 0.03, 0.02)))
+    recs = gen.generate(m, gen.Truth(), n_tests=2, n_samples=2048, seed=1)
+    s = ss.make_session(m, recs, ss.Options(workers=1))
+    seen: list[tuple[str, ...]] = []
+
+    def screen(_m: mdl.Model, names: tuple[str, ...], *_a: object, **_k: object) -> float:
+        seen.append(tuple(names))
+        return 0.0  # no fit from here
+
+    monkeypatch.setattr(ft, "first_order_gain", screen)
+    monkeypatch.setattr(continuation, "fit", lambda *_a, **_k: None)
+    table, _ = s.table(m)
+    assert loop._readjust_declared(s, m, table) is None
+    assert seen == [("k2", "k3", "k4", "zeta2", "zeta3", "zeta4")]

@@ -178,20 +178,23 @@ READJUST_GAIN = 0.02  # the joint re-adjustment must lower the held-out error by
 def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
                        ) -> tuple[mdl.Model, rs.ErrorTable, dict[str, dict[str, np.ndarray]]
                                   ] | None:
-    """With the effects in (after each accepted one), every declared stiffness and damping
-    parameter re-adjusted jointly, with the masses an effect re-adjusted and the effects' own
-    element parameters: a best-linear declared model spread part of the effect over
-    parameters far from its location, which the candidate's local re-adjustment leaves, and
-    the effect's value moves with them (a cubic spring's coefficient with the story
-    stiffness that had absorbed part of it). Fitted from the current values when one
-    Gauss-Newton step would lower the fitting error by READJUST_GAIN (ft.first_order_gain),
-    and through the observer's gains (continuation.py: a mode several bandwidths off is a
-    local minimum of the first), the lower fitting error taken; kept when the held-out
-    error drops by READJUST_GAIN and the BIC over the fitting tests agrees; each change is
-    reported in the notes; None when not kept. Through the gains only until one is kept."""
+    """With the effects in (after each accepted one), every declared stiffness and the damping
+    parameters the tests inform (fx.damping_params) re-adjusted jointly, with the masses an
+    effect re-adjusted and the effects' own element parameters: a best-linear declared model
+    spread part of the effect over parameters far from its location, which the candidate's
+    local re-adjustment leaves, and the effect's value moves with them (a cubic spring's
+    coefficient with the story stiffness that had absorbed part of it). Fitted from the
+    current values when one Gauss-Newton step would lower the fitting error by READJUST_GAIN
+    (ft.first_order_gain), and through the observer's gains (continuation.py: a mode several
+    bandwidths off is a local minimum of the first), the lower fitting error taken; kept
+    when the held-out error drops by READJUST_GAIN and the BIC over the fitting tests agrees;
+    each change is reported in the notes; None when not kept. Through the gains only until
+    one is kept."""
     pm = cur.parameters()
+    # (the damping the tests inform: a rigid-body mode's ratio damps nothing, and a fit
+    # free to move it wanders, blind free case 3: zeta1 0.9996 -> 3.79)
     names = tuple(n for n in pm if (n.startswith("k") and pm[n] > 0)
-                  or n.startswith("zeta") or n in ("alpha", "beta")
+                  or n in fx.damping_params(cur, s.band)
                   or (n.startswith("m") and n in s.readjusted) or n in s.effect_params)
     fit_t = _free_starts(s)
     try:
