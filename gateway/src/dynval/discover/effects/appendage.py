@@ -89,7 +89,8 @@ class Appendage(EffectType):
     # frequencies across the band screened besides the evidence's, this ratio apart: a fit
     # stays in the basin of the declared modes it starts between (blind free case 107, an
     # appendage at 56 Hz between modes at 44 and 63 Hz: 8 frequencies across the band, 1.6
-    # apart, missed it and a stiffness change was named, 1.72 x the ideal; 1.16 apart found it)
+    # apart, missed it and a stiffness change was named, 1.72 x the ideal; 1.15 apart: found,
+    # 1.00 x)
     _SCAN_STEP = 1.15
     _SCAN_MASS = 0.1  # ... at the evidence's mass and at this share of the DOF's mass
 
