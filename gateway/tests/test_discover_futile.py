@@ -165,6 +165,9 @@ def test_a_fit_stopped_on_xtol_goes_on_from_there_with_the_evaluations_left(
     sol = ft._solve(*ident, np.array([0.5]), 40, None)
     assert calls == [([0.5], 40), ([0.6], 32)]  # from the end point, with the 32 left
     assert (sol.cost, sol.nfev) == (2.0, 20)
+    script[:] = [(ft._XTOL_STOP, 8, 3.0), (2, 5, 3.5)]  # no better: the first kept
+    sol = ft._solve(*ident, np.array([0.5]), 40, None)
+    assert (sol.cost, sol.nfev) == (3.0, 13)
     calls.clear()
     script[:] = [(2, 8, 3.0)]  # ftol: a converged fit, as it is
     assert ft._solve(*ident, np.array([0.5]), 40, None).cost == 3.0 and len(calls) == 1

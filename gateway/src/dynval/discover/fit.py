@@ -407,8 +407,9 @@ def _solve(fun_at: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray
     if sol.status != _XTOL_STOP or left < MIN_RESTART_NFEV:
         return sol
     again = run(sol.x, left)
-    again.nfev += sol.nfev
-    return again if again.cost < sol.cost else sol
+    best = again if again.cost < sol.cost else sol
+    best.nfev = int(sol.nfev) + int(again.nfev)  # every evaluation the fit spent
+    return best
 
 
 def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence[TestData],
