@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -93,6 +94,22 @@ def test_a_bad_link_is_refused_naming_its_field(link: dict[str, object], where: 
         mdl.from_dict(d)
 
 
+def _scan_case(app: gen.Appendage) -> tuple[mdl.Model, list[rs.TestData], list[str],
+                                            dict[str, float], Any, Any]:
+    """Two tests of the partial-sensor chain with ``app`` at DOF 2, and the appendage
+    candidate at DOF 2 whose evidence put it at 150 Hz (the view's band 10-240 Hz)."""
+    from dynval.discover import effects as fx
+
+    m = partial_sensors()
+    tests = rs.prepare(m, gen.generate(m, gen.Truth(appendages=(app,)), n_tests=2, seed=5,
+                                       fs_hz=512.0))
+    chans = rs.common_channels(m, tests)
+    et = fx.by_type("appendage")
+    cand = next(c for c in et.candidates(m) if c.location == {"dof": 2})
+    cand = dataclasses.replace(cand, shape={"f_hz": 150.0, "f_lo": 10.0, "f_hi": 240.0})
+    return m, tests, chans, rs.channel_scales(tests, chans), et, cand
+
+
 def test_an_appendage_fit_scans_the_band_when_the_evidence_frequency_is_off() -> None:
     """The evidence view's best frequency and mass can be far off (a cheap DAQ's noise swamps
     the view); a least-squares fit stays in the basin it starts in. Besides the evidence's
@@ -100,18 +117,9 @@ def test_an_appendage_fit_scans_the_band_when_the_evidence_frequency_is_off() ->
     simulation each) is now fitted too: from a 150 Hz, 0.03 kg evidence start the fit, with
     the declared stiffnesses and the DOF's mass re-adjusted as a round does, reaches the 20 Hz
     mode; from the evidence's starts alone (either damping) it stops near 54 Hz."""
-    from dynval.discover import effects as fx
     from dynval.discover import fit as ft
 
-    m = partial_sensors()
-    app = gen.Appendage(2, 0.3, 20.0, 0.02)
-    tests = rs.prepare(m, gen.generate(m, gen.Truth(appendages=(app,)), n_tests=2, seed=5,
-                                       fs_hz=512.0))
-    chans = rs.common_channels(m, tests)
-    scales = rs.channel_scales(tests, chans)
-    et = fx.by_type("appendage")
-    cand = next(c for c in et.candidates(m) if c.location == {"dof": 2})
-    cand = dataclasses.replace(cand, shape={"f_hz": 150.0, "f_lo": 10.0, "f_hi": 240.0})
+    m, tests, chans, scales, et, cand = _scan_case(gen.Appendage(2, 0.3, 20.0, 0.02))
     scan = et.scan_starts(m, cand, 0.03)
     freqs = sorted({s[0] for s in scan})
     assert len(scan) == 2 * len(freqs)  # at two masses
@@ -137,18 +145,9 @@ def test_the_scan_reaches_an_appendage_between_two_declared_modes() -> None:
     frequencies at most 1.15 apart). Measured: 8 frequencies across the band (1.6 apart)
     gave a best start at 20.8 Hz and a fit ending at 22.2 Hz, 0.075 kg (normalised SSE
     0.013); this scan's best start, 26.0 Hz, ends at the truth (0.0007)."""
-    from dynval.discover import effects as fx
     from dynval.discover import fit as ft
 
-    m = partial_sensors()
-    app = gen.Appendage(2, 0.15, 27.0, 0.02)
-    tests = rs.prepare(m, gen.generate(m, gen.Truth(appendages=(app,)), n_tests=2, seed=5,
-                                       fs_hz=512.0))
-    chans = rs.common_channels(m, tests)
-    scales = rs.channel_scales(tests, chans)
-    et = fx.by_type("appendage")
-    cand = next(c for c in et.candidates(m) if c.location == {"dof": 2})
-    cand = dataclasses.replace(cand, shape={"f_hz": 150.0, "f_lo": 10.0, "f_hi": 240.0})
+    m, tests, chans, scales, et, cand = _scan_case(gen.Appendage(2, 0.15, 27.0, 0.02))
     best = ft.screen(m, cand, et.scan_starts(m, cand, 0.03), tests, chans, scales, 1)
     r = ft.fit(m, cand, best[0], tests, chans, scales, 40, ("k1", "k2", "k3", "m2"))
     assert r.values[0] == pytest.approx(27.0, rel=0.01)
