@@ -18,8 +18,10 @@ from dynval.io.recording import Recording
 N = 81920  # 128 s at 640 Hz
 BUDGET, SEG = 32768, 8192
 GAP = 1.114e-4
-CUT_NAMES = sorted(f"long_{lv} @{t}s" for lv in ("high_01", "low_02")
-                   for t in ("0.0", "38.4", "76.8", "115.2"))
+# the 8 segments (2 records x 4) in the order both runs dealt them to fitting and held out
+CUT_NAMES = ["long_low_02 @115.2s", "long_low_02 @38.4s", "long_high_01 @38.4s",
+             "long_high_01 @0.0s", "long_low_02 @0.0s", "long_low_02 @76.8s",
+             "long_high_01 @115.2s", "long_high_01 @76.8s"]
 # the contact discover fitted on the hand-cut segments (measured at 20925dc; the whole
 # record's run gave the same to the last digit): gap near the truth, a softer, smoother
 # closing than the truth's. A change to the fits moves both runs alike: measure again then
@@ -47,12 +49,14 @@ def _long_records() -> list[Recording]:
     return gen.generate(declared(), truth, n_tests=2, n_samples=N, seed=21)
 
 
-def _the_contact(r: loop.DiscoverResult) -> dict[str, dict[str, float]]:
+def _assert_the_contact(r: loop.DiscoverResult) -> None:
+    """The truth's contact at story 4, and the hand-cut run's parameters within 5 %."""
     assert [e["type"] for e in r.effects] == ["contact"]
     e = r.effects[0]
-    assert e["location"]["story"] == 4
+    assert e["location"] == {"between": [3, 4], "story": 4, "side": "pos"}
     assert e["parameters"]["gap_m"]["value"] == pytest.approx(GAP, rel=0.15)
-    return {k: v["value"] for k, v in e["parameters"].items()}
+    for k, v in e["parameters"].items():
+        assert v["value"] == pytest.approx(CUT_BY_HAND[k], rel=0.05), k
 
 
 # (the whole record and the same segments cut by hand are two tests, so that pytest-xdist
@@ -68,12 +72,11 @@ def test_a_long_record_gives_the_effect_its_segments_give_and_says_so(
     assert cut_notes == [f"{r.name}: 128 s long; discover used 4 evenly spaced segments of 8192 "
                          "samples (40.0 %), each its own test with its initial state estimated"
                          for r in recs]
-    assert sorted(t.name for t in whole.tests) == CUT_NAMES  # 2 records x 4 segments, dealt
+    assert [t.name for t in whole.tests] == CUT_NAMES
     moving = [n.split(":")[0] for n in whole.notes if "does not start at rest" in n]
     assert sorted(moving) == sorted(f"{r.name} @{s:.1f}s" for r in recs
                                     for s in (38.4, 76.8, 115.2))  # all but the first
-    for k, v in _the_contact(whole).items():
-        assert v == pytest.approx(CUT_BY_HAND[k], rel=0.05), k
+    _assert_the_contact(whole)
     assert whole.rounds[-1].decision.startswith("residual at the noise floor")
 
 
@@ -81,8 +84,7 @@ def test_the_same_segments_cut_by_hand_give_the_same_effect() -> None:
     by_hand = loop.discover(declared(), _cut(_long_records(), np.array([0, 24576, 49152, 73728]),
                                              SEG))
     assert not any("evenly spaced segments" in n for n in by_hand.notes)
-    assert sorted(t.name for t in by_hand.tests) == CUT_NAMES
+    assert [t.name for t in by_hand.tests] == CUT_NAMES
     # (cut by hand, a segment's initial state is estimated only where initial.py's guard
     # lets it: the same effect, parameters within a few per cent of the whole record's)
-    for k, v in _the_contact(by_hand).items():
-        assert v == pytest.approx(CUT_BY_HAND[k], rel=0.05), k
+    _assert_the_contact(by_hand)
