@@ -30,14 +30,14 @@ CUT_BY_HAND = {"gap_m": 1.1162e-4, "delta_m": 3.260e-5, "kb_n_per_m": 6.448e5}
 
 
 def test_plan_spreads_segments_from_start_to_end() -> None:
-    n, budget = 81920, 32768  # 128 s at 640 Hz
-    starts, length = segments.plan(n, 1563, budget, 8192) or (np.array([]), 0)
-    assert length == 8192 and starts.tolist() == [0, 24576, 49152, 73728]
+    n, budget, seg = 81920, 32768, 8192  # 128 s at 640 Hz
+    starts, length = segments.plan(n, 1563, budget, seg) or (np.array([]), 0)
+    assert length == seg and starts.tolist() == [0, 24576, 49152, 73728]
     assert starts[-1] + length == n
     # a slow structure: segments twice its settling time, fewer of them
-    starts, length = segments.plan(n, 6000, budget, 8192) or (np.array([]), 0)
+    starts, length = segments.plan(n, 6000, budget, seg) or (np.array([]), 0)
     assert length == 12000 and starts.tolist() == [0, 69920]
-    assert segments.plan(budget, 1563, budget, 8192) is None  # within the budget: whole
+    assert segments.plan(budget, 1563, budget, seg) is None  # within the budget: whole
     cut = segments.plan(N, 1563, BUDGET, SEG)  # the long-record tests' cut
     assert cut is not None and cut[0].tolist() == [0, N - SEG]
 
