@@ -81,11 +81,13 @@ step "Python lint and types (ruff, mypy --strict)" bash -c 'cd gateway && ruff c
 # set, so a missing tool fails instead of skipping
 # DYNVAL_WORKERS=1: pytest-xdist already keeps both cores busy, and discover's own forked
 # pools would only add work (test_discover.py on 2 xdist workers: 318 s with them, 256 s without)
-# firmware_sim's host tests (tests/py/test_sim_*) are the end-to-end step's: it builds the
-# simulator they need (beside this step: here they would run or skip by when its build ends)
+# --durations: where CI's time goes, in its log. firmware_sim's host tests (tests/py/test_sim_*)
+# are the end-to-end step's: it builds the simulator they need (beside this step: here they
+# would run or skip by when its build ends)
 step "Python package (pytest)" env DYNVAL_WORKERS=1 DV_FOXGLOVE_CHECK=1 DV_FEATURES_DUMP="$ROOT/build/f64/tests/dv_features_dump" \
     DV_AR_DUMP="$ROOT/build/f64/tests/dv_ar_dump" DV_MODEL_DUMP="$ROOT/build/f64/tests/dv_model_dump" \
-    python3 -m pytest -q -p no:cacheprovider -n auto --dist worksteal gateway/tests tests/py \
+    python3 -m pytest -q -p no:cacheprovider -n auto --dist worksteal --durations=25 \
+    gateway/tests tests/py \
     --ignore=tests/py/test_sim_modbus.py --ignore=tests/py/test_sim_modbus_hostile.py \
     --ignore=tests/py/test_sim_finite.py
 
