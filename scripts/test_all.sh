@@ -87,9 +87,7 @@ step "Python lint and types (ruff, mypy --strict)" bash -c 'cd gateway && ruff c
 step "Python package (pytest)" env DYNVAL_WORKERS=1 DV_FOXGLOVE_CHECK=1 DV_FEATURES_DUMP="$ROOT/build/f64/tests/dv_features_dump" \
     DV_AR_DUMP="$ROOT/build/f64/tests/dv_ar_dump" DV_MODEL_DUMP="$ROOT/build/f64/tests/dv_model_dump" \
     python3 -m pytest -q -p no:cacheprovider -n auto --dist worksteal --durations=25 \
-    gateway/tests tests/py \
-    --ignore=tests/py/test_sim_modbus.py --ignore=tests/py/test_sim_modbus_hostile.py \
-    --ignore=tests/py/test_sim_finite.py
+    gateway/tests tests/py --ignore-glob='tests/py/test_sim_*'
 
 echo
 echo "=== (the steps run beside the main line; waiting for them)"
