@@ -102,3 +102,27 @@ def test_forward_jacobian_is_scipys_two_point_scheme(workers: int) -> None:
                             bounds=(0.0, 1.0))
     assert np.array_equal(jac(z), ref)
     assert not np.array_equal(jac(z), approx_derivative(_curved, z, method="3-point"))
+
+
+def test_a_restart_at_the_last_jacobians_point_costs_no_evaluation() -> None:
+    # _solve restarts a fit where it stopped: fun and the Jacobian there are the kept ones
+    # (no call of fun, the same numbers); anywhere else they are computed again
+    calls: list[np.ndarray] = []
+
+    def counted(z: np.ndarray) -> np.ndarray:
+        calls.append(z.copy())
+        return _curved(z)
+
+    fun, jac = ft.forward_jacobian(counted, 1)
+    z = np.array([0.3, 0.2, 0.6])
+    j = jac(z)
+    assert len(calls) == 4  # fun at z, then one column each
+    f_again, j_again = fun(z.copy()), jac(z.copy())
+    assert len(calls) == 4
+    assert np.array_equal(f_again, _curved(z)) and np.array_equal(j_again, j)
+    j_again[0, 0] = 99.0  # the caller's copy: the kept one stays
+    assert np.array_equal(jac(z), j)
+    other = np.array([0.3, 0.2, 0.61])
+    assert np.allclose(jac(other), approx_derivative(_curved, other, method="2-point",
+                                                     rel_step=1e-3, bounds=(0.0, 1.0)))
+    assert len(calls) == 8

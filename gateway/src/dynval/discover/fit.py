@@ -269,15 +269,23 @@ def forward_jacobian(fun: Callable[[np.ndarray], np.ndarray], workers: int
     z = 0, backward where it would leave the bounds), the same columns, but on up to
     ``workers`` processes instead of one after the other. The value at the point itself is the
     first's last one (least_squares evaluates fun there just before the Jacobian) when the
-    point is the same."""
+    point is the same. The last Jacobian, and fun at its point, are kept: a fit restarted
+    from where it stopped (_solve) starts with both, the same numbers without recomputing
+    them (the bumper case: 8 % of its simulations)."""
     last: dict[str, np.ndarray] = {}
+    kept: dict[str, np.ndarray] = {}
+
+    def at_kept(z: np.ndarray) -> bool:
+        return "z" in kept and np.array_equal(kept["z"], z)
 
     def remembering(z: np.ndarray) -> np.ndarray:
-        f = fun(z)
+        f = kept["f"].copy() if at_kept(z) else fun(z)
         last["z"], last["f"] = z.copy(), f
         return f
 
     def jac(z: np.ndarray) -> np.ndarray:
+        if at_kept(z):
+            return kept["j"].copy()
         f0 = last["f"] if "z" in last and np.array_equal(last["z"], z) else fun(z)
         h = DIFF_STEP * z
         h = np.where((z + h) - z == 0, math.sqrt(np.finfo(float).eps), h)
@@ -288,8 +296,10 @@ def forward_jacobian(fun: Callable[[np.ndarray], np.ndarray], workers: int
             zi[i] = z[i] + h[i]
             steps.append(zi)
         cols = parallel.ordered_map(fun, steps, workers)
-        return np.column_stack([(c - f0) / (zi[i] - z[i])
-                                for i, (c, zi) in enumerate(zip(cols, steps, strict=True))])
+        j = np.column_stack([(c - f0) / (zi[i] - z[i])
+                             for i, (c, zi) in enumerate(zip(cols, steps, strict=True))])
+        kept.update(z=z.copy(), f=f0.copy(), j=j.copy())
+        return j
 
     return remembering, jac
 
