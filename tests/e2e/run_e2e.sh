@@ -19,7 +19,7 @@ if [ -n "${DV_E2E_INSIDE:-}" ]; then
     # inside the VM (or on a host with vcan): the host root is read-only here
     export PYTHONDONTWRITEBYTECODE=1 DV_E2E_BUILD="$BUILD" DV_E2E_REQUIRE_VCAN=1
     cd "$ROOT/tests/e2e"
-    exec $PYTEST test_e2e_vcan.py test_e2e_gateway.py
+    exec $PYTEST --durations=10 test_e2e_vcan.py test_e2e_gateway.py
 fi
 
 echo "== build ($BUILD)"

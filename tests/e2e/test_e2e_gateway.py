@@ -25,8 +25,12 @@ if not HAVE_VCAN and os.environ.get("DV_E2E_REQUIRE_VCAN") == "1":
     raise RuntimeError("DV_E2E_REQUIRE_VCAN=1 but vcan0 does not exist")
 pytestmark = pytest.mark.skipif(not HAVE_VCAN, reason="no vcan0 (run tests/e2e/run_e2e.sh)")
 
-TEST = E.ROOT / "data" / "lanl4dof-sim" / "clean" / "test_low_01.csv"
+FOLDER = E.ROOT / "data" / "lanl4dof-sim" / "clean"
+TEST = FOLDER / "test_low_01.csv"
 WIN, SEG, NSEG = 64, 32, 16
+# the test's first samples only (4 feature records): each frame is logged by Python in the
+# emulated VM, and the whole 8192-sample test took 146 s of its 195 s there
+N_SAMPLES = 4 * SEG * NSEG
 # a residual frame every 16 observer steps: per-step residuals (4 x 640 frames/s) outrun the
 # Python logger in the emulated VM (its socket drops; the firmware itself loses nothing)
 DECIM = 16
@@ -38,7 +42,13 @@ def test_dynval_run_socketcan_against_firmware_sim(tmp_path):
     from dynval.io.mcapfile import Scan, iter_messages
 
     out = Path(os.environ.get("VCAN_OUT", tmp_path)) / "gateway_run"
-    cmd = [sys.executable, "-m", "dynval", "-q", "run", str(TEST), "--bus", "socketcan",
+    folder = tmp_path / FOLDER.name  # the declared model beside it, as in the bundled folder
+    folder.mkdir()
+    (folder / "declared_model.json").write_bytes((FOLDER / "declared_model.json").read_bytes())
+    test = folder / TEST.name
+    with TEST.open() as src:
+        test.write_text("".join(line for _, line in zip(range(N_SAMPLES + 1), src)))
+    cmd = [sys.executable, "-m", "dynval", "-q", "run", str(test), "--bus", "socketcan",
            "--channel", "vcan0", "--firmware", str(E.SIM_BIN), "--speed", "0.25",
            "--resid-decim", str(DECIM),
            "--win", str(WIN), "--seg", str(SEG), "--nseg", str(NSEG), "-o", str(out)]
@@ -59,7 +69,8 @@ def test_dynval_run_socketcan_against_firmware_sim(tmp_path):
         elif m.topic.startswith("/dv/samples/"):
             seqs.setdefault(m.data["channel"], []).append(m.sequence)
     assert sc.complete and sc.error == ""
-    rec = read_test(TEST)
+    rec = read_test(test)
+    assert rec.n_samples == N_SAMPLES
     plan = bus.make_plan(rec)
     nf = plan.n_frames_per_channel
     assert sorted(seqs) == [0, 1, 2, 3, 4]
