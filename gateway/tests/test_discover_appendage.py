@@ -196,3 +196,64 @@ def test_the_linear_screen_simulates_appendages_the_evidence_missed(
     assert ("appendage", {"dof": 3}) in kinds
     assert [k for k in kinds if k[0] == "appendage"] == [("appendage", {"dof": 3})]
     assert sum(k[0] != "appendage" for k in kinds) <= 2
+
+
+def test_the_residual_peak_is_the_missing_mode_not_a_mode_or_the_mains() -> None:
+    """effects.appendage.residual_peak on the residual of a model that lacks a resonance
+    (28 Hz, 2 % damping) and has its top mode 0.5 % low (110.0 Hz for 110.5), plus white noise
+    and a 50 Hz line: the missing mode's frequency, to the spectrum's bin (0.625 Hz); the
+    mistuned mode is not one; nothing in the noise alone."""
+    from scipy import signal
+
+    from dynval.discover.effects.appendage import residual_peak
+
+    fs, rng = 640.0, np.random.default_rng(4)
+    t = np.arange(8192) / fs
+
+    def resonance(u: np.ndarray, f_hz: float, zeta: float) -> np.ndarray:
+        w = 2 * fs * np.tan(np.pi * f_hz / fs)  # prewarped: the digital peak at f_hz
+        b, a = signal.bilinear([w * w], [1.0, 2 * zeta * w, w * w], fs)
+        return np.asarray(signal.lfilter(b, a, u))
+
+    noise, res = [], []
+    for _ in range(3):
+        u = rng.standard_normal(t.size)
+        noise.append(0.05 * rng.standard_normal(t.size))
+        missed = 0.02 * resonance(u, 28.0, 0.02)
+        mistuned = 0.1 * (resonance(u, 110.5, 0.01) - resonance(u, 110.0, 0.01))
+        res.append(noise[-1] + missed + mistuned + 0.2 * np.sin(2 * np.pi * 50.0 * t))
+    modes = [3.8, 55.6, 110.0]
+    assert residual_peak(res, fs, modes, 10.0, 300.0, skip=[50.0]) == pytest.approx(28.0,
+                                                                                  abs=0.7)
+    assert residual_peak(res, fs, modes, 10.0, 300.0) == pytest.approx(50.0, abs=0.7)
+    assert residual_peak(res, fs, modes, 30.0, 300.0, skip=[50.0]) is None  # 110: a mode's
+    assert residual_peak(noise, fs, modes, 10.0, 300.0) is None
+
+
+def test_an_appendage_read_as_a_negative_mass_is_started_at_the_residual_peak() -> None:
+    """Judge.at_residual_peak: an appendage candidate whose evidence is a negative mass starts
+    at the residual's peak, within 5 % of the truth's new mode (2 bins: in the basin its fit
+    reaches, blind free case 11 from 7 % off), with a tenth of its DOF's mass
+    (Appendage.SCAN_MASS); the peak is computed once per round."""
+    from dynval.discover import effects as fx
+    from dynval.discover import session as ss
+    from dynval.discover import trace as tr
+    from dynval.discover.effects.appendage import Appendage
+    from dynval.discover.judge import Judge
+
+    m = declared()
+    truth = gen.Truth(appendages=(gen.Appendage(dof=2, mass_kg=0.6, f_hz=30.0),))
+    recs = gen.generate(m, truth, n_tests=4, n_samples=4096, seed=5, fs_hz=m.fs_hz or 640.0)
+    s = ss.make_session(m, recs, ss.Options())
+    table, _ = rs.error_table(m, s.tests, s.chans, s.scales)
+    judge = Judge(m, table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band)
+    cand = next(c for c in fx.by_type("appendage").candidates(m) if c.location["dof"] == 2)
+    shape = {"f_hz": 288.0, "f_lo": 10.0, "f_hi": 288.0}
+    got, e = judge.at_residual_peak(cand, tr.Evidence(cand, 0.1, -0.004, shape))
+    new_mode = min(mdl.natural_frequencies(gen.truth_model(m, truth)),
+                   key=lambda f: abs(f - 30.0))
+    assert got.shape["f_hz"] == pytest.approx(new_mode, rel=0.05)
+    assert e.amp == got.shape["amp"] == pytest.approx(Appendage.SCAN_MASS * m.masses_kg[1])
+    seen = judge._peak
+    judge.at_residual_peak(cand, tr.Evidence(cand, 0.1, -0.004, shape))
+    assert judge._peak is seen  # once per round

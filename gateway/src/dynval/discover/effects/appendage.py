@@ -21,6 +21,7 @@ from dynval.discover.effects.base import (
 from dynval.model.structure import with_appendage
 
 _signal: Any = importlib.import_module("scipy.signal")
+_ndimage: Any = importlib.import_module("scipy.ndimage")
 
 
 def appendage_motion(a: np.ndarray, fs_hz: float, f_hz: float, zeta: float) -> np.ndarray:
@@ -30,6 +31,36 @@ def appendage_motion(a: np.ndarray, fs_hz: float, f_hz: float, zeta: float) -> n
     w = 2 * fs_hz * np.tan(np.pi * f_hz / fs_hz)
     b, den = _signal.bilinear([2 * zeta * w, w * w], [1.0, 2 * zeta * w, w * w], fs_hz)
     return np.asarray(_signal.lfilter(b, den, a))
+
+
+PEAK_RATIO = 10.0  # a missing mode's peak stands this far above the residual's local level
+MODE_CLEARANCE = 0.08  # peaks this close (relative) to a model's mode are its mistuning
+
+
+def residual_peak(res: Sequence[np.ndarray], fs_hz: float, modes_hz: Sequence[float],
+                  lo: float, hi: float, skip: Sequence[float] = ()) -> float | None:
+    """The frequency of the strongest narrow peak of the residuals' summed spectrum in
+    [lo, hi], away from the model's modes (MODE_CLEARANCE) and from the lines in ``skip``
+    (1 Hz): where a mode the model lacks shows. None without one PEAK_RATIO over its
+    neighbourhood's median."""
+    psd, f = None, np.zeros(0)
+    for r in res:
+        f, p = _signal.welch(r, fs=fs_hz, nperseg=min(1024, r.size))
+        psd = p if psd is None else psd + p
+    if psd is None:
+        return None
+    ok = (f >= lo) & (f <= hi)
+    for fm in modes_hz:
+        if fm > 0:
+            ok &= np.abs(f / fm - 1) > MODE_CLEARANCE
+    for s in skip:
+        ok &= np.abs(f - s) > 1.0
+    ratio = psd / np.maximum(_ndimage.median_filter(psd, size=31, mode="nearest"), 1e-300)
+    peaks, _ = _signal.find_peaks(np.where(ok, ratio, 0.0))
+    if not peaks.size:
+        return None
+    best = int(peaks[np.argmax(ratio[peaks])])
+    return float(f[best]) if ratio[best] > PEAK_RATIO else None
 
 
 class Appendage(EffectType):
@@ -92,7 +123,7 @@ class Appendage(EffectType):
     # apart, missed it and a stiffness change was named, 1.72 x the ideal; 1.15 apart: found,
     # 1.00 x)
     _SCAN_STEP = 1.15
-    _SCAN_MASS = 0.1  # ... at the evidence's mass and at this share of the DOF's mass
+    SCAN_MASS = 0.1  # ... at the evidence's mass and at this share of the DOF's mass
 
     def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
         f, ma, z = self.initial(m, cand, amp)
@@ -107,7 +138,7 @@ class Appendage(EffectType):
         lo, hi = p[0].lower * 1.01, p[0].upper * 0.99
         scan = np.geomspace(lo, hi, 2 + math.ceil(math.log(hi / lo) / math.log(self._SCAN_STEP)))
         mj = m.masses_kg[cand.location["dof"] - 1]
-        masses = dict.fromkeys([ma, float(np.clip(self._SCAN_MASS * mj, p[1].lower,
+        masses = dict.fromkeys([ma, float(np.clip(self.SCAN_MASS * mj, p[1].lower,
                                                    p[1].upper))])
         return [[float(g), mm, z] for mm in masses for g in scan]
 
