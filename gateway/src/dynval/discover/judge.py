@@ -473,11 +473,9 @@ class Judge:
         if self._peak is None:
             res, inputs = [], []
             for t in self.fit_t:
-                p = rs.predict(self.cur, t)
-                if p is None:
-                    continue
-                for c in self.chans:
-                    res.append((t.y[c] - p[c]) / self.scales[c])
+                r = rs.residuals(self.cur, t, self.chans)
+                for c, rc in (r or {}).items():
+                    res.append(rc / self.scales[c])
                     inputs.append(t.u)
             fs = self.fit_t[0].fs_hz
             _, hum = noise.mains_hum(res, inputs, fs) if res else (0.0, [])
