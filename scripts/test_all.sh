@@ -40,7 +40,7 @@ export PATH="$ROOT/.venv/bin:$PATH"
 # Beside the main line: the end-to-end run (a QEMU VM, about one core), the sdist install
 # (mostly downloads) and the fuzz run (one core at a time) need nothing the main line builds.
 # Run one after the other in the background from the start, they fill the cores the main
-# line's serial parts leave idle (CI ran them after it: about 370 s of its 33 min). Their
+# line's serial parts leave idle (run after it, they added about 370 s to CI). Their
 # output is kept in a log and printed, with their results, after the main line's.
 BESIDE=$(mktemp -d "${TMPDIR:-/tmp}/dv_beside.XXXXXX")
 beside() {
@@ -58,7 +58,8 @@ beside() {
 beside >"$BESIDE/log" 2>&1 </dev/null &
 beside_pid=$!
 # an interrupted run stops the background steps too (they ignore SIGINT: no job control here)
-trap 'trap - INT TERM; kill 0' INT TERM
+# and leaves no temporary folder behind
+trap 'trap - INT TERM; rm -rf "$BESIDE"; kill 0' INT TERM
 
 step "C float, gcc Debug (dev)" preset dev
 step "C double, gcc Release (f64)" preset f64

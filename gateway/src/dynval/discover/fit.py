@@ -69,13 +69,19 @@ class FitResult:
 
     def readjusted(self) -> dict[str, float]:
         """The declared parameters the fit re-adjusted, by their model name, at its values."""
-        return {n[: -len(READJUSTED)]: v for n, v in zip(self.names, self.values, strict=True)
-                if n.endswith(READJUSTED)}
+        return {d: v for n, v in zip(self.names, self.values, strict=True)
+                if (d := declared_name(n)) is not None}
 
     def own(self) -> dict[str, float]:
         """The effect's own parameters (not the re-adjusted declared ones), at its values."""
         return {n: v for n, v in zip(self.names, self.values, strict=True)
-                if not n.endswith(READJUSTED)}
+                if declared_name(n) is None}
+
+
+def declared_name(name: str) -> str | None:
+    """The model's name of a re-adjusted declared parameter's fit name; None for one of the
+    effect's own parameters."""
+    return name[: -len(READJUSTED)] if name.endswith(READJUSTED) else None
 
 
 def _to_value(p: fx.Param, z: float) -> float:

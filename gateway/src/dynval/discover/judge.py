@@ -672,17 +672,16 @@ def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
     et = fx.by_type(res.cand.type)
     params, readjusted = {}, {}
     declared = before.parameters()
-    own = [n for n in res.names if not n.endswith(ft.READJUSTED)]
-    readj = [n[: -len(ft.READJUSTED)] for n in res.names[len(own):]]
-    at_bound = [*ft.at_bounds(et.params(before, res.cand), own, res.values[:len(own)]),
-                *ft.at_bounds(ft.uncertain_params(before, readj), readj,
-                              res.values[len(own):])]
+    own, readj = res.own(), res.readjusted()
+    at_bound = [*ft.at_bounds(et.params(before, res.cand), list(own), list(own.values())),
+                *ft.at_bounds(ft.uncertain_params(before, list(readj)), list(readj),
+                              list(readj.values()))]
     for n, v, s, sc, u in zip(res.names, res.values, res.sigma, spread, res.units,
                               strict=True):
         unc = {"uncertainty": math.hypot(s, sc) if math.isfinite(sc) else s,
                "uncertainty_fit": s, "uncertainty_scatter": sc, "unit": u}
-        if n.endswith(ft.READJUSTED):
-            name = n[: -len(ft.READJUSTED)]
+        name = ft.declared_name(n)
+        if name is not None:
             was = float(declared[name])
             readjusted[name] = {"before": was, "value": v, **unc,
                                 "change_rel": (v - was) / was if was else math.nan}
