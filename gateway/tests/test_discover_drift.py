@@ -46,6 +46,10 @@ def test_friction_on_a_drifting_carriage_is_found_with_the_observer(seed: int) -
     r = loop.discover(carriage(), recs)
     assert r.prediction == "observer"
     assert any("drifts" in n for n in r.notes)
+    # the observer holds a cubic input linearly: it keeps the declared interpolation
+    # (loop.simulation_for_fits), and no note says otherwise
+    assert (r.model.interpolation, r.model.oversample) == ("bandlimited", 4)
+    assert not any("cubic input hold" in n for n in r.notes)
     assert [(e["type"], e["location"]["between"]) for e in r.effects] == [("friction", [0, 1])]
     # the force trades off against the law's velocity scale (fitted too): within 4 %, and the
     # held-out error within 5 % of the true model's under the same observer. Measured (seeds
@@ -71,6 +75,7 @@ def test_a_grounded_structure_stays_open_loop() -> None:
                   fs_hz=640.0)
     r = loop.discover(m, gen.generate(m, gen.Truth(), n_tests=4, seed=7))
     assert r.prediction == "open loop" and r.effects == []
+    assert (r.model.interpolation, r.model.oversample) == ("cubic", 1)
 
 
 def test_the_observer_interpolates_the_input_as_the_open_loop_simulation_does() -> None:

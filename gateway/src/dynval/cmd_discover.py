@@ -52,6 +52,10 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--workers", type=nonnegative_int, default=0, metavar="N",
                    help="processes for the candidate fits (default: $DYNVAL_WORKERS, else every "
                         "available core; the results do not depend on it)")
+    p.add_argument("--declared-simulation", action="store_true",
+                   help="simulate with the declared model's input interpolation and "
+                        "oversampling (default: the core's cubic input hold at the sample "
+                        "rate, as accurate and several times faster; the report says which)")
     add_test_options(p)
     p.set_defaults(run=run)
 
@@ -70,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     unc = tuple(x.strip() for x in args.uncertain.split(",") if x.strip())
     opts = loop.Options(max_effects=args.max_effects, min_gain=args.min_gain, noise=noise,
                         uncertain=unc, readjust=not args.no_readjust,
-                        workers=args.workers)
+                        workers=args.workers, declared_simulation=args.declared_simulation)
     try:
         res = loop.discover(m, recs, opts, on_progress=lambda s: log.debug("%s", s))
     except Exception:

@@ -36,6 +36,9 @@ class Options:
     # the modal damping) while it is fitted
     readjust: bool = True
     workers: int = 0  # processes for the candidate fits of a round; 0: every available core
+    # simulate with the declared model's own input interpolation and oversampling instead of
+    # the core's cubic input hold at the sample rate (loop.simulation_for_fits)
+    declared_simulation: bool = False
 
 
 @dataclass
