@@ -55,7 +55,8 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--declared-simulation", action="store_true",
                    help="simulate with the declared model's input interpolation and "
                         "oversampling (default: the core's cubic input hold at the sample "
-                        "rate, as accurate and several times faster; the report says which)")
+                        "rate where it is as good on the declared model, several times "
+                        "faster; the report says which)")
     add_test_options(p)
     p.set_defaults(run=run)
 
