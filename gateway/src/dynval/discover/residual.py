@@ -227,6 +227,17 @@ def free_motion_fit(m: mdl.Model, t: TestData, p: dict[str, np.ndarray],
     return FreeMotion(basis, aa, rr, x0)
 
 
+def summed_spectrum(res: Sequence[np.ndarray], fs_hz: float
+                    ) -> tuple[np.ndarray, np.ndarray | None]:
+    """The residuals' Welch spectra (segments of up to 1024 samples) summed, and their
+    frequencies; None for no residual."""
+    psd, f = None, np.zeros(0)
+    for r in res:
+        f, p = signal.welch(r, fs=fs_hz, nperseg=min(1024, r.size))
+        psd = p if psd is None else psd + p
+    return f, psd
+
+
 def residuals(m: mdl.Model, t: TestData, chans: Sequence[str]) -> dict[str, np.ndarray] | None:
     p = predict(m, t)
     if p is None:

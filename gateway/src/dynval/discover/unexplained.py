@@ -22,18 +22,14 @@ from typing import Any
 
 import numpy as np
 
-from dynval.discover.residual import TestData
+from dynval.discover.residual import TestData, summed_spectrum
 
 signal: Any = importlib.import_module("scipy.signal")
 
 
 def band(res: Sequence[np.ndarray], fs_hz: float, modes_hz: Sequence[float]
          ) -> dict[str, Any]:
-    p_sum = None
-    f = np.zeros(0)
-    for r in res:
-        f, p = signal.welch(r, fs=fs_hz, nperseg=min(1024, r.size))
-        p_sum = p if p_sum is None else p_sum + p
+    f, p_sum = summed_spectrum(res, fs_hz)
     if p_sum is None or not p_sum.sum() > 0:
         return {}
     c = np.cumsum(p_sum) / p_sum.sum()

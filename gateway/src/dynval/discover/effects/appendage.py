@@ -18,6 +18,7 @@ from dynval.discover.effects.base import (
     inertial,
     readjust_every_stiffness,
 )
+from dynval.discover.residual import summed_spectrum
 from dynval.model.structure import with_appendage
 
 _signal: Any = importlib.import_module("scipy.signal")
@@ -43,10 +44,7 @@ def residual_peak(res: Sequence[np.ndarray], fs_hz: float, modes_hz: Sequence[fl
     [lo, hi], away from the model's modes (MODE_CLEARANCE) and from the lines in ``skip``
     (1 Hz): where a mode the model lacks shows. None without one PEAK_RATIO over its
     neighbourhood's median."""
-    psd, f = None, np.zeros(0)
-    for r in res:
-        f, p = _signal.welch(r, fs=fs_hz, nperseg=min(1024, r.size))
-        psd = p if psd is None else psd + p
+    f, psd = summed_spectrum(res, fs_hz)
     if psd is None:
         return None
     ok = (f >= lo) & (f <= hi)
