@@ -656,6 +656,12 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
         before, res_before = s.table(m)
     if sim_note:
         s.notes.insert(0, sim_note)
+    if declared.daq_filter is not None:
+        f = declared.daq_filter
+        s.notes.append(f"the declared DAQ filter ({f.type}, order {f.order}, {f.cutoff_hz:g} Hz) "
+                       "is divided out of the measured input and applied to the predictions"
+                       + ("; not in the observer's, which read the measured channels"
+                          if prediction == "observer" else ""))
     floors = _floors(s, m, res_before, {}) if prediction == "observer" else open_floors
     noise = {c: f.rms for c, f in floors.items()}
     cur, cur_table, calibration = (_calibrate_uncertain(s, m, before) if o.uncertain

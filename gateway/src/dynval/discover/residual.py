@@ -6,6 +6,7 @@ channel's measured RMS (over all tests), so every channel weighs the same.
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import logging
 import math
@@ -88,18 +89,18 @@ class TestData:
     # too, initial.py); None: the start above, fixed
     free_start: dict[str, float] | None = None
     # the input interpolated per oversampling factor, once per test (input_for)
-    _prepared: dict[int, mdl.PreparedInput] = field(default_factory=dict, init=False,
-                                                    repr=False, compare=False)
+    _prepared: dict[tuple[int, mdl.DaqFilter | None], mdl.PreparedInput] = field(
+        default_factory=dict, init=False, repr=False, compare=False)
 
     def input_for(self, m: mdl.Model) -> mdl.PreparedInput:
         """The input as m's simulations take it (mdl.simulate), interpolated once: a force or
         table acceleration without its sensor's noise under the excitation band
-        (noise.simulated_input)."""
-        r = mdl.oversample_factor(m)
-        if r not in self._prepared:
+        (noise.simulated_input), and without m's DAQ filter when it declares one."""
+        key = (mdl.oversample_factor(m), m.daq_filter)
+        if key not in self._prepared:
             u = noise.simulated_input(m.input.kind, self.u, self.fs_hz)
-            self._prepared[r] = mdl.prepare_input(m, u)
-        return self._prepared[r]
+            self._prepared[key] = mdl.prepare_input(m, u, fs_hz=self.fs_hz)
+        return self._prepared[key]
 
     def observed(self) -> dict[str, np.ndarray]:
         """The channels as the observer reads them: without the offsets in demean (an
@@ -168,8 +169,10 @@ def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     """The model's open-loop (or observer) prediction, or None when the core refuses the
     model; on the channels in t.demean, with the test's own mean residual (acc_offsets.py)."""
     try:
+        # (the observer reads the measured channels: no DAQ filter in it)
+        bare = dataclasses.replace(m, daq_filter=None) if t.observer is not None else m
         p = (mdl.simulate(m, t.input_for(m), t.fs_hz) if t.observer is None else
-             mdl.predict_observed(m, t.input_for(m), t.observed(), t.fs_hz,
+             mdl.predict_observed(m, t.input_for(bare), t.observed(), t.fs_hz,
                                   t.observer.q_force_n2, t.observer.r_meas))
     except ConfigError as exc:
         log.debug("%s: simulation refused: %s", t.name, exc)

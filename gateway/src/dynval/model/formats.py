@@ -18,6 +18,7 @@ from dynval.io.jsonfile import read_mapping_file
 from dynval.model import elements as el
 from dynval.model.schema import (
     DAMPING_TYPES,
+    DAQ_FILTER_TYPES,
     FORMAT,
     INPUT_KINDS,
     INTERPOLATIONS,
@@ -25,6 +26,7 @@ from dynval.model.schema import (
     OUTPUT_INDEX_KEY,
     OUTPUT_KINDS,
     Damping,
+    DaqFilter,
     Input,
     Link,
     Model,
@@ -121,6 +123,18 @@ def _element(e: Any, ctx: Ctx, w: str) -> el.Element:
                    name=str(e.get("name", "")))
 
 
+def _daq_filter(d: Any, ctx: Ctx) -> DaqFilter | None:
+    w = "simulation.daq_filter"
+    if d is None:
+        return None
+    if not isinstance(d, Mapping):
+        raise ctx.err(w, "expected an object with type, order and cutoff_hz")
+    ctx.known(d, w, MODEL_KEYS["daq_filter"])
+    return DaqFilter(ctx.choice(ctx.get(d, "type", w), f"{w}.type", DAQ_FILTER_TYPES),
+                     ctx.int_(ctx.get(d, "order", w), f"{w}.order"),
+                     ctx.num(ctx.get(d, "cutoff_hz", w), f"{w}.cutoff_hz"))
+
+
 def _link(e: Any, ctx: Ctx, w: str) -> Link:
     """One entry of ``links``: ``between`` two DOFs, ``k_n_per_m``, ``c_n_s_per_m`` (0)."""
     ctx.known(e, w, MODEL_KEYS["link"])
@@ -178,6 +192,7 @@ def _from_dynval(d: Mapping[str, Any], ctx: Ctx) -> Model:
         oversample=ctx.int_(sim.get("oversample", 4), "simulation.oversample"),
         interpolation=ctx.choice(sim.get("input_interpolation", "bandlimited"),
                                  "simulation.input_interpolation", INTERPOLATIONS),
+        daq_filter=_daq_filter(sim.get("daq_filter"), ctx),
         fs_hz=None if fs is None else ctx.num(fs, "fs_hz"),
         name=str(d.get("name", "")), description=str(d.get("description", "")),
         dof_names=tuple(str(x) for x in names) if isinstance(names, (list, tuple)) else ())
@@ -303,7 +318,9 @@ def to_dict(m: Model) -> dict[str, Any]:
                damping=damp, input=inp, outputs=outs, elements=elems,
                **({"links": links} if links else {}),
                simulation={"substeps": m.substeps, "input_interpolation": m.interpolation,
-                           "oversample": m.oversample})
+                           "oversample": m.oversample,
+                           **({"daq_filter": dataclasses.asdict(m.daq_filter)}
+                              if m.daq_filter else {})})
     return out
 
 

@@ -25,6 +25,8 @@ DAMPING_TYPES = ("modal", "rayleigh", "matrix")
 INPUT_KINDS = ("force", "ground_acc", "ground_disp")
 OUTPUT_KINDS = ("acc", "vel", "disp", "story_force", "contact_force", "reaction")
 INTERPOLATIONS = ("bandlimited", "foh", "cubic")
+DAQ_FILTER_TYPES = ("butterworth", "bessel")  # analog low-passes (Bessel: -3 dB at cutoff)
+MAX_DAQ_FILTER_ORDER = 12
 # Every key a model file may hold, per kind of object: the one place to add a key (a key not
 # listed here is an error with a "did you mean"). "declared" is the top level of the shared
 # data's declared_model.json layout, whose informational keys are read and ignored.
@@ -43,7 +45,8 @@ MODEL_KEYS: dict[str, tuple[str, ...]] = {
     "output": ("kind", "dof", "story", "element", "index", "gain", "offset"),
     "element": ("type", "name", "between", "side"),  # + the parameters of its type
     "link": ("name", "between", "k_n_per_m", "c_n_s_per_m"),
-    "simulation": ("substeps", "oversample", "input_interpolation"),
+    "simulation": ("substeps", "oversample", "input_interpolation", "daq_filter"),
+    "daq_filter": ("type", "order", "cutoff_hz"),
 }
 # the file key that holds an output's index, per output kind (none for the reaction)
 OUTPUT_INDEX_KEY = {"acc": "dof", "vel": "dof", "disp": "dof", "story_force": "story",
@@ -108,6 +111,20 @@ LINK_PARAMS = {"k_n_per_m": "N/m", "c_n_s_per_m": "N s/m"}
 
 
 @dataclass(frozen=True)
+class DaqFilter:
+    """The DAQ's analog anti-alias low-pass, the same on every channel (input and outputs):
+    ``type`` butterworth or bessel, ``order`` 1..MAX_DAQ_FILTER_ORDER, ``cutoff_hz`` its -3 dB
+    frequency. A model that declares it is driven by the measured input with the filter
+    divided out in band and measured through it (simulation.py, daq_filter_*): a nonlinear
+    element's harmonics pass the filter on the rig, not in a simulation driven by the
+    filtered input."""
+
+    type: str
+    order: int
+    cutoff_hz: float
+
+
+@dataclass(frozen=True)
 class Model:
     """A chain of lumped masses with story springs, damping, one input, named outputs and
     nonlinear elements. Build it from a file with load(), or directly."""
@@ -122,6 +139,7 @@ class Model:
     substeps: int = 8
     oversample: int = 4
     interpolation: str = "bandlimited"
+    daq_filter: DaqFilter | None = None
     fs_hz: float | None = None
     name: str = ""
     description: str = ""

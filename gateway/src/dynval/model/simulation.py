@@ -26,8 +26,9 @@ import numpy as np
 
 from dynval import _core
 from dynval.errors import ConfigError
+from dynval.model import daq
 from dynval.model import elements as el
-from dynval.model.schema import Damping, Model, Output
+from dynval.model.schema import Damping, DaqFilter, Model, Output
 from dynval.model.validation import MAX_OVERSAMPLE
 
 log = logging.getLogger(__name__)
@@ -280,6 +281,7 @@ def predict_observed(m: Model, u: Any, y: Mapping[str, np.ndarray], fs_hz: float
     element that makes it)."""
     r = oversample_factor(m)
     fine = _prepared_fine(u, r) if isinstance(u, PreparedInput) else _prepare_input(u, r)
+    m = dataclasses.replace(m, daq_filter=None)  # corrected by the measured channels
     extra = dict(probes or {})
 
     def observe(mm: Model) -> tuple[int, np.ndarray]:
@@ -457,21 +459,38 @@ class PreparedInput:
 
     fine: np.ndarray  # the input at fs x r
     r: int
+    daq: DaqFilter | None = None  # the DAQ filter divided out of it (daq.unmeasured)
 
 
-def _prepared_fine(u: PreparedInput, r: int) -> np.ndarray:
-    """The interpolated input of u, which must have been prepared for the factor r."""
+def _prepared_fine(u: PreparedInput, r: int, daq_filter: DaqFilter | None = None
+                   ) -> np.ndarray:
+    """The interpolated input of u, which must have been prepared for the factor r and the
+    DAQ filter daq_filter (the model's; the observer's: none)."""
     if u.r != r:
         raise ConfigError(f"the input was prepared for oversample {u.r}, the model simulates "
                           f"at {r}")
+    if u.daq != daq_filter:
+        raise ConfigError(f"the input was prepared for the DAQ filter {u.daq}, the simulation "
+                          f"takes {daq_filter}")
     return u.fine
 
 
-def prepare_input(m: Model, force_or_motion: Any, oversample: int | None = None
-                  ) -> PreparedInput:
-    """The input as simulate() would interpolate it for m (see simulate)."""
+def prepare_input(m: Model, force_or_motion: Any, oversample: int | None = None,
+                  fs_hz: float | None = None) -> PreparedInput:
+    """The input as simulate() would interpolate it for m (see simulate); with m's DAQ
+    filter divided out when it declares one (fs_hz, else m.fs_hz, is then needed)."""
     r = oversample_factor(m, oversample)
-    return PreparedInput(_prepare_input(force_or_motion, r), r)
+    u = force_or_motion
+    if m.daq_filter is not None:
+        u = daq.unmeasured(m.daq_filter, _core.as_doubles(u), _daq_rate(m, fs_hz))
+    return PreparedInput(_prepare_input(u, r), r, m.daq_filter)
+
+
+def _daq_rate(m: Model, fs_hz: float | None) -> float:
+    fs = fs_hz if fs_hz is not None else m.fs_hz
+    if fs is None or not fs > 0:
+        raise ConfigError(f"{m.source or '<model>'}: its DAQ filter needs the sample rate")
+    return float(fs)
 
 
 # input samples per block of a simulation (its memory: block x oversample x outputs doubles)
@@ -508,6 +527,9 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
     the last one, as dv_obs_simulate does)."""
     if not fs_hz > 0:
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
+    if m.daq_filter is not None:
+        yield 0, _through_daq(m, force_or_motion, fs_hz, oversample)
+        return
     r = oversample_factor(m, oversample)
     prepared = isinstance(force_or_motion, PreparedInput)
     if isinstance(force_or_motion, PreparedInput):
@@ -559,6 +581,26 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
     if core.obs.n_bad_input:
         log.warning("%d non-finite input samples: the core held the state there",
                     int(core.obs.n_bad_input))
+
+
+def _through_daq(m: Model, force_or_motion: Any, fs_hz: float, oversample: int | None
+                 ) -> np.ndarray:
+    """simulate_blocks' outputs (samples x m.outputs) for a model with a DAQ filter, over the
+    whole record at once: driven by the input with the filter divided out (prepare_input),
+    measured through it (daq.measured; a sensor's offset is not filtered: it was on before
+    the record)."""
+    f = m.daq_filter
+    assert f is not None
+    u = (force_or_motion if isinstance(force_or_motion, PreparedInput)
+         else prepare_input(m, force_or_motion, oversample, fs_hz))
+    bare = dataclasses.replace(m, daq_filter=None)
+    r = oversample_factor(m, oversample)
+    plain = PreparedInput(_prepared_fine(u, r, f), r)
+    n = plain.fine.size // r
+    y = np.concatenate([b for _, b in simulate_blocks(bare, plain, fs_hz, oversample=oversample,
+                                                      block=max(n, 1))])
+    offsets = np.array([o.offset for o in m.outputs.values()])
+    return np.asarray(daq.measured(f, y - offsets, fs_hz) + offsets)
 
 
 def _run(m: Model, u: np.ndarray, dt: float) -> np.ndarray:
@@ -631,6 +673,9 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     a block-long buffer at the oversampled rate."""
     if not fs_hz > 0:
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
+    if m.daq_filter is not None:
+        return _batch_through_daq(m, force_or_motion, fs_hz, param_sets, oversample,
+                                  on_progress)
     r = oversample_factor(m, oversample)
     a = _core.as_doubles(force_or_motion)
     _check_input(a, r)
@@ -684,6 +729,24 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     if np.any(offsets != 0.0):
         out += offsets
     return out
+
+
+def _batch_through_daq(m: Model, force_or_motion: Any, fs_hz: float,
+                       param_sets: Sequence[Mapping[str, float]], oversample: int | None,
+                       on_progress: Callable[[int, int], None] | None) -> np.ndarray:
+    """simulate_batch for a model with a DAQ filter: each set over the whole record
+    (_through_daq), the input prepared once."""
+    u = prepare_input(m, force_or_motion, oversample, fs_hz)
+    out = []
+    for i, ps in enumerate(param_sets):
+        try:
+            mi = m.with_params(dict(ps))
+        except ConfigError as exc:
+            raise ConfigError(f"parameter set {i}: {exc}") from None
+        out.append(_through_daq(mi, u, fs_hz, oversample))
+        if on_progress is not None:
+            on_progress(i + 1, len(param_sets))
+    return np.stack(out) if out else np.empty((0, u.fine.size // u.r, len(m.outputs)))
 
 
 def _run_blocks(core: _Core, fine: Callable[[int, int], np.ndarray], size: int, y: np.ndarray,

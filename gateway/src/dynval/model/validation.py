@@ -17,11 +17,14 @@ from dynval.errors import ConfigError
 from dynval.model import elements as el
 from dynval.model.schema import (
     DAMPING_TYPES,
+    DAQ_FILTER_TYPES,
     INPUT_KINDS,
     INTERPOLATIONS,
     LINK_PARAMS,
+    MAX_DAQ_FILTER_ORDER,
     OUTPUT_KINDS,
     Damping,
+    DaqFilter,
     Link,
     Model,
 )
@@ -146,7 +149,19 @@ def validate(m: Model, ctx: Ctx | None = None) -> None:
                     f"{', '.join(INTERPOLATIONS)}")
     if m.fs_hz is not None and not m.fs_hz > 0:
         raise c.err("fs_hz", f"must be > 0, got {m.fs_hz!r}")
+    if m.daq_filter is not None:
+        _check_daq_filter(m.daq_filter, c)
     _check_in_core(m, c)
+
+
+def _check_daq_filter(f: DaqFilter, c: Ctx) -> None:
+    w = "simulation.daq_filter"
+    if f.type not in DAQ_FILTER_TYPES:
+        raise c.err(f"{w}.type", f"{f.type!r} is not one of {', '.join(DAQ_FILTER_TYPES)}")
+    if not 1 <= f.order <= MAX_DAQ_FILTER_ORDER:
+        raise c.err(f"{w}.order", f"must be 1..{MAX_DAQ_FILTER_ORDER}, got {f.order}")
+    if not (math.isfinite(f.cutoff_hz) and f.cutoff_hz > 0):
+        raise c.err(f"{w}.cutoff_hz", f"must be > 0 Hz, got {f.cutoff_hz!r}")
 
 
 def _check_in_core(m: Model, c: Ctx) -> None:
