@@ -238,6 +238,9 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False,
         got += f" (+{ties} as well supported)"
     ideal, spread = ideal_error(m, truth, r)
     ratio = r.after.total(r.held_names) / ideal
+    if daq:  # the same after-error against the ideal of a run without the filter
+        got += f" [{r.after.total(r.held_names) / ideal_error(m, truth, r, False)[0]:.2f} x " \
+               "the ideal without it]"
     cond = ", ".join(c for c, on in (("free" if free and m.stiffness_n_per_m[0] == 0 else
                                        "position loop", free),
                                       ("cut from a run", cut), ("cheap DAQ", daq),
@@ -259,18 +262,20 @@ SOUND_SPREAD = 1.2
 SPREAD_SIMS = (("bandlimited", 4), ("bandlimited", 8), ("bandlimited", 16))
 
 
-def ideal_error(m: mdl.Model, truth: gen.Truth, r: loop.DiscoverResult) -> tuple[float, float]:
+def ideal_error(m: mdl.Model, truth: gen.Truth, r: loop.DiscoverResult, daq: bool = True
+                ) -> tuple[float, float]:
     """The held-out error of the true model driven by the measured input, simulated as the
     declared model asks and as discover simulated (loop.simulation_for_fits): the lower; and
     the truth's spread, the largest over the smallest of its errors over those and
     SPREAD_SIMS, the same interpolation at rising rates (over about 1.2 the ideal is not a
-    sound reference: the truth is sensitive)."""
+    sound reference: the truth is sensitive). ``daq`` False: without the declared DAQ
+    filter (--daq's reference of the run without it)."""
     best, errs = math.inf, []
     own = {(m.interpolation, m.oversample), (r.model.interpolation, r.model.oversample)}
     for sim in own | set(SPREAD_SIMS):
         tm = dataclasses.replace(gen.truth_model(m, truth), outputs=m.outputs,
                                  interpolation=sim[0], oversample=sim[1],
-                                 daq_filter=r.model.daq_filter)
+                                 daq_filter=r.model.daq_filter if daq else None)
         tm = dataclasses.replace(tm, outputs={c: dataclasses.replace(
             o, offset=r.model.outputs[c].offset) for c, o in m.outputs.items()})
         if r.prediction == "open loop":  # the true model's own initial states, as discover's
