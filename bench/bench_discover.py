@@ -4,11 +4,15 @@ channels, the shake-table input and a best-linear declared model included, repor
 (JSON and the HTML page with its figures), wall time per case; target: under 60 s each on
 the 2-core CI machine. Writes bench/RESULTS.discover.md. Usage:
 
-    python3 bench/bench_discover.py [--repeat 1] [--only TEXT] [--out bench/RESULTS.discover.md]
+    python3 bench/bench_discover.py [--repeat 1] [--only TEXT] [--daq] [--out FILE]
+
+``--daq``: every declared model states the generator's anti-alias filter (8th-order
+Butterworth at 0.4 fs: simulation.daq_filter).
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
 import tempfile
 import time
@@ -104,6 +108,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--only", default="", help="run the cases whose name holds this text")
     ap.add_argument("--out", default=str(ROOT / "bench" / "RESULTS.discover.md"))
+    ap.add_argument("--daq", action="store_true",
+                    help="the declared models state the generator's anti-alias filter")
     a = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -111,6 +117,9 @@ def main() -> None:
             if a.only not in name:
                 continue
             m, recs = make()
+            if a.daq:  # synth.daq_filter("butter8")'s analog twin
+                m = dataclasses.replace(m, daq_filter=mdl.DaqFilter("butterworth", 8,
+                                                                    0.4 * (m.fs_hz or 640.0)))
             times, found = [], ""
             for _ in range(a.repeat):
                 t, found = run_case(m, recs, Path(tmp))

@@ -659,7 +659,8 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
     if declared.daq_filter is not None:
         f = declared.daq_filter
         s.notes.append(f"the declared DAQ filter ({f.type}, order {f.order}, {f.cutoff_hz:g} Hz) "
-                       "is divided out of the measured input and applied to the predictions"
+                       "is divided out of the measured input and applied to the predictions "
+                       "of every model with a nonlinear element (a linear one commutes with it)"
                        + ("; not in the observer's, which read the measured channels"
                           if prediction == "observer" else ""))
     floors = _floors(s, m, res_before, {}) if prediction == "observer" else open_floors

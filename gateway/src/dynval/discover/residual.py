@@ -21,6 +21,7 @@ from dynval import model as mdl
 from dynval.discover import noise
 from dynval.errors import ConfigError
 from dynval.io.recording import Recording
+from dynval.model import daq
 
 log = logging.getLogger(__name__)
 signal: Any = importlib.import_module("scipy.signal")
@@ -96,7 +97,7 @@ class TestData:
         """The input as m's simulations take it (mdl.simulate), interpolated once: a force or
         table acceleration without its sensor's noise under the excitation band
         (noise.simulated_input), and without m's DAQ filter when it declares one."""
-        key = (mdl.oversample_factor(m), m.daq_filter)
+        key = (mdl.oversample_factor(m), daq.applied(m))
         if key not in self._prepared:
             u = noise.simulated_input(m.input.kind, self.u, self.fs_hz)
             self._prepared[key] = mdl.prepare_input(m, u, fs_hz=self.fs_hz)

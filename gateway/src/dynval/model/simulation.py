@@ -481,9 +481,10 @@ def prepare_input(m: Model, force_or_motion: Any, oversample: int | None = None,
     filter divided out when it declares one (fs_hz, else m.fs_hz, is then needed)."""
     r = oversample_factor(m, oversample)
     u = force_or_motion
-    if m.daq_filter is not None:
-        u = daq.unmeasured(m.daq_filter, _core.as_doubles(u), _daq_rate(m, fs_hz))
-    return PreparedInput(_prepare_input(u, r), r, m.daq_filter)
+    f = daq.applied(m)
+    if f is not None:
+        u = daq.unmeasured(f, _core.as_doubles(u), _daq_rate(m, fs_hz))
+    return PreparedInput(_prepare_input(u, r), r, f)
 
 
 def _daq_rate(m: Model, fs_hz: float | None) -> float:
@@ -527,7 +528,7 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
     the last one, as dv_obs_simulate does)."""
     if not fs_hz > 0:
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
-    if m.daq_filter is not None:
+    if daq.applied(m) is not None:
         yield 0, _through_daq(m, force_or_motion, fs_hz, oversample)
         return
     r = oversample_factor(m, oversample)
@@ -589,7 +590,7 @@ def _through_daq(m: Model, force_or_motion: Any, fs_hz: float, oversample: int |
     whole record at once: driven by the input with the filter divided out (prepare_input),
     measured through it (daq.measured; a sensor's offset is not filtered: it was on before
     the record)."""
-    f = m.daq_filter
+    f = daq.applied(m)
     assert f is not None
     u = (force_or_motion if isinstance(force_or_motion, PreparedInput)
          else prepare_input(m, force_or_motion, oversample, fs_hz))
@@ -673,7 +674,7 @@ def simulate_batch(m: Model, force_or_motion: Any, fs_hz: float,
     a block-long buffer at the oversampled rate."""
     if not fs_hz > 0:
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
-    if m.daq_filter is not None:
+    if daq.applied(m) is not None:
         return _batch_through_daq(m, force_or_motion, fs_hz, param_sets, oversample,
                                   on_progress)
     r = oversample_factor(m, oversample)
