@@ -197,11 +197,12 @@ def sweep(rng: np.random.Generator) -> gen.Sweep:
 
 
 def run(seed: int, count: int = 1, only: str = "", free: bool = False,
-        swept: bool = False, dofs: int = 0, daq: bool = False) -> str:
+        swept: bool = False, dofs: int = 0, declare_daq: bool = False) -> str:
     """One blind case: its table row. ``count`` 2 draws two effects (another seed stream);
     ``free`` frees the chain from the ground (its own draws, after the structure's);
     ``swept`` drives every test with a swept sine (its own draws) instead of random noise;
-    ``dofs`` sets the chain's size (else 3-5)."""
+    ``dofs`` sets the chain's size (else 3-5); ``declare_daq``: the declared model states the
+    generator's anti-alias filter."""
     rng = np.random.default_rng((1000 if count <= 1 else 2000) + seed)
     m, table = structure(rng, dofs)
     if free:
@@ -219,7 +220,7 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False,
     if daq:
         cheap_daq(recs, rng)
     declared = gen.best_linear(m, recs) if bl else m
-    if daq:  # gen.daq_filter("butter8")'s analog twin
+    if declare_daq:  # gen.daq_filter("butter8")'s analog twin
         declared = dataclasses.replace(declared, daq_filter=mdl.DaqFilter("butterworth", 8,
                                                                           0.4 * FS))
     r = loop.discover(declared, recs)
@@ -238,7 +239,7 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False,
         got += f" (+{ties} as well supported)"
     ideal, spread = ideal_error(m, truth, r)
     ratio = r.after.total(r.held_names) / ideal
-    if daq:  # the same after-error against the ideal of a run without the filter
+    if declare_daq:  # the same after-error against the ideal of a run without the filter
         got += f" [{r.after.total(r.held_names) / ideal_error(m, truth, r, False)[0]:.2f} x " \
                "the ideal without it]"
     cond = ", ".join(c for c, on in (("free" if free and m.stiffness_n_per_m[0] == 0 else
