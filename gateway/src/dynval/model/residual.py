@@ -82,7 +82,8 @@ def residual(m: Model, rec: Recording, *, oversample: int | None = None, keep: b
     """measured - predicted for every model output the recording also has, with RMSE and
     NRMSE (RMSE / RMS of the measured channel). Simulated and summed in blocks of `block`
     samples (a multiple of _CHUNK): keep=False holds no series, so a long (memory-mapped)
-    record needs memory for a block only; the results do not depend on the block."""
+    record needs memory for a block only (a nonlinear model with a DAQ filter: for the whole
+    record, model/daq.py); the results do not depend on the block."""
     common = [c for c in m.outputs if c in rec.names]
     if not common:
         raise ConfigError(f"{rec.source or rec.name}: none of the model's outputs "

@@ -525,7 +525,8 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
     (_fine_block): bit for bit the whole record's result, in memory bounded by the block. The
     input may be memory-mapped: a block of it is read at a time. The cubic hold's samples,
     which the core completes a call late, are realigned across blocks (dv_obs_flush completes
-    the last one, as dv_obs_simulate does)."""
+    the last one, as dv_obs_simulate does). A model with a DAQ filter that takes part
+    (daq.applied) is simulated over the whole record and given as one block (_through_daq)."""
     if not fs_hz > 0:
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
     if daq.applied(m) is not None:
