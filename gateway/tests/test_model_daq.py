@@ -144,6 +144,12 @@ def test_an_input_prepared_for_one_filter_is_refused_by_another() -> None:
         mdl.simulate(m, prepared, FS)
     with pytest.raises(ConfigError, match="needs the sample rate"):
         mdl.prepare_input(dataclasses.replace(with_aa, fs_hz=None), u)
+    held = u.copy()
+    held[7] = np.nan  # a held sample of a first-order hold: the FFT would spread it
+    with pytest.raises(ConfigError, match="non-finite samples .1, the first at sample 7"):
+        mdl.simulate(dataclasses.replace(with_aa, interpolation="foh", oversample=1), held, FS)
+    with pytest.raises(ConfigError):
+        mdl.simulate(with_aa, u[:0], FS)
     # the observer reads the measured channels: it takes the input as measured
     y = mdl.simulate(m, u, FS)
     assert mdl.predict_observed(with_aa, mdl.prepare_input(m, u), y, FS, [1.0] * 4,

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from dynval.errors import ConfigError
 from dynval.model.schema import DaqFilter, Model
 
 _signal: Any = importlib.import_module("scipy.signal")
@@ -86,6 +87,10 @@ def unmeasured(f: DaqFilter, u: np.ndarray, fs_hz: float) -> np.ndarray:
     INVERSE_FLOOR (its content beyond dropped). The record is mirrored at both ends over the
     filter's ring (the input went on before and after it)."""
     u = np.asarray(u, dtype=np.float64)
+    bad = np.flatnonzero(~np.isfinite(u))
+    if bad.size:  # the FFT would spread it over the whole record
+        raise ConfigError(f"the DAQ filter cannot be divided out of an input with non-finite "
+                          f"samples ({bad.size}, the first at sample {int(bad[0])})")
     n = u.size
     pad = min(ring_samples(f, fs_hz), n - 1)
     x = np.pad(u, pad, mode="reflect") if pad > 0 else u
