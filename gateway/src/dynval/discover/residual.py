@@ -103,6 +103,11 @@ class TestData:
             self._prepared[key] = mdl.prepare_input(m, u, fs_hz=self.fs_hz)
         return self._prepared[key]
 
+    def observer_input(self, m: mdl.Model) -> mdl.PreparedInput:
+        """The input as m's observer takes it (mdl.predict_observed): as input_for, but with
+        no DAQ filter divided out (the observer corrects with the measured channels)."""
+        return self.input_for(dataclasses.replace(m, daq_filter=None))
+
     def observed(self) -> dict[str, np.ndarray]:
         """The channels as the observer reads them: without the offsets in demean (an
         accelerometer's offset it read would hold its state off and bias its errors on the
@@ -170,10 +175,8 @@ def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     """The model's open-loop (or observer) prediction, or None when the core refuses the
     model; on the channels in t.demean, with the test's own mean residual (acc_offsets.py)."""
     try:
-        # (the observer reads the measured channels: no DAQ filter in it)
-        bare = dataclasses.replace(m, daq_filter=None) if t.observer is not None else m
         p = (mdl.simulate(m, t.input_for(m), t.fs_hz) if t.observer is None else
-             mdl.predict_observed(m, t.input_for(bare), t.observed(), t.fs_hz,
+             mdl.predict_observed(m, t.observer_input(m), t.observed(), t.fs_hz,
                                   t.observer.q_force_n2, t.observer.r_meas))
     except ConfigError as exc:
         log.debug("%s: simulation refused: %s", t.name, exc)

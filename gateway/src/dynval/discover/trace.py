@@ -335,8 +335,7 @@ def _simulate_states(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
             return None
         names = list(probes)
         for i in range(0, len(names), per):
-            bare = dataclasses.replace(m, daq_filter=None)  # the observer's input
-            out.update(mdl.predict_observed(m, t.input_for(bare), t.y, t.fs_hz,
+            out.update(mdl.predict_observed(m, t.observer_input(m), t.y, t.fs_hz,
                                             t.observer.q_force_n2, t.observer.r_meas,
                                             {c: probes[c] for c in names[i:i + per]}))
     except DynvalError:

@@ -4,13 +4,13 @@ A linear model commutes with it: driven by the filtered input it predicts the fi
 outputs. A nonlinear element does not: its harmonics of the input band pass the filter on the
 rig, but in a simulation driven by the filtered input they are made from a filtered motion and
 never pass it. Measured on generated tests (the generator's 8th-order Butterworth at 0.4 fs, no
-noise), the true model's residual driven by the filtered input against driven by the input with
-the filter divided out and measured through it: a contact closing under a shake-table sweep
-0.67 -> 0.15 m/s^2 (the sensors' noise at 1 %: 0.16), a bumper 0.022 -> 0.0055 (noise 0.03), a
-friction joint 0.081 -> 0.054 (noise 0.02: most of its harmonics lie above the sample rate and
-alias, which no filtering at the samples can undo); a linear model the same to 3e-5 of the
-signal. The filter is applied by FFT over the whole record (what is left out: the DAQ's
-aliasing of harmonics above fs/2).
+noise, band-limited x 4), the true model's residual driven by the filtered input against driven
+by the input with the filter divided out and read through it: a contact closing under a
+shake-table sweep 0.66 -> 0.15 m/s^2 (the sensors' noise at 1 %: 0.16), a bumper 0.023 ->
+0.0086 (noise 0.03), a friction joint 0.081 -> 0.054 (noise 0.02: most of its harmonics lie
+above the sample rate and alias, which no filtering at the samples can undo). A linear model is
+left as it is (applied). The filter is applied by FFT over the whole record (what is left out:
+the DAQ's aliasing of harmonics above fs/2).
 """
 from __future__ import annotations
 

@@ -114,8 +114,8 @@ LINK_PARAMS = {"k_n_per_m": "N/m", "c_n_s_per_m": "N s/m"}
 class DaqFilter:
     """The DAQ's analog anti-alias low-pass, the same on every channel (input and outputs):
     ``type`` butterworth or bessel, ``order`` 1..MAX_DAQ_FILTER_ORDER, ``cutoff_hz`` its -3 dB
-    frequency. A model that declares it is driven by the measured input with the filter
-    divided out in band and measured through it (simulation.py, daq_filter_*): a nonlinear
+    frequency. A model with a nonlinear element that declares it is driven by the measured
+    input with the filter divided out in band and read through it (model/daq.py): the
     element's harmonics pass the filter on the rig, not in a simulation driven by the
     filtered input."""
 

@@ -276,12 +276,13 @@ def predict_observed(m: Model, u: Any, y: Mapping[str, np.ndarray], fs_hz: float
     linearly here). ``probes``: further outputs to predict (a DOF's displacement, velocity,
     acceleration) that measure nothing: the gain is the model's outputs' and the probes' own
     columns of it are zero, so they read the estimate the measurements make (the core's
-    output limit holds for outputs and probes together). ConfigError when the core refuses
+    output limit holds for outputs and probes together). A declared DAQ filter is not used:
+    the observer corrects with the measured channels and takes the input as measured (a
+    PreparedInput with the filter divided out is refused). ConfigError when the core refuses
     the noise model (e.g. an undetectable rigid-body mode) or the model runs away (naming the
     element that makes it)."""
     r = oversample_factor(m)
     fine = _prepared_fine(u, r) if isinstance(u, PreparedInput) else _prepare_input(u, r)
-    m = dataclasses.replace(m, daq_filter=None)  # corrected by the measured channels
     extra = dict(probes or {})
 
     def observe(mm: Model) -> tuple[int, np.ndarray]:
