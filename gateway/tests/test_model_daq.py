@@ -44,7 +44,10 @@ def test_the_declared_filter_is_read_written_and_refused_when_wrong() -> None:
                        ({"type": "bessel", "order": 4, "cutoff_hz": "high"}, "cutoff_hz"),
                        ({"type": "bessel", "order": 4}, "cutoff_hz"),
                        ({"type": "bessel", "order": 4, "cutoff_hz": 1.0, "q": 2}, "q"),
-                       ("butter8", "daq_filter")):
+                       ("butter8", "daq_filter"),
+                       # finite but out of reach: an overflowed polynomial, a 9e9-sample ring
+                       ({"type": "butterworth", "order": 12, "cutoff_hz": 1e300}, "cutoff_hz"),
+                       ({"type": "butterworth", "order": 12, "cutoff_hz": 1e-6}, "cutoff_hz")):
         d["simulation"]["daq_filter"] = bad
         with pytest.raises(ConfigError, match=rf"rig\.json.*{where}"):
             mdl.from_dict(d, "rig.json")
@@ -144,6 +147,11 @@ def test_an_input_prepared_for_one_filter_is_refused_by_another() -> None:
         mdl.simulate(m, prepared, FS)
     with pytest.raises(ConfigError, match="needs the sample rate"):
         mdl.prepare_input(dataclasses.replace(with_aa, fs_hz=None), u)
+    # the model's rate unknown, the test's: the same range checked where it simulates
+    far = dataclasses.replace(with_aa, fs_hz=None, daq_filter=mdl.DaqFilter("butterworth", 8,
+                                                                           1e300))
+    with pytest.raises(ConfigError, match=r"cutoff_hz: 1e\+300 Hz is outside 0.01..100 x"):
+        mdl.simulate(far, u, FS)
     held = u.copy()
     held[7] = np.nan  # a held sample of a first-order hold: the FFT would spread it
     with pytest.raises(ConfigError, match="non-finite samples .1, the first at sample 7"):

@@ -27,9 +27,21 @@ from dynval.model.schema import DaqFilter, Model
 _signal: Any = importlib.import_module("scipy.signal")
 _fft: Any = importlib.import_module("scipy.fft")
 
+# the cutoffs taken, as multiples of the sample rate: beyond them the filter's polynomial
+# overflows or its ring outgrows any record (a cutoff of 1e-6 Hz: 9e9 samples), and a filter
+# outside them does nothing at the samples (above) or leaves nothing to divide out (below)
+CUTOFF_RANGE = (0.01, 100.0)
 # below this gain the measured input is the filter's stop band (its noise and aliasing): not
 # divided out there (at most 20 dB of gain), the input's content there is dropped
 INVERSE_FLOOR = 0.1
+
+
+def cutoff_outside(f: DaqFilter, fs_hz: float) -> str:
+    """Why f's cutoff is not taken at the sample rate fs_hz ('' when it is: CUTOFF_RANGE)."""
+    lo, hi = CUTOFF_RANGE
+    if lo * fs_hz <= f.cutoff_hz <= hi * fs_hz:
+        return ""
+    return f"{f.cutoff_hz:g} Hz is outside {lo:g}..{hi:g} x the sample rate ({fs_hz:g} Hz)"
 
 
 def applied(m: Model) -> DaqFilter | None:

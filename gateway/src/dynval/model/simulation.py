@@ -492,6 +492,10 @@ def _daq_rate(m: Model, fs_hz: float | None) -> float:
     fs = fs_hz if fs_hz is not None else m.fs_hz
     if fs is None or not fs > 0:
         raise ConfigError(f"{m.source or '<model>'}: its DAQ filter needs the sample rate")
+    assert m.daq_filter is not None
+    why = daq.cutoff_outside(m.daq_filter, float(fs))
+    if why:
+        raise ConfigError(f"{m.source or '<model>'}: simulation.daq_filter.cutoff_hz: {why}")
     return float(fs)
 
 

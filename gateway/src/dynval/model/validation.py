@@ -14,6 +14,7 @@ import numpy as np
 
 from dynval import _core
 from dynval.errors import ConfigError
+from dynval.model import daq
 from dynval.model import elements as el
 from dynval.model.schema import (
     DAMPING_TYPES,
@@ -150,11 +151,11 @@ def validate(m: Model, ctx: Ctx | None = None) -> None:
     if m.fs_hz is not None and not m.fs_hz > 0:
         raise c.err("fs_hz", f"must be > 0, got {m.fs_hz!r}")
     if m.daq_filter is not None:
-        _check_daq_filter(m.daq_filter, c)
+        _check_daq_filter(m.daq_filter, m.fs_hz, c)
     _check_in_core(m, c)
 
 
-def _check_daq_filter(f: DaqFilter, c: Ctx) -> None:
+def _check_daq_filter(f: DaqFilter, fs_hz: float | None, c: Ctx) -> None:
     w = "simulation.daq_filter"
     if f.type not in DAQ_FILTER_TYPES:
         raise c.err(f"{w}.type", f"{f.type!r} is not one of {', '.join(DAQ_FILTER_TYPES)}")
@@ -162,6 +163,9 @@ def _check_daq_filter(f: DaqFilter, c: Ctx) -> None:
         raise c.err(f"{w}.order", f"must be 1..{MAX_DAQ_FILTER_ORDER}, got {f.order}")
     if not (math.isfinite(f.cutoff_hz) and f.cutoff_hz > 0):
         raise c.err(f"{w}.cutoff_hz", f"must be > 0 Hz, got {f.cutoff_hz!r}")
+    why = "" if fs_hz is None else daq.cutoff_outside(f, fs_hz)
+    if why:
+        raise c.err(f"{w}.cutoff_hz", why)
 
 
 def _check_in_core(m: Model, c: Ctx) -> None:
