@@ -428,3 +428,30 @@ def test_free_response_of_an_oscillator_is_the_damped_cosine(n: int) -> None:
     assert r.shape == (n, 1, 2)
     np.testing.assert_allclose(r[:, 0, 0], from_x, atol=1e-9)
     np.testing.assert_allclose(r[:, 0, 1], from_v, atol=1e-9 / wn)
+
+
+def test_a_model_simulated_again_reuses_its_core_bit_for_bit(force: np.ndarray) -> None:
+    """simulate() builds the core once for a model object simulated again (simulation._built:
+    a fit simulates one model per test): the same numbers as a fresh build, with another
+    model and a stick-slip element's state in between, and a record of several blocks
+    (streamed by simulate_blocks) keeps its own core while the same model runs meanwhile."""
+    m = dataclasses.replace(report_model(), elements=(
+        mdl.StickSlip(1, 2, 2e5, 5.0), BUMPER))
+    other = dataclasses.replace(m, elements=())
+    u2 = 0.5 * force[::-1].copy()
+    again = [mdl.simulate(m, x, 320.0) for x in (force, u2)]
+    mdl.simulate(other, force, 320.0)
+    again.append(mdl.simulate(m, force, 320.0))
+    fresh = [mdl.simulate(dataclasses.replace(m), x, 320.0) for x in (force, u2, force)]
+    for a, b in zip(again, fresh, strict=True):
+        for c in a:
+            assert np.array_equal(a[c], b[c])
+    long_u = np.tile(force, 3)
+    whole = mdl.simulate(dataclasses.replace(m), long_u, 320.0)
+    parts = []
+    for start, y in mdl.simulate_blocks(m, long_u, 320.0, block=force.size):
+        mdl.simulate(m, u2, 320.0)  # the same model object between the blocks
+        parts.append((start, y))
+    streamed = np.concatenate([y for _, y in parts])
+    for j, c in enumerate(m.outputs):
+        assert np.array_equal(streamed[:, j], whole[c])
