@@ -14,7 +14,10 @@ mode: it drifts open loop), driven by a force, half of them with an encoder at D
 ``--sweep``: every test a shaker's swept sine (synth.Sweep) instead of band-limited noise.
 ``--dofs N``: every chain N DOF (2, 6 or 7) instead of 3-5, the rest drawn as usual.
 ``--daq``: the declared model states the generator's anti-alias filter (8th-order Butterworth
-at 0.4 fs: simulation.daq_filter), and the ideal is simulated with it too.
+at 0.4 fs: simulation.daq_filter), and the ideal is simulated with it too. So is it where
+discover found a filter (the daq_filter effect: the generator's DAQ is the truth's measurement
+chain, and it is listed after the effects found, not counted among them); such a row also gives
+the after-error against the ideal without any filter.
 
     python3 bench/bench_discover_blind.py [--cases 16] [--first 0] [--effects 0|1|2]
         [--only KIND --out FILE] [--free] [--sweep] [--dofs N]
@@ -224,8 +227,13 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False,
         declared = dataclasses.replace(declared, daq_filter=mdl.DaqFilter("butterworth", 8,
                                                                           0.4 * FS))
     r = loop.discover(declared, recs)
-    phys = [e for e in r.effects if e["type"] != "sensor_offset"]
+    # the measurement chain's effects (the generator's DAQ has both an anti-alias filter and,
+    # when cheap, offsets): not the physical effects sought
+    phys = [e for e in r.effects if e["type"] not in ("sensor_offset", "daq_filter")]
     got = "; ".join(f"{e['type']} {e['location']}" for e in phys) or "no effect"
+    got += "".join(f" [+ DAQ filter, order {e['location']['order']}, "
+                   f"{e['parameters']['cutoff_hz']['value']:.0f} Hz]"
+                   for e in r.effects if e["type"] == "daq_filter")
     # the best-linear fit re-fits k2..kn: a lost story stiffness there is in the declared model
     absorbed = [w for w in wants if bl and w["type"] == "stiffness_change" and w["story"] >= 2]
     sought = [w for w in wants if w not in absorbed]
@@ -239,7 +247,7 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False,
         got += f" (+{ties} as well supported)"
     ideal, spread = ideal_error(m, truth, r)
     ratio = r.after.total(r.held_names) / ideal
-    if declare_daq:  # the same after-error against the ideal of a run without the filter
+    if r.model.daq_filter is not None:  # declared or found: also against the truth without it
         got += f" [{r.after.total(r.held_names) / ideal_error(m, truth, r, False)[0]:.2f} x " \
                "the ideal without it]"
     cond = ", ".join(c for c, on in (("free" if free and m.stiffness_n_per_m[0] == 0 else

@@ -627,6 +627,8 @@ def _hold_gap(s: Session, declared: mdl.Model, res_fast: dict[str, dict[str, np.
 def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
               on_progress: Callable[[str], None] | None) -> DiscoverResult:
     t_start = time.perf_counter()
+    if declared.fs_hz is None and recs:  # the rate a DAQ filter's cutoff is relative to
+        declared = dataclasses.replace(declared, fs_hz=float(recs[0].fs_hz))
     m, sim_note = simulation_for_fits(declared, o)
     s = make_session(m, recs, o)
     s.notes += acc_offsets.apply(m, s.tests, s.evals, s.chans)

@@ -59,6 +59,11 @@ class Observer:
     r_meas: dict[str, float]
 
 
+# prepared inputs a test keeps (TestData.input_for): the declared and the observer's, and the
+# last few of a fit that moves the DAQ filter's cutoff (each of them a record's worth)
+PREPARED_KEPT = 4
+
+
 @dataclass
 class TestData:
     """One test prepared for repeated simulation: its input and measured channels. A view of
@@ -98,10 +103,14 @@ class TestData:
         table acceleration without its sensor's noise under the excitation band
         (noise.simulated_input), and without m's DAQ filter when it declares one."""
         key = (mdl.oversample_factor(m), daq.applied(m))
-        if key not in self._prepared:
+        prepared = self._prepared.pop(key, None)  # put back last: the least recently used
+        if prepared is None:                      # is first, and goes when there are more
             u = noise.simulated_input(m.input.kind, self.u, self.fs_hz)
-            self._prepared[key] = mdl.prepare_input(m, u, fs_hz=self.fs_hz)
-        return self._prepared[key]
+            prepared = mdl.prepare_input(m, u, fs_hz=self.fs_hz)
+            if len(self._prepared) >= PREPARED_KEPT:
+                del self._prepared[next(iter(self._prepared))]
+        self._prepared[key] = prepared
+        return prepared
 
     def observer_input(self, m: mdl.Model) -> mdl.PreparedInput:
         """The input as m's observer takes it (mdl.predict_observed): as input_for, but with

@@ -22,7 +22,8 @@ law evaluated by the core (dv_elem_force_block), never a copy of it. ``available
 (ranked on evidence, never fitted) is left for effect types the model cannot represent.
 
 The modules: base (the EffectType base, the candidate, the states and what the types share),
-declared (changes of declared parameters: stiffness, mass, damping, sensor gain and offset),
+declared (changes of declared parameters: stiffness, mass, damping, sensor gain and offset,
+the DAQ's anti-alias filter),
 elements (new model elements), appendage (a new DOF); this package holds the library.
 """
 from __future__ import annotations
@@ -49,6 +50,7 @@ from dynval.discover.effects.base import (
 )
 from dynval.discover.effects.declared import (
     DampingChange,
+    DaqAntiAlias,
     MassChange,
     SensorGain,
     SensorOffset,
@@ -66,6 +68,7 @@ from dynval.discover.effects.elements import (
 
 __all__ = [
     "LIBRARY", "NONE", "Appendage", "Candidate", "Contact", "CubicStiffness", "DampingChange",
+    "DaqAntiAlias",
     "EffectType", "ForceOffset", "Friction", "MassChange", "NoEffect", "Param", "SensorGain",
     "SensorOffset", "States", "StickSlipFriction", "StiffnessChange", "VelocitySquaredDamping",
     "appendage_motion", "by_type", "catalogue", "damping_params", "describe", "drift",
@@ -77,7 +80,7 @@ log = logging.getLogger(__name__)
 LIBRARY: tuple[EffectType, ...] = (
     Contact(), StiffnessChange(), MassChange(), DampingChange(), SensorGain(), SensorOffset(),
     Friction(), StickSlipFriction(), CubicStiffness(), VelocitySquaredDamping(), ForceOffset(),
-    Appendage())
+    Appendage(), DaqAntiAlias())
 NONE = NoEffect()
 
 

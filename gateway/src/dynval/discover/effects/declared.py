@@ -266,3 +266,51 @@ class SensorOffset(EffectType):
         outs = dict(m.outputs)
         outs[c] = dataclasses.replace(outs[c], offset=float(values[0]))
         return dataclasses.replace(m, outputs=outs)
+
+
+class DaqAntiAlias(EffectType):
+    """The DAQ's anti-alias low-pass on every channel (Model.daq_filter), when the model does
+    not declare it: a nonlinear element's harmonics pass it on the rig but not in a
+    simulation driven by the filtered input (model/daq.py). Offered once the model holds a
+    nonlinear element (a linear one commutes with the filter: the tests cannot see it) and
+    the tests' rate is known; its cutoff fitted for each order."""
+
+    type = "daq_filter"
+    location_kind = "measurement chain"
+    law = ("every channel (input and outputs) read through an analog Butterworth low-pass of "
+           "the given order, -3 dB at f_c: a nonlinear element's harmonics near and above f_c "
+           "are attenuated on the rig (model simulation.daq_filter)")
+    ORDERS = (2, 4, 8)
+    # cutoffs as multiples of the sample rate: the search range and the screened starts
+    RANGE = (0.05, 1.0)
+    STARTS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.7)
+    PROBE = 0.3  # the cutoff of the probe that gives the evidence (first order)
+
+    def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
+        if m.daq_filter is not None or not m.elements or not m.fs_hz:
+            return []
+        return [{"filter": "butterworth", "order": k} for k in self.ORDERS]
+
+    def label(self, loc: dict[str, Any]) -> str:
+        return f"DAQ anti-alias filter, Butterworth order {loc['order']}"
+
+    def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
+        return []  # the views see forces, not the measurement chain: judged by probe()
+
+    def probe(self, m: mdl.Model, cand: Candidate, amount: float) -> mdl.Model | None:
+        return self.apply(m, cand, [self.PROBE * float(m.fs_hz or 0.0)])
+
+    def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
+        fs = float(m.fs_hz or 0.0)
+        return [Param("cutoff_hz", "Hz", self.RANGE[0] * fs, self.RANGE[1] * fs, log=True)]
+
+    def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
+        return [self.PROBE * float(m.fs_hz or 0.0)]
+
+    def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        return [[r * float(m.fs_hz or 0.0)] for r in self.STARTS]
+
+    def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
+        f = mdl.DaqFilter(str(cand.location["filter"]), int(cand.location["order"]),
+                          float(values[0]))
+        return dataclasses.replace(m, daq_filter=f)

@@ -1,0 +1,75 @@
+"""The DAQ's anti-alias filter as an effect discover finds (effects.DaqAntiAlias): a nonlinear
+element's harmonics pass the rig's filter, not a simulation driven by the filtered input, so a
+right nonlinear model whose filter is not declared leaves a residual the filter explains. On
+the generator's tests (its DAQ: an 8th-order Butterworth at 0.4 fs) of a contact under a
+shake-table sweep, discover must name the filter with a cutoff near the generator's and end
+within 1.3 x the held-out error of the true model with that filter declared."""
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from dynval import model as mdl
+from dynval import synth
+from dynval.discover import effects as fx
+from dynval.discover import loop
+from dynval.discover import residual as rs
+
+FS = 640.0
+AA = mdl.DaqFilter("butterworth", 8, 0.4 * FS)  # synth.daq_filter("butter8")'s analog twin
+
+
+def table_chain() -> mdl.Model:
+    return mdl.Model(masses_kg=(6.5, 6.6, 6.7, 6.8), stiffness_n_per_m=(4e5,) * 4,
+                     damping=mdl.Damping("modal", (0.01, 0.02, 0.01, 0.015)),
+                     input=mdl.Input("ground_acc", 0, "table_mps2"),
+                     outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, 5)},
+                     fs_hz=FS)
+
+
+def test_the_filter_is_offered_only_where_the_tests_can_see_it() -> None:
+    """A linear model commutes with the filter, a declared filter is there already, and a
+    cutoff needs the sample rate: no candidate then; else one per order."""
+    m = table_chain()
+    with_contact = dataclasses.replace(m, elements=(mdl.Contact(1, 2, 1e-4, 1e-4, 1e6),))
+
+    def offered(mm: mdl.Model) -> list[str]:
+        return [c.label for c in fx.catalogue(mm) if c.type == "daq_filter"]
+
+    assert offered(m) == []
+    assert offered(dataclasses.replace(with_contact, daq_filter=AA)) == []
+    assert offered(dataclasses.replace(with_contact, fs_hz=None)) == []
+    assert offered(with_contact) == [f"DAQ anti-alias filter, Butterworth order {k}"
+                                     for k in fx.DaqAntiAlias.ORDERS]
+    cand = fx.catalogue(with_contact)[-1]
+    (p,) = fx.by_type("daq_filter").params(with_contact, cand)
+    assert (p.lower, p.upper) == (0.05 * FS, FS)
+    assert fx.by_type("daq_filter").apply(with_contact, cand, [200.0]).daq_filter == \
+        mdl.DaqFilter("butterworth", 8, 200.0)
+
+
+def test_discover_names_the_filter_a_right_nonlinear_model_lacks() -> None:
+    """The true model (a contact across story 2) declared without its DAQ filter: the filter is
+    the effect found, its cutoff within 15 % of the generator's -3 dB point (measured: order
+    8 at 268 Hz for the generator's 8 at 256; the 6-DOF bench case took order 4 at 268 Hz:
+    the order is known only as far as the harmonics reach), and the held-out error within
+    1.3 x that of the true model with the generator's filter declared (measured 1.09 x:
+    0.00191 against 0.00176, from 0.00774 before); the model written keeps it."""
+    m = table_chain()
+    truth = synth.Truth(elements=(mdl.Contact(1, 2, 1.5e-4, 5e-5, 8e5),))
+    recs = synth.generate(m, truth, n_tests=4, n_samples=4096, seed=11,
+                          levels_n_rms=(3.0, 1.8), excitation=synth.Sweep(8.0, 200.0))
+    declared = dataclasses.replace(synth.truth_model(m, truth), outputs=m.outputs,
+                                   interpolation="bandlimited", oversample=4)
+    r = loop.discover(declared, recs, loop.Options(workers=1, max_effects=1))
+    (found,) = r.effects
+    assert found["type"] == "daq_filter", [e["label"] for e in r.effects]
+    cutoff = found["parameters"]["cutoff_hz"]["value"]
+    assert cutoff == pytest.approx(AA.cutoff_hz, rel=0.15)
+    assert r.model.daq_filter is not None
+    assert r.model.daq_filter.cutoff_hz == pytest.approx(cutoff)
+    ideal = dataclasses.replace(r.model, daq_filter=AA, elements=declared.elements)
+    tab, _ = rs.error_table(ideal, r.tests, r.chans, r.scales)
+    assert r.after.total(r.held_names) <= 1.3 * tab.total(r.held_names)
+    assert r.after.total(r.held_names) < 0.8 * r.before.total(r.held_names)
