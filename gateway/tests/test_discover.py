@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from generated import sought
 
 from dynval import cli
 from dynval import model as mdl
@@ -49,8 +50,9 @@ def run(truth: gen.Truth, seed: int, n_samples: int = N_SAMPLES) -> loop.Discove
 
 
 def only_effect(r: loop.DiscoverResult) -> dict[str, Any]:
-    assert len(r.effects) == 1, [e["label"] for e in r.effects]
-    return r.effects[0]
+    found = sought(r.effects)
+    assert len(found) == 1, [e["label"] for e in r.effects]
+    return found[0]
 
 
 def held_reduction(r: loop.DiscoverResult) -> float:

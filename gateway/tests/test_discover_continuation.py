@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from generated import sought
 
 from dynval import model as mdl
 from dynval import synth
@@ -83,8 +84,9 @@ def test_a_contact_under_a_sweep_on_a_best_linear_model_ends_at_the_ideal() -> N
     declared = synth.best_linear(truth, recs)
     assert mdl.natural_frequencies(declared)[3] > 1.08 * mdl.natural_frequencies(truth)[3]
     r = loop.discover(declared, recs)
-    assert [(e["type"], e["location"]["between"]) for e in r.effects] == [("contact", [1, 2])]
-    got = {k: v["value"] for k, v in r.effects[0]["parameters"].items()}
+    assert [(e["type"], e["location"]["between"]) for e in sought(r.effects)] == [
+        ("contact", [1, 2])]
+    got = {k: v["value"] for k, v in sought(r.effects)[0]["parameters"].items()}
     assert got["gap_m"] == pytest.approx(1.5e-4, rel=0.1)
     assert got["kb_n_per_m"] == pytest.approx(8e5, rel=0.1)
     ideal, _ = rs.error_table(dataclasses.replace(truth, elements=(el,)), r.tests, r.chans,

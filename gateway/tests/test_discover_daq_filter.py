@@ -73,3 +73,23 @@ def test_discover_names_the_filter_a_right_nonlinear_model_lacks() -> None:
     tab, _ = rs.error_table(ideal, r.tests, r.chans, r.scales)
     assert r.after.total(r.held_names) <= 1.3 * tab.total(r.held_names)
     assert r.after.total(r.held_names) < 0.8 * r.before.total(r.held_names)
+
+
+def test_the_verdict_names_the_structure_first_then_the_measurement_chain() -> None:
+    """A DAQ's filter, gains and offsets are the measurement chain's: the verdict names them
+    after the structure's effects, whatever the order they were found in (sensor offsets are
+    taken before the rounds)."""
+    from dynval.discover import report
+
+    def entry(kind: str, label: str) -> dict[str, object]:
+        return {"type": kind, "label": label, "alternatives": []}
+
+    found = [entry("sensor_offset", "sensor offsets, channels a1"),
+             entry("contact", "contact, story 2"),
+             entry("daq_filter", "DAQ anti-alias filter, Butterworth order 8")]
+    assert [e["type"] for e in fx.structural(found)] == ["contact"]
+    assert report._verdict(found, {}, None) == (
+        "the model lacks: contact, story 2; in its measurements: sensor offsets, channels a1; "
+        "DAQ anti-alias filter, Butterworth order 8")
+    assert report._verdict(found[:1], {}, None) == (
+        "the model lacks: in its measurements: sensor offsets, channels a1")

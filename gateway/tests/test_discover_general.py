@@ -13,6 +13,7 @@ import json
 from pathlib import Path
 
 import pytest
+from generated import sought
 
 from dynval import cli
 from dynval import model as mdl
@@ -95,7 +96,7 @@ def test_cli_two_dof_one_sensor(tmp_path: Path, truth: gen.Truth,
     if want is None:
         assert doc["effects"] == []
         return
-    (e,) = doc["effects"]
+    (e,) = sought(doc["effects"])
     assert e["type"] == want[0]
     assert {k: e["location"][k] for k in want[1]} == want[1]
     assert e["parameters"][param]["value"] == pytest.approx(value, rel=rel)

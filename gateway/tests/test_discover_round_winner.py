@@ -69,7 +69,7 @@ def test_a_special_case_of_the_winner_is_not_a_tie() -> None:
 
 def test_the_verdict_names_the_ties() -> None:
     alt = [{"label": f"appendage, DOF {d}"} for d in range(1, 6)]
-    eff = {"label": "stiffness change, story 1"}
+    eff = {"type": "stiffness_change", "label": "stiffness change, story 1"}
     assert report._verdict([{**eff, "alternatives": []}], {}, None) == (
         "the model lacks: stiffness change, story 1")
     assert report._verdict([{**eff, "alternatives": alt[:2]}], {}, None) == (

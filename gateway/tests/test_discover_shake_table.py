@@ -8,6 +8,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from generated import sought
 from test_discover_noise import pink
 
 from dynval import model as mdl
@@ -47,8 +48,9 @@ def test_shake_table_friction_joint_is_found_and_fitted() -> None:
     recs = gen.generate(m, gen.Truth(elements=(mdl.Friction(1, 2, 2.0, 1e-4),)), n_tests=6,
                         seed=3, levels_n_rms=(3.0, 1.8))
     r = loop.discover(m, recs)
-    assert [(e["type"], e["location"]["between"]) for e in r.effects] == [("friction", [1, 2])]
-    assert r.effects[0]["parameters"]["force_n"]["value"] == pytest.approx(2.0, rel=0.1)
+    assert [(e["type"], e["location"]["between"]) for e in sought(r.effects)] == [
+        ("friction", [1, 2])]
+    assert sought(r.effects)[0]["parameters"]["force_n"]["value"] == pytest.approx(2.0, rel=0.1)
     assert r.after.total(r.held_names) < 0.05 * r.before.total(r.held_names)
 
 
@@ -126,8 +128,9 @@ def test_a_joint_on_a_table_with_its_dof_unmeasured_is_found() -> None:
     recs = gen.generate(part, gen.Truth(elements=(el,)), n_tests=6, n_samples=4096, seed=3,
                         levels_n_rms=(3.0, 1.8))
     r = loop.discover(part, recs)
-    assert [(e["type"], e["location"]["between"]) for e in r.effects] == [("friction", [1, 2])]
-    assert r.effects[0]["parameters"]["force_n"]["value"] == pytest.approx(2.0, rel=0.1)
+    assert [(e["type"], e["location"]["between"]) for e in sought(r.effects)] == [
+        ("friction", [1, 2])]
+    assert sought(r.effects)[0]["parameters"]["force_n"]["value"] == pytest.approx(2.0, rel=0.1)
     ideal, _ = rs.error_table(dataclasses.replace(part, elements=(el,)), r.tests, r.chans,
                               r.scales)
     assert r.after.total(r.held_names) < 1.3 * ideal.total(r.held_names)

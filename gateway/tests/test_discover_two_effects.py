@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 
 import pytest
+from generated import sought
 
 from dynval import model as mdl
 from dynval import synth as gen
@@ -66,7 +67,7 @@ def test_friction_and_an_appendage_at_one_dof_are_both_found() -> None:
     recs = gen.generate(m, gen.Truth(elements=(fr,), appendages=(app,)), n_tests=6,
                         n_samples=4096, seed=6)
     r = loop.discover(m, recs)
-    found = sorted((e["type"], str(e["location"].get("dof"))) for e in r.effects)
+    found = sorted((e["type"], str(e["location"].get("dof"))) for e in sought(r.effects))
     assert found == [("appendage", "3"), ("friction", "3")]
     fric = next(e for e in r.effects if e["type"] == "friction")
     assert fric["parameters"]["force_n"]["value"] == pytest.approx(1.4, rel=0.1)

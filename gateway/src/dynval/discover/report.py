@@ -82,7 +82,12 @@ def _verdict(effects: list[dict[str, Any]], unexplained: dict[str, Any],
     and the last round (its ratios and decision). The worst channel is the largest finite
     RMSE / noise: a channel without a floor (NaN) is left out wherever it sits."""
     if effects:
-        return ("the model lacks: " + "; ".join(_with_ties(e) for e in effects)
+        structure = fx.structural(effects)
+        chain = [e for e in effects if e not in structure]
+        return ("the model lacks: " + "; ".join(_with_ties(e) for e in structure)
+                + ("; " if structure and chain else "")
+                + ("in its measurements: " + "; ".join(_with_ties(e) for e in chain)
+                   if chain else "")
                 + (f" (a residual above the noise floor remains: {unexplained['summary']})"
                    if unexplained else ""))
     worst = rs.worst_ratio(last.ratio, math.nan) if last is not None else math.nan

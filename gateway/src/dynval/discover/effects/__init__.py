@@ -73,7 +73,7 @@ __all__ = [
     "SensorOffset", "States", "StickSlipFriction", "StiffnessChange", "VelocitySquaredDamping",
     "appendage_motion", "by_type", "catalogue", "damping_params", "describe", "drift",
     "pair_basis", "pair_label", "pairs", "readjust_every_stiffness", "readjust_local",
-    "relative", "rigid_body_like"]
+    "relative", "rigid_body_like", "structural"]
 
 log = logging.getLogger(__name__)
 
@@ -122,6 +122,13 @@ def catalogue(m: mdl.Model, quiet: bool = False) -> list[Candidate]:
             log.info("effect type %s: %s", e.type, e.note)
         out.extend(cs)
     return out
+
+
+def structural(entries: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The effect entries (discover's JSON ``effects``) of the structure, without those of
+    its measurement chain (EffectType.measurement_chain: sensor gains and offsets, the DAQ's
+    filter)."""
+    return [e for e in entries if not by_type(e["type"]).measurement_chain]
 
 
 def describe() -> list[dict[str, Any]]:

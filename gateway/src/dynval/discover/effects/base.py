@@ -211,6 +211,9 @@ class EffectType:
     # it shifts one by more than the mode's bandwidth, so the loop screens every candidate of
     # it by simulation (its starts and scan_starts, one simulation each)
     moves_modes = False
+    # an effect of the DAQ (a sensor's gain or offset, the anti-alias filter), not of the
+    # structure: the verdict names the structure's first (effects.structural)
+    measurement_chain = False
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         raise NotImplementedError

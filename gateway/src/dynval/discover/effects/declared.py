@@ -180,6 +180,7 @@ class DampingChange(EffectType):
 
 class SensorGain(EffectType):
     type = "sensor_gain"
+    measurement_chain = True
     location_kind = "channel"
     law = "the channel reads g x the quantity (calibration error); handled on the output"
 
@@ -228,6 +229,7 @@ class SensorGain(EffectType):
 
 class SensorOffset(EffectType):
     type = "sensor_offset"
+    measurement_chain = True
     location_kind = "channel"
     law = ("the channel reads its quantity + b (a DC offset of the sensor or its amplifier); "
            "handled on the output")
@@ -276,6 +278,7 @@ class DaqAntiAlias(EffectType):
     the tests' rate is known; its cutoff fitted for each order."""
 
     type = "daq_filter"
+    measurement_chain = True
     location_kind = "measurement chain"
     law = ("every channel (input and outputs) read through an analog Butterworth low-pass of "
            "the given order, -3 dB at f_c: a nonlinear element's harmonics near and above f_c "
