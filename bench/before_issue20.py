@@ -18,7 +18,9 @@ from dynval import synth
 from dynval.validate import doe, study
 
 log = logging.getLogger("before_issue20")
-MODEL = Path("/work/shared/data/synthetic/lanl4dof-clean/declared_model.json")
+# the data beside the repository (../shared, as the README says)
+MODEL = (Path(__file__).resolve().parents[2] / "shared" / "data" / "synthetic" / "lanl4dof-clean"
+         / "declared_model.json")
 SPECS = ("peak,std@acc3,acc4", "std@acc3,acc4")
 OPTIONS = {"method": "both", "runs": 40, "walkers": 16, "steps": 600, "direct_walkers": 8,
            "direct_steps": 120, "holdout": 2}

@@ -17,7 +17,9 @@ from dynval import model as mdl
 from dynval.validate import montecarlo as mc
 
 log = logging.getLogger("calibrate_coverage")
-MODEL = Path("/work/shared/data/synthetic/lanl4dof-clean/declared_model.json")
+# the data beside the repository (../shared, as the README says)
+MODEL = (Path(__file__).resolve().parents[2] / "shared" / "data" / "synthetic" / "lanl4dof-clean"
+         / "declared_model.json")
 OPTIONS = {"method": "both", "runs": 40, "walkers": 16, "steps": 600, "direct_walkers": 8,
            "direct_steps": 120, "holdout": 2}
 

@@ -16,7 +16,9 @@ from dynval.validate import montecarlo as mc
 
 log = logging.getLogger("validate_error_rates")
 SPECS = ("peak,std@acc3,acc4", "segstd64@acc4", "kurt@acc4")
-MODEL = Path("/work/shared/data/synthetic/lanl4dof-clean/declared_model.json")
+# the data beside the repository (../shared, as the README says)
+MODEL = (Path(__file__).resolve().parents[2] / "shared" / "data" / "synthetic" / "lanl4dof-clean"
+         / "declared_model.json")
 
 
 def main() -> None:
