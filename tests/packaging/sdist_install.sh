@@ -41,6 +41,10 @@ for f in csrc/CMakeLists.txt csrc/include/dynval/dv.h csrc/src/dv_moments.c \
     grep -q "^dynval-[^/]*/$f$" <<<"$listing" || { echo "sdist: $f missing"; exit 1; }
 done
 if grep -q '\.so$' <<<"$listing"; then echo "sdist: holds a built library"; exit 1; fi
+# no tool's cache: CI builds the sdist while mypy and pytest write theirs
+if grep -qE '/(\.mypy_cache|\.ruff_cache|\.pytest_cache|__pycache__|node_modules)/' <<<"$listing"; then
+    echo "sdist: holds a cache"; exit 1
+fi
 
 "$other" -m venv "$work/venv"
 # the tested versions (requirements-lock.txt) where they exist for that Python
