@@ -564,10 +564,10 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
                             for j, o in enumerate(m.outputs.values())], axis=1)
 
     dt = 1.0 / (fs_hz * r)
-    # a record of several blocks keeps its own core: another simulation of m between its
-    # blocks (this is a generator) would reset a shared one's state
-    core = _built(m, dt) if n <= block else _Core(m, dt)
-    if n > block:
+    if n <= block:
+        core = _built(m, dt)
+    else:  # its own core: another simulation of m between the blocks (this is a generator)
+        core = _Core(m, dt)  # would reset a shared one's state
         core.build(m, refill=False)
     held: tuple[int, np.ndarray, np.ndarray] | None = None  # a block awaiting its last row
     n_bad = 0

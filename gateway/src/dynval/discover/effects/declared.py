@@ -300,18 +300,22 @@ class DaqAntiAlias(EffectType):
     def basis(self, st: States, cand: Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
         return []  # the views see forces, not the measurement chain: judged by probe()
 
+    @staticmethod
+    def _fs(m: mdl.Model) -> float:
+        return float(m.fs_hz or 0.0)  # set wherever the filter is offered (locations)
+
     def probe(self, m: mdl.Model, cand: Candidate, amount: float) -> mdl.Model | None:
-        return self.apply(m, cand, [self.PROBE * float(m.fs_hz or 0.0)])
+        return self.apply(m, cand, self.initial(m, cand, amount))
 
     def params(self, m: mdl.Model, cand: Candidate) -> list[Param]:
-        fs = float(m.fs_hz or 0.0)
-        return [Param("cutoff_hz", "Hz", self.RANGE[0] * fs, self.RANGE[1] * fs, log=True)]
+        lo, hi = (r * self._fs(m) for r in self.RANGE)
+        return [Param("cutoff_hz", "Hz", lo, hi, log=True)]
 
     def initial(self, m: mdl.Model, cand: Candidate, amp: float) -> list[float]:
-        return [self.PROBE * float(m.fs_hz or 0.0)]
+        return [self.PROBE * self._fs(m)]
 
     def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
-        return [[r * float(m.fs_hz or 0.0)] for r in self.STARTS]
+        return [[r * self._fs(m)] for r in self.STARTS]
 
     def apply(self, m: mdl.Model, cand: Candidate, values: Sequence[float]) -> mdl.Model:
         f = mdl.DaqFilter(str(cand.location["filter"]), int(cand.location["order"]),
