@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -87,6 +88,26 @@ def test_a_map_inside_a_workers_task_runs_in_that_worker() -> None:
         assert len(set(inner)) == 1 and inner[0] != os.getpid()
 
 
+def _pid_vector(z: np.ndarray) -> np.ndarray:
+    return np.array([z[0], z[0] ** 2, float(os.getpid())])
+
+
+def test_a_point_map_keeps_its_workers_and_returns_the_serial_vectors() -> None:
+    pts = [np.array([float(i)]) for i in range(5)]
+    with parallel.PointMap(_pid_vector, 2) as pm:
+        first = pm(pts, 3).copy()
+        again = pm(pts[:3], 3).copy()
+    assert np.array_equal(first[:, :2], [[i, i * i] for i in range(5)])
+    assert np.array_equal(again[:, :2], first[:3, :2])
+    pids = set(first[:, 2]) | set(again[:, 2])
+    assert os.getpid() not in pids and 1 <= len(pids) <= 2  # the same forked workers
+    with parallel.PointMap(_pid_vector, 1) as pm:  # one worker: here, the same numbers
+        here = pm(pts, 3)
+    assert np.array_equal(here[:, :2], first[:, :2]) and set(here[:, 2]) == {os.getpid()}
+    with parallel.PointMap(_pid_vector, 2) as pm, pytest.raises(ValueError, match="shape"):
+        pm(pts, 4)  # a vector of another length than announced
+
+
 def _curved(z: np.ndarray) -> np.ndarray:
     return np.array([np.sin(3 * z[0]) * z[1], np.exp(z[1]) - z[0] ** 2, z[0] * z[1] * z[2]])
 
@@ -96,12 +117,15 @@ def test_forward_jacobian_is_scipys_two_point_scheme(workers: int) -> None:
     # the same columns as scipy's '2-point' differences with diff_step 1e-3 inside [0, 1]: at 0,
     # inside, and a backward step at the upper bound (z[2] = 0.9995)
     z = np.array([0.3, 0.0, 0.9995])
-    fun, jac = ft.forward_jacobian(_curved, workers)
-    f0 = fun(z)
-    ref = approx_derivative(_curved, z, method="2-point", rel_step=1e-3, f0=f0,
-                            bounds=(0.0, 1.0))
-    assert np.array_equal(jac(z), ref)
-    assert not np.array_equal(jac(z), approx_derivative(_curved, z, method="3-point"))
+    with ft.forward_jacobian(_curved, workers) as (fun, jac):
+        f0 = fun(z)
+        ref = approx_derivative(_curved, z, method="2-point", rel_step=1e-3, f0=f0,
+                                bounds=(0.0, 1.0))
+        assert np.array_equal(jac(z), ref)
+        other = np.array([0.5, 0.25, 0.75])  # a second Jacobian on the same workers
+        assert np.array_equal(jac(other), approx_derivative(_curved, other, method="2-point",
+                                                            rel_step=1e-3, bounds=(0.0, 1.0)))
+        assert not np.array_equal(jac(z), approx_derivative(_curved, z, method="3-point"))
 
 
 def test_a_restart_at_the_last_jacobians_point_costs_no_evaluation() -> None:
@@ -113,7 +137,13 @@ def test_a_restart_at_the_last_jacobians_point_costs_no_evaluation() -> None:
         calls.append(z.copy())
         return _curved(z)
 
-    fun, jac = ft.forward_jacobian(counted, 1)
+    with ft.forward_jacobian(counted, 1) as (fun, jac):
+        _restart_costs_nothing(fun, jac, calls)
+
+
+def _restart_costs_nothing(fun: Callable[[np.ndarray], np.ndarray],
+                           jac: Callable[[np.ndarray], np.ndarray],
+                           calls: list[np.ndarray]) -> None:
     z = np.array([0.3, 0.2, 0.6])
     j = jac(z)
     assert len(calls) == 4  # fun at z, then one column each

@@ -13,11 +13,12 @@ residual's sample count replaced by an effective count that accounts for its aut
 """
 from __future__ import annotations
 
+import contextlib
 import importlib
 import logging
 import math
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -267,17 +268,19 @@ def temper(m: mdl.Model, cand: fx.Candidate, init: Sequence[float],
 DIFF_STEP = 1e-3  # forward-difference step relative to the [0, 1] coordinate's value
 
 
+@contextlib.contextmanager
 def forward_jacobian(fun: Callable[[np.ndarray], np.ndarray], workers: int
-                     ) -> tuple[Callable[[np.ndarray], np.ndarray],
-                                Callable[[np.ndarray], np.ndarray]]:
-    """(fun remembering its last point, the Jacobian of fun) for least_squares on [0, 1]:
-    scipy's '2-point' differences with rel_step DIFF_STEP (step DIFF_STEP x z, sqrt(eps) at
-    z = 0, backward where it would leave the bounds), the same columns, but on up to
-    ``workers`` processes instead of one after the other. The value at the point itself is the
-    first's last one (least_squares evaluates fun there just before the Jacobian) when the
-    point is the same. The last Jacobian, and fun at its point, are kept: a fit restarted
-    from where it stopped (_solve) starts with both, the same numbers without recomputing
-    them (the bumper case: 6.8 % of its simulations)."""
+                     ) -> Iterator[tuple[Callable[[np.ndarray], np.ndarray],
+                                         Callable[[np.ndarray], np.ndarray]]]:
+    """(fun remembering its last point, the Jacobian of fun) for least_squares on [0, 1], for
+    the with block: scipy's '2-point' differences with rel_step DIFF_STEP (step DIFF_STEP x z,
+    sqrt(eps) at z = 0, backward where it would leave the bounds), the same columns, but on
+    up to ``workers`` processes (parallel.PointMap, kept for the block) instead of one after
+    the other. The value at the point itself is the first's last one (least_squares evaluates
+    fun there just before the Jacobian) when the point is the same. The last Jacobian, and
+    fun at its point, are kept: a fit restarted from where it stopped (_solve) starts with
+    both, the same numbers without recomputing them (the bumper case: 6.8 % of its
+    simulations)."""
     last: dict[str, np.ndarray] = {}
     kept: dict[str, np.ndarray] = {}
 
@@ -289,25 +292,27 @@ def forward_jacobian(fun: Callable[[np.ndarray], np.ndarray], workers: int
         last["z"], last["f"] = z.copy(), f
         return f
 
-    def jac(z: np.ndarray) -> np.ndarray:
-        if at_kept(z):
-            return kept["j"].copy()
-        f0 = last["f"] if "z" in last and np.array_equal(last["z"], z) else fun(z)
-        h = DIFF_STEP * z
-        h = np.where((z + h) - z == 0, math.sqrt(np.finfo(float).eps), h)
-        h = np.where(z + h > 1.0, -h, h)
-        steps = []
-        for i in range(z.size):
-            zi = z.copy()
-            zi[i] = z[i] + h[i]
-            steps.append(zi)
-        cols = parallel.ordered_map(fun, steps, workers)
-        j = np.column_stack([(c - f0) / (zi[i] - z[i])
-                             for i, (c, zi) in enumerate(zip(cols, steps, strict=True))])
-        kept.update(z=z.copy(), f=f0.copy(), j=j.copy())
-        return j
+    with parallel.PointMap(fun, workers) as columns:
+        def jac(z: np.ndarray) -> np.ndarray:
+            if at_kept(z):
+                return kept["j"].copy()
+            f0 = last["f"] if "z" in last and np.array_equal(last["z"], z) else fun(z)
+            h = DIFF_STEP * z
+            h = np.where((z + h) - z == 0, math.sqrt(np.finfo(float).eps), h)
+            h = np.where(z + h > 1.0, -h, h)
+            steps = []
+            for i in range(z.size):
+                zi = z.copy()
+                zi[i] = z[i] + h[i]
+                steps.append(zi)
+            cols = columns(steps, f0.size)
+            j = np.empty((f0.size, z.size), order="F")  # each column in place: no temporaries
+            for i, zi in enumerate(steps):
+                np.divide(np.subtract(cols[i], f0, out=j[:, i]), zi[i] - z[i], out=j[:, i])
+            kept.update(z=z.copy(), f=f0.copy(), j=j.copy())
+            return j
 
-    return remembering, jac
+        yield remembering, jac
 
 
 @dataclass
@@ -375,12 +380,12 @@ def first_order_gain(m: mdl.Model, names: Sequence[str], tests: Sequence[TestDat
     parameters ``names`` would remove (the residual's projection on the Jacobian's columns;
     bounds ignored): a screen costing one Jacobian, before a fit costing several."""
     pb = problem(m, fx.NONE.candidates(m)[0], [], tests, chans, scales, names)
-    fun_at, jac = forward_jacobian(pb.fun, workers)
-    r0 = fun_at(pb.z0)
-    rr = float(r0 @ r0)
-    if rr <= 0:
-        return 0.0
-    j = jac(pb.z0)
+    with forward_jacobian(pb.fun, workers) as (fun_at, jac):
+        r0 = fun_at(pb.z0)
+        rr = float(r0 @ r0)
+        if rr <= 0:
+            return 0.0
+        j = jac(pb.z0)
     step, *_ = np.linalg.lstsq(j, -r0, rcond=None)
     fitted = r0 + j @ step
     return max(0.0, 1.0 - float(fitted @ fitted) / rr)
@@ -444,9 +449,9 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
     pb = problem(m, cand, temper(base, cand, init, tests, chans, scales), tests, chans, scales,
                  uncertain, declared_start)
     ps_all = pb.params
-    fun_at, jac = forward_jacobian(pb.fun, workers)
-    sol = min((_solve(fun_at, jac, z0, max_nfev, beat) for z0 in (pb.z0, *pb.z_others)),
-              key=lambda s: float(np.sum(s.fun ** 2)))
+    with forward_jacobian(pb.fun, workers) as (fun_at, jac):
+        sol = min((_solve(fun_at, jac, z0, max_nfev, beat) for z0 in (pb.z0, *pb.z_others)),
+                  key=lambda s: float(np.sum(s.fun ** 2)))
     vals = pb.values(sol.x)
     mm = pb.build(vals)
     r = sol.fun

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from dynval import model as mdl
-from dynval.discover import acc_offsets, continuation, initial
+from dynval.discover import acc_offsets, continuation, initial, parallel
 from dynval.discover import drift as dr
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
@@ -532,7 +532,7 @@ def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     # that shifts a resonance by more than its bandwidth can rank low; screen them all (one
     # simulation per grid point)
     chosen += _screen_linear(cur, [e for e in pool if e not in chosen], s.fit_t, s.chans,
-                             s.scales, cur_table.total(s.fit_names))
+                             s.scales, cur_table.total(s.fit_names), s.workers)
     return chosen
 
 
@@ -751,23 +751,24 @@ SECOND_TESTS = 2  # fitting tests the output view's second opinion is scored on
 
 def _screen_linear(m: mdl.Model, evs: Sequence[tr.Evidence], tests: Sequence[rs.TestData],
                    chans: Sequence[str], scales: dict[str, float], nsse_now: float,
-                   keep: int = 2) -> list[tr.Evidence]:
+                   workers: int, keep: int = 2) -> list[tr.Evidence]:
     """The candidates not yet in the pool of the types that move the modes
     (EffectType.moves_modes) whose starts (EffectType.starts and scan_starts, one simulation
     each) lower the fitting tests' normalised SSE the most, at least by a tenth: the best
     ``keep`` changes of a declared parameter (stiffness, mass) and the best of each other
     such type that screens better than all of them (an appendage: its first-order evidence
-    is weakest where its new mode sits between two declared ones, 6-DOF blind sweep case 7)."""
-    scored = []
-    for e in evs:
+    is weakest where its new mode sits between two declared ones, 6-DOF blind sweep case 7).
+    The candidates are screened on up to ``workers`` processes."""
+    def best_start(e: tr.Evidence) -> float:
         et = fx.by_type(e.cand.type)
-        if not et.moves_modes:
-            continue
         cand = with_shape(e)  # the view's band: an appendage's scan spans it
         starts = [*et.starts(m, cand, e.amp), *et.scan_starts(m, cand, e.amp)]
         sc = ft.screen_scored(m, cand, starts, tests, chans, scales)
-        if sc and sc[0][0] < 0.9 * nsse_now:
-            scored.append((sc[0][0], e))
+        return sc[0][0] if sc else math.inf
+
+    movers = [e for e in evs if fx.by_type(e.cand.type).moves_modes]
+    scored = [(v, e) for v, e in zip(parallel.ordered_map(best_start, movers, workers), movers,
+                                     strict=True) if v < 0.9 * nsse_now]
     scored.sort(key=lambda p: p[0])
     declared = [(v, e) for v, e in scored if fx.by_type(e.cand.type).changes(e.cand)]
     # a richer change joins only where it screens better than every declared one (an
