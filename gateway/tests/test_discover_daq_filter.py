@@ -55,7 +55,9 @@ def test_discover_names_the_filter_a_right_nonlinear_model_lacks() -> None:
     8 at 268 Hz for the generator's 8 at 256; the 6-DOF bench case took order 4 at 268 Hz:
     the order is known only as far as the harmonics reach), and the held-out error within
     1.3 x that of the true model with the generator's filter declared (measured 1.09 x:
-    0.00191 against 0.00176, from 0.00774 before); the model written keeps it."""
+    0.00191 against 0.00176, from 0.00774 before); the model written keeps it. Every order
+    is fitted once one wins (before, only the 4th and 8th were: a probe at one cutoff ranked
+    them, and blind sweep case 4 took the 4th for the generator's 8th)."""
     m = table_chain()
     truth = synth.Truth(elements=(mdl.Contact(1, 2, 1.5e-4, 5e-5, 8e5),))
     recs = synth.generate(m, truth, n_tests=4, n_samples=4096, seed=11,
@@ -65,6 +67,9 @@ def test_discover_names_the_filter_a_right_nonlinear_model_lacks() -> None:
     r = loop.discover(declared, recs, loop.Options(workers=1, max_effects=1))
     (found,) = r.effects
     assert found["type"] == "daq_filter", [e["label"] for e in r.effects]
+    orders = {f["candidate"].location["order"] for f in r.rounds[0].fits
+              if f["candidate"].type == "daq_filter"}
+    assert orders == set(fx.DaqAntiAlias.ORDERS)  # each fitted: one probe cannot rank them
     cutoff = found["parameters"]["cutoff_hz"]["value"]
     assert cutoff == pytest.approx(AA.cutoff_hz, rel=0.15)
     assert r.model.daq_filter is not None

@@ -6,6 +6,7 @@ can re-adjust them mode by mode."""
 from __future__ import annotations
 
 import dataclasses
+import logging
 
 import pytest
 from generated import sought
@@ -51,7 +52,8 @@ def test_a_damping_matrix_keeps_its_modal_ratios_as_parameters() -> None:
         free.with_params({"zeta1": 0.01})
 
 
-def test_friction_and_an_appendage_at_one_dof_are_both_found() -> None:
+def test_friction_and_an_appendage_at_one_dof_are_both_found(
+        caplog: pytest.LogCaptureFixture) -> None:
     """Friction to the ground and an appendage, both at DOF 3. The appendage wins round 1
     and its re-adjustment raises zeta1 (0.038 -> 0.115 in the blind case this comes from):
     the friction's dissipation. Before, that damping became a fixed matrix, the friction of
@@ -60,13 +62,19 @@ def test_friction_and_an_appendage_at_one_dof_are_both_found() -> None:
     second appendage on the first one's own mass took up what the first's fit left; with no
     effect placed on a link-held DOF and the appendage's link and mass in the joint
     re-adjustment: the two effects, 1.27 x the ideal, friction 1.389 N, appendage mass
-    0.424 kg (true 0.42)."""
+    0.424 kg (true 0.42). The backward elimination re-fits the friction without the
+    appendage: without the appendage's DOF and mode among its re-adjusted parameters (the
+    appendage's zeta4 made that re-fit fail)."""
     m = three_dof()
     fr = mdl.Friction(0, 3, 1.4, 1e-4)
     app = gen.Appendage(3, 0.42, 32.8, 0.02)
     recs = gen.generate(m, gen.Truth(elements=(fr,), appendages=(app,)), n_tests=6,
                         n_samples=4096, seed=6)
-    r = loop.discover(m, recs)
+    with caplog.at_level(logging.INFO, logger="dynval.discover.judge"):
+        r = loop.discover(m, recs)
+    failed = [rec.getMessage() for rec in caplog.records if "re-fitted without" in
+              rec.getMessage()]
+    assert not failed, failed
     found = sorted((e["type"], str(e["location"].get("dof"))) for e in sought(r.effects))
     assert found == [("appendage", "3"), ("friction", "3")]
     fric = next(e for e in r.effects if e["type"] == "friction")

@@ -53,6 +53,20 @@ def test_the_declared_filter_is_read_written_and_refused_when_wrong() -> None:
             mdl.from_dict(d, "rig.json")
 
 
+def test_the_cutoff_is_a_model_parameter_where_a_filter_is_declared() -> None:
+    # discover's joint re-adjustment moves a found filter's cutoff with the elements' values
+    m = dataclasses.replace(chain(), daq_filter=AA)
+    assert m.parameters()[mdl.DAQ_CUTOFF] == AA.cutoff_hz
+    assert mdl.DAQ_CUTOFF not in chain().parameters()
+    moved = m.with_params({mdl.DAQ_CUTOFF: 200.0})
+    assert moved.daq_filter == mdl.DaqFilter("butterworth", 8, 200.0)
+    assert moved.masses_kg == m.masses_kg and mdl.param_unit(mdl.DAQ_CUTOFF, m) == "Hz"
+    with pytest.raises(ConfigError, match="daq.cutoff_hz' needs a DAQ filter"):
+        chain().with_params({mdl.DAQ_CUTOFF: 200.0})
+    with pytest.raises(ConfigError, match="cutoff_hz"):  # validated as a declared one
+        m.with_params({mdl.DAQ_CUTOFF: 1e-6})
+
+
 def test_the_filters_gain_is_the_closed_form_one() -> None:
     """Butterworth: |H|^2 = 1 / (1 + (f/fc)^2n); Bessel (norm 'mag'): -3 dB at cutoff."""
     f = np.array([0.0, 100.0, 256.0, 300.0])

@@ -137,10 +137,14 @@ def siblings(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
     """The winner's type at the other places fitted this round, to be fitted again from the
     winner's values when they belong to the effect (PLACE_FREE): a fit at the right place can
     stop in another minimum (an appendage at 113 Hz where the winner found the 35 Hz mode at
-    the wrong DOF)."""
-    if best is None or best["candidate"].type not in PLACE_FREE:
+    the wrong DOF). For a type that fits every place (EffectType.fit_every_place), its places
+    not fitted this round as well."""
+    if best is None:
         return []
     win: ft.FitResult = best["fit"]
+    every = fx.by_type(win.cand.type).fit_every_place
+    if win.cand.type not in PLACE_FREE and not every:
+        return []
     start = {START + n: v for n, v in win.own().items()}
     out = []
     for f in rd.fits:
@@ -150,6 +154,10 @@ def siblings(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
             # with_shape() makes the candidate from the evidence's shape: the start goes there
             out.append(tr.Evidence(c, f["evidence"], float(c.shape.get("amp", 0.0)),
                                    {**c.shape, **start}))
+    if every:
+        fitted = {cand_key(f["candidate"]) for f in rd.fits}
+        out += [tr.Evidence(e.cand, e.r2, e.amp, {**e.shape, **start}) for e in rd.evidence
+                if e.cand.type == win.cand.type and cand_key(e.cand) not in fitted]
     return out
 
 
@@ -754,8 +762,10 @@ def without(s: Session, steps: Sequence[Step], k: int, prediction: str
     for st in steps[k + 1:]:
         res: ft.FitResult = st.info["fit"]
         own = list(res.own().values())
-        names = tuple(n for n in st.info["readjusted"]
-                      if n != param or not _away(gone, res.cand))
+        # (not the parameters of what step k added: an appendage's DOF and mode, blind
+        # two-effect case 6)
+        names = tuple(n for n in st.info["readjusted"] if n in m.parameters()
+                      and (n != param or not _away(gone, res.cand)))
         try:
             r = ft.fit(m, res.cand, own, s.fit_t, s.chans, s.scales, s.o.max_nfev, names,
                        workers=s.workers)

@@ -261,7 +261,8 @@ def _added_params(before: mdl.Model, res: ft.FitResult) -> dict[str, str]:
     move, by model name, with the effect's parameter they hold ('' where none holds it
     alone): its elements' parameters the fit moved (e<i>.<name>: a parameter the fit held is
     left out, and a friction's force is not taken for its force offset's), an appendage's
-    link and mass (l<i>.*, m<j>: its frequency, mass and damping are read back from them)."""
+    link and mass (l<i>.*, m<j>: its frequency, mass and damping are read back from them), a
+    DAQ filter's cutoff (daq.cutoff_hz)."""
     fitted = res.own()
     old = before.parameters()
     out = {}
@@ -273,6 +274,8 @@ def _added_params(before: mdl.Model, res: ft.FitResult) -> dict[str, str]:
             out[n] = own
         elif n.startswith(("l", "m")) and v > 0:
             out[n] = ""
+        elif n == mdl.DAQ_CUTOFF:  # a DAQ filter found: its cutoff moves with the elements'
+            out[n] = "cutoff_hz"
     return out
 
 

@@ -26,6 +26,7 @@ from dynval.model.residual import (
 )
 from dynval.model.schema import (
                                    DAMPING_TYPES,
+                                   DAQ_CUTOFF,
                                    DAQ_FILTER_TYPES,
                                    FORMAT,
                                    INPUT_KINDS,
@@ -61,8 +62,8 @@ from dynval.model.validation import validate
 
 ELEMENT_TYPES = tuple(REGISTRY)
 
-__all__ = ["DAMPING_TYPES", "DAQ_FILTER_TYPES", "ELEMENT_TYPES", "FORMAT", "INPUT_KINDS",
-           "INTERPOLATIONS", "DaqFilter",
+__all__ = ["DAMPING_TYPES", "DAQ_CUTOFF", "DAQ_FILTER_TYPES", "ELEMENT_TYPES", "FORMAT",
+           "INPUT_KINDS", "INTERPOLATIONS", "DaqFilter",
            "OUTPUT_KINDS", "REGISTRY", "SIDES", "ChannelResidual", "ConstantForce", "Contact",
            "CubicSpring", "Damping", "Element", "Friction", "Input", "Linear", "Link", "Model",
            "Output", "PreparedInput", "ResidualResult", "StickSlip", "VVDamper", "_Core",

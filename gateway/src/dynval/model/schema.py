@@ -177,6 +177,8 @@ class Model:
         for i, lk in enumerate(self.links, 1):
             for name in LINK_PARAMS:
                 p[f"l{i}.{name}"] = float(getattr(lk, name))
+        if self.daq_filter is not None:
+            p[DAQ_CUTOFF] = self.daq_filter.cutoff_hz
         return p
 
     def with_params(self, params: Mapping[str, float]) -> Model:
@@ -184,14 +186,15 @@ class Model:
         i-th of the two Rayleigh ratios, or for a damping matrix mode i's ratio in it,
         matrix_ratios), alpha, beta (Rayleigh a, b), e<i>.<parameter> of
         element i (its registry parameters, model/elements.py), l<i>.k_n_per_m and
-        l<i>.c_n_s_per_m of link i. The copy is validated."""
+        l<i>.c_n_s_per_m of link i, daq.cutoff_hz of the DAQ filter. The copy is
+        validated."""
         from dynval.model.validation import validate  # validation reads this schema
 
         lists: dict[str, list[Any]] = {"m": list(self.masses_kg),
                                        "k": list(self.stiffness_n_per_m),
                                        "zeta": list(self.damping.zeta), "e": list(self.elements),
                                        "l": list(self.links)}
-        damp = self.damping
+        damp, daq = self.damping, self.daq_filter
         ratios: dict[int, float] = {}  # of a damping matrix: set on the new modes below
         for name, value in params.items():
             v = float(value)
@@ -207,6 +210,8 @@ class Model:
                 damp = dataclasses.replace(damp, beta_s=v)
             elif attr.startswith("link."):
                 lists["l"][idx] = dataclasses.replace(lists["l"][idx], **{attr[5:]: v})
+            elif attr == DAQ_CUTOFF and daq is not None:  # (param_target: it is)
+                daq = dataclasses.replace(daq, cutoff_hz=v)
             else:  # an element parameter (checked against its type by param_target)
                 upd: dict[str, Any] = {attr: v}
                 lists["e"][idx] = dataclasses.replace(lists["e"][idx], **upd)
@@ -214,7 +219,8 @@ class Model:
             damp = dataclasses.replace(damp, zeta=tuple(lists["zeta"]))
         m = dataclasses.replace(self, masses_kg=tuple(lists["m"]),
                                 stiffness_n_per_m=tuple(lists["k"]), damping=damp,
-                                elements=tuple(lists["e"]), links=tuple(lists["l"]))
+                                elements=tuple(lists["e"]), links=tuple(lists["l"]),
+                                daq_filter=daq)
         if ratios:  # on the modes of the new masses and stiffnesses (and links)
             m = dataclasses.replace(m, damping=with_matrix_ratios(m, ratios))
         validate(m)
@@ -222,17 +228,22 @@ class Model:
 
 
 _PARAM = re.compile(r"^(?:(m|k|zeta)(\d+)|(alpha|beta)|e(\d+)\.([a-z0-9_]+)|"
-                    r"l(\d+)\.(k_n_per_m|c_n_s_per_m))$")
+                    r"l(\d+)\.(k_n_per_m|c_n_s_per_m)|(daq\.cutoff_hz))$")
+DAQ_CUTOFF = "daq.cutoff_hz"  # the declared DAQ filter's cutoff, Hz
 
 
 def param_target(name: str, m: Model) -> tuple[int, str]:
     """(0-based index, attribute) a parameter name addresses: ('m'|'k'|'zeta', i),
-    (0, 'alpha'|'beta'), (element index, its parameter name) or (link index,
-    'link.<parameter>'); ConfigError otherwise."""
+    (0, 'alpha'|'beta'), (element index, its parameter name), (link index,
+    'link.<parameter>') or (0, DAQ_CUTOFF); ConfigError otherwise."""
     g = _PARAM.match(name)
     if g is None:
         raise ConfigError(f"unknown model parameter '{name}' (known: "
                           f"{', '.join(m.parameters())})")
+    if g.group(8):
+        if m.daq_filter is None:
+            raise ConfigError(f"parameter '{name}' needs a DAQ filter (simulation.daq_filter)")
+        return 0, DAQ_CUTOFF
     if g.group(3):
         if not m.damping.explicit_rayleigh:
             raise ConfigError(f"parameter '{name}' needs damping type rayleigh with "
@@ -291,7 +302,7 @@ def with_matrix_ratios(m: Model, ratios: Mapping[int, float]) -> Damping:
     return Damping("matrix", c_n_s_per_m=tuple(tuple(float(v) for v in row) for row in c))
 
 
-_UNITS = {"m": "kg", "k": "N/m", "zeta": "1", "alpha": "1/s", "beta": "s"}
+_UNITS = {"m": "kg", "k": "N/m", "zeta": "1", "alpha": "1/s", "beta": "s", DAQ_CUTOFF: "Hz"}
 
 
 def param_unit(name: str, m: Model) -> str:

@@ -214,6 +214,9 @@ class EffectType:
     # an effect of the DAQ (a sensor's gain or offset, the anti-alias filter), not of the
     # structure: the verdict names the structure's first (effects.structural)
     measurement_chain = False
+    # its places are few and cheap to fit, and its evidence cannot rank them: when one wins a
+    # round, the others are fitted too, from its values (judge.siblings)
+    fit_every_place = False
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         raise NotImplementedError

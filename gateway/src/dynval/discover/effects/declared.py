@@ -279,6 +279,9 @@ class DaqAntiAlias(EffectType):
 
     type = "daq_filter"
     measurement_chain = True
+    # the orders: one probe cutoff ranks them (blind sweep case 4 fitted only the 4th order,
+    # the generator's is an 8th)
+    fit_every_place = True
     location_kind = "measurement chain"
     law = ("every channel (input and outputs) read through an analog Butterworth low-pass of "
            "the given order, -3 dB at f_c: a nonlinear element's harmonics near and above f_c "
