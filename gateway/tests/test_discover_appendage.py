@@ -188,7 +188,8 @@ def test_the_linear_screen_simulates_appendages_the_evidence_missed(
     band = {"f_lo": 5.0, "f_hi": 240.0}
     evs = [tr.Evidence(c, 0.0, 0.0, band if c.type == "appendage" else {})
            for c in fx.catalogue(m) if c.available]
-    got = loop._screen_linear(m, evs, tests, chans, scales, now.total([t.name for t in tests]))
+    got = loop._screen_linear(m, evs, tests, chans, scales, now.total([t.name for t in tests]),
+                              workers=2)
     kinds = [(e.cand.type, e.cand.location) for e in got]
     if not with_appendage:
         assert kinds == []

@@ -535,7 +535,7 @@ def _pool(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable,
     # that shifts a resonance by more than its bandwidth can rank low; screen them all (one
     # simulation per grid point)
     chosen += _screen_linear(cur, [e for e in pool if e not in chosen], s.fit_t, s.chans,
-                             s.scales, cur_table.total(s.fit_names), s.workers)
+                             s.scales, cur_table.total(s.fit_names), workers=s.workers)
     return chosen
 
 
@@ -754,7 +754,7 @@ SECOND_TESTS = 2  # fitting tests the output view's second opinion is scored on
 
 def _screen_linear(m: mdl.Model, evs: Sequence[tr.Evidence], tests: Sequence[rs.TestData],
                    chans: Sequence[str], scales: dict[str, float], nsse_now: float,
-                   workers: int, keep: int = 2) -> list[tr.Evidence]:
+                   keep: int = 2, workers: int = 1) -> list[tr.Evidence]:
     """The candidates not yet in the pool of the types that move the modes
     (EffectType.moves_modes) whose starts (EffectType.starts and scan_starts, one simulation
     each) lower the fitting tests' normalised SSE the most, at least by a tenth: the best
