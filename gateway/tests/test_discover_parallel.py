@@ -3,6 +3,7 @@ serial loop's, bit for bit, in the same order, and a worker's exception reaches 
 from __future__ import annotations
 
 import logging
+import multiprocessing as mp
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -34,6 +35,21 @@ def test_ordered_map_keeps_the_order_and_uses_other_processes() -> None:
     out = parallel.ordered_map(_pid_and_square, list(range(12)), 2)
     assert [sq for _, sq in out] == [x * x for x in range(12)]
     assert {pid for pid, _ in out} - {os.getpid()}  # forked workers did the work
+
+
+def test_the_workers_take_the_longest_tasks_first_and_the_order_is_kept() -> None:
+    taken = mp.get_context("fork").Value("i", 0)  # shared with the forked workers
+
+    def rank(x: int) -> tuple[int, int]:
+        with taken.get_lock():
+            r = taken.value
+            taken.value += 1
+        return x, r
+
+    out = parallel.ordered_map(rank, list(range(8)), 2, cost=[float(x) for x in range(8)])
+    assert [x for x, _ in out] == list(range(8))
+    ranks = {x: r for x, r in out}
+    assert ranks[7] <= 1 and ranks[0] >= 6  # the costliest taken first, the cheapest last
 
 
 def test_one_worker_runs_here() -> None:

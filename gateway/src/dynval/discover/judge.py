@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import math
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -104,7 +105,15 @@ def judge_all(s: Session, rd: Round, judge: Judge, evs: list[tr.Evidence],
     (Judge.confirm, which can only reject): the same winner for a fraction of the fits."""
     names = list(dict.fromkeys(judge.readjusted(with_shape(e)) for e in evs))
     judge.known(names, parallel.ordered_map(judge.reference, names, s.workers))
-    new = [i for i in parallel.ordered_map(judge.candidate, evs, s.workers) if i is not None]
+    def timed(e: tr.Evidence) -> tuple[dict[str, Any] | None, float]:
+        t0 = time.perf_counter()
+        return judge.candidate(e), time.perf_counter() - t0
+
+    # a candidate not fitted before counts as the longest
+    cost = [s.fit_seconds.get(cand_key(e.cand), math.inf) for e in evs]
+    out = parallel.ordered_map(timed, evs, s.workers, cost)
+    s.fit_seconds.update((cand_key(e.cand), t) for e, (_, t) in zip(evs, out, strict=True))
+    new = [i for i, _ in out if i is not None]
     rd.fits.extend(new)
     for info in sorted((i for i in new if i["accepted"]), key=lambda i: i["nsse_held_after"]):
         if best is not None and info["nsse_held_after"] >= best["nsse_held_after"]:

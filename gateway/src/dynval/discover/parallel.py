@@ -64,18 +64,24 @@ def _forked_here(workers: int) -> bool:
     return workers > 1 and not _IN_WORKER and "fork" in mp.get_all_start_methods()
 
 
-def ordered_map(fn: Callable[[T], R], items: Sequence[T], workers: int) -> list[R]:
+def ordered_map(fn: Callable[[T], R], items: Sequence[T], workers: int,
+                cost: Sequence[float] | None = None) -> list[R]:
     """[fn(x) for x in items], on up to ``workers`` forked processes. An exception in a task
     is raised here, as the serial loop would raise it. Inside a task of another map it runs
-    serially (the outer map already uses the cores)."""
+    serially (the outer map already uses the cores). ``cost``: the tasks' expected durations;
+    the workers take the longest first (a pool waits on its last task: a round of five fits
+    of 2-13 s), the results still in the items' order."""
     global _WORK
     n = min(workers, len(items))
     if not _forked_here(n):
         return [fn(x) for x in items]
+    order = (sorted(range(len(items)), key=lambda i: -cost[i]) if cost is not None
+             else list(range(len(items))))
     _WORK = (fn, items)
     try:
         with cf.ProcessPoolExecutor(max_workers=n, mp_context=mp.get_context("fork")) as ex:
-            return list(ex.map(_run, range(len(items))))
+            done = dict(zip(order, ex.map(_run, order), strict=True))
+        return [done[i] for i in range(len(items))]
     finally:
         _WORK = None
 

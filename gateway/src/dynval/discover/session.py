@@ -149,6 +149,9 @@ class Session:
     # a round's winner that gave the round to the linear change in its re-adjustment
     # (judge.change_in_the_readjustment): fitted again next round, on top of the change
     carried: set[str] = field(default_factory=set)
+    # each candidate's last fit's wall time (s) by judge.cand_key: a round's map hands the
+    # longest out first (parallel.ordered_map's cost)
+    fit_seconds: dict[str, float] = field(default_factory=dict)
     # a joint re-adjustment of the declared parameters was kept (loop._readjust_declared):
     # the modes are where the data put them, and later ones start there
     readjust_kept: bool = False
