@@ -773,8 +773,9 @@ def without(s: Session, steps: Sequence[Step], k: int, prediction: str
         own = list(res.own().values())
         # (not the parameters of what step k added: an appendage's DOF and mode, blind
         # two-effect case 6)
-        names = tuple(n for n in st.info["readjusted"] if n in m.parameters()
-                      and (n != param or not _away(gone, res.cand)))
+        have = m.parameters()
+        names = tuple(n for n in st.info["readjusted"]
+                      if n in have and (n != param or not _away(gone, res.cand)))
         try:
             r = ft.fit(m, res.cand, own, s.fit_t, s.chans, s.scales, s.o.max_nfev, names,
                        workers=s.workers)
