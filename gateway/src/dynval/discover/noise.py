@@ -365,13 +365,22 @@ def sub_band_corner(u: np.ndarray, fs_hz: float) -> float | None:
     below = np.flatnonzero((f > 0) & (f < f_lo))
     if below.size < 3:
         return None
-    smooth = np.array([np.median(p[max(0, i - 2):i + 3]) for i in range(p.size)])
+    smooth = _median5(p)
     floor = float(np.min(smooth[below]))
     if not floor < INPUT_QUIET * float(np.max(smooth)):
         return None
     # an octave under the band at most: the high-pass keeps 99.8 % of the band's lowest
     # frequency (a sine's leakage can reach the floor a few bins from the tone)
     return min(float(f[below[smooth[below] <= SUB_BAND_FLOOR * floor].max()]), 0.5 * f_lo)
+
+
+def _median5(p: np.ndarray) -> np.ndarray:
+    """The running median of p over 5 bins (fewer at either end, as far as p goes)."""
+    out = np.empty_like(p)
+    out[2:-2] = np.median(np.lib.stride_tricks.sliding_window_view(p, 5), axis=1)
+    for i in (0, 1, p.size - 2, p.size - 1):
+        out[i] = np.median(p[max(0, i - 2):i + 3])
+    return out
 
 
 def _high_pass(x: np.ndarray, fs_hz: float, fc: float) -> np.ndarray:
