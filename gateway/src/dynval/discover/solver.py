@@ -6,14 +6,20 @@ channels is 245 760 rows for 6-16 parameters, and there that SVD costs 21-52 ms 
 ms for the normal equations J'J (measured on this machine, bench/RESULTS.discover.md): a
 sixth of a 6-DOF case's time. Here each step solves the damped normal equations with
 Marquardt's diagonal scaling, (J'J + lam diag(J'J)) p = -J'f, on the parameters not held at
-a bound by the gradient; a step leaving [0, 1] is clipped to it. The damping follows the
-gain ratio (Nielsen's rule). J'J squares J's condition number: where that makes the damped
-matrix numerically singular, the Cholesky factorisation fails and the damping grows.
+a bound by the gradient. A step that would leave [0, 1] is cut to THETA of its way to the
+nearest bound, or the parameters that would cross are held and the others solved again,
+whichever the linearised model favours: the iterates stay inside, and no parameter is
+clipped onto a bound and held there (which stopped a blind sweep case's cubic fit at 4 x
+least_squares' error: clipping bends the step, and the gradient then held the parameter
+there). The damping follows the gain ratio (Nielsen's rule). J'J squares J's condition
+number: where that makes the damped matrix numerically singular, the Cholesky factorisation
+fails and the damping grows.
 
-The stopping rules are least_squares': ftol on an accepted step's relative decrease, xtol on
-the step's length relative to the point's, gtol on the gradient's largest free component,
-max_nfev on the residual's evaluations (a Jacobian is not counted), and a callback that may
-raise StopIteration. The Jacobian returned is the one at the solution.
+The stopping rules are least_squares': ftol on an accepted step's relative decrease (when
+the linearised model predicted it well), xtol on the step's length relative to the point's,
+gtol on the gradient's largest free component, max_nfev on the residual's evaluations (a
+Jacobian is not counted), and a callback that may raise StopIteration. The Jacobian returned
+is the one at the solution.
 """
 from __future__ import annotations
 
@@ -33,6 +39,7 @@ _MESSAGES = {MAX_NFEV: "the maximum number of function evaluations is exceeded",
 _LAM0 = 1e-3  # the first step's damping, relative to J'J's diagonal: close to Gauss-Newton
 _LAM_MAX = 1e30  # a damping past this leaves no step
 _ACCEPT = 1e-4  # an accepted step achieves at least this share of its predicted decrease
+THETA = 0.995  # the share of the way to a bound a step leaving [0, 1] is cut to
 
 
 @dataclass
@@ -79,6 +86,49 @@ def _damped_step(a: np.ndarray, g: np.ndarray, free: np.ndarray, lam: float
     return p if np.all(np.isfinite(p)) else None
 
 
+def _inside(z: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """The step p, cut to THETA of its way to the nearest bound it would cross (a parameter
+    already on a bound stays there)."""
+    p = np.where(((z <= 0.0) & (p < 0.0)) | ((z >= 1.0) & (p > 0.0)), 0.0, p)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        room = np.where(p > 0.0, (1.0 - z) / p, np.where(p < 0.0, -z / p, np.inf))
+    reach = float(np.min(room, initial=np.inf))
+    if reach >= 1.0:
+        return p
+    return np.asarray(np.clip(z + THETA * reach * p, 0.0, 1.0) - z)
+
+
+def _predicted(a: np.ndarray, g: np.ndarray, step: np.ndarray) -> float:
+    """The decrease of half the sum of squares the linearised model predicts for step."""
+    return -float(g @ step + 0.5 * step @ a @ step)
+
+
+def _step(a: np.ndarray, g: np.ndarray, z: np.ndarray, free: np.ndarray, lam: float
+          ) -> np.ndarray | None:
+    """The damped step kept inside [0, 1] (_inside), or, where it would cross a bound, the
+    step with the parameters that would cross it held and the others solved again, whichever
+    the linearised model predicts to lower the sum of squares more: one parameter running
+    into its bound does not shorten everyone's step."""
+    p = _damped_step(a, g, free, lam)
+    if p is None:
+        return None
+    best = _inside(z, p)
+    held = free.copy()
+    while True:
+        crossing = (z + p < 0.0) | (z + p > 1.0)
+        if not crossing.any():
+            break
+        held &= ~crossing
+        q = _damped_step(a, g, held, lam) if held.any() else None
+        if q is None:
+            break
+        p = q
+        other = _inside(z, p)
+        if _predicted(a, g, other) > _predicted(a, g, best):
+            best = other
+    return best
+
+
 def solve(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray], np.ndarray],
           z0: np.ndarray, max_nfev: int, xtol: float, ftol: float, gtol: float = 1e-8,
           callback: Callable[[Progress], None] | None = None) -> Solution:
@@ -103,15 +153,14 @@ def solve(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray], n
             if nfev >= max_nfev:
                 status = MAX_NFEV
                 break
-            p = _damped_step(a, g, free, lam)
-            if p is None:  # no step at any damping (J'J not finite): as a step of nothing
+            step = _step(a, g, z, free, lam)
+            if step is None:  # no step at any damping (J'J not finite): as a step of nothing
                 lam, nu = lam * nu, nu * 2.0
                 if lam > _LAM_MAX:
                     status = XTOL
                 continue
-            step = np.clip(z + p, 0.0, 1.0) - z
             small = float(np.linalg.norm(step)) < xtol * (xtol + float(np.linalg.norm(z)))
-            predicted = -float(g @ step + 0.5 * step @ a @ step)
+            predicted = _predicted(a, g, step)
             f_new = fun(z + step)
             nfev += 1
             cost_new = 0.5 * float(f_new @ f_new)
@@ -121,7 +170,7 @@ def solve(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray], n
                 lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
                 nu = 2.0
                 z, f, accepted = z + step, f_new, True
-                if decrease < ftol * cost:
+                if decrease < ftol * cost and rho > 0.25:  # and the model was right
                     status = FTOL
                 elif small:
                     status = XTOL
