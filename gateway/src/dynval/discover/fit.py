@@ -1,7 +1,7 @@
 """Fit a candidate effect's parameters through the C simulator and judge it.
 
 The fit minimises the normalised output residual (each channel divided by its measured RMS)
-over the fitting tests with a bounded Levenberg-Marquardt (solver.py; forward
+over the fitting tests with scipy's bounded least_squares (trust region reflective, forward
 differences), in coordinates scaled to [0, 1] between each parameter's bounds (log-scaled
 where the effect says so). Every evaluation is a full open-loop run of dynval's C model and
 observer (dynval.model.simulate), so what is fitted is exactly what the updated model file
@@ -26,11 +26,12 @@ import numpy as np
 
 from dynval import model as mdl
 from dynval.discover import effects as fx
-from dynval.discover import parallel, solver
+from dynval.discover import parallel
 from dynval.discover.residual import TestData, predict
 from dynval.errors import ConfigError
 
 log = logging.getLogger(__name__)
+least_squares: Any = importlib.import_module("scipy.optimize").least_squares
 _stats: Any = importlib.import_module("scipy.stats")
 
 _PENALTY = 1e3  # residual value for a parameter set the core refuses
@@ -38,16 +39,17 @@ _PENALTY = 1e3  # residual value for a parameter set the core refuses
 # of percents (measured on the sliding-joint test: 19 % fewer Jacobians than at 1e-8, the
 # same parameters to 5 digits)
 FTOL = 1e-5
-# the solver's step tolerance (relative, on [0, 1]), and the evaluations left that make a
-# restart from a stop there worth it (_solve)
+# least_squares' step tolerance (relative, on [0, 1]), its status on stopping there, and the
+# evaluations left that make a restart from there worth it (_solve)
 XTOL = 1e-6
+_XTOL_STOP = 3
 MIN_RESTART_NFEV = 3
 READJUSTED = " (declared, re-adjusted)"  # suffix of a re-adjusted declared parameter's name
 # a candidate's fit is stopped when, at its pace per evaluation over its last FUTILE_WINDOW
-# steps, its remaining evaluations could not bring it under the fitting error it must beat (a
-# fit that ends above it is refused: its BIC cannot be lower). A damped fit's pace only slows,
-# so the projection is generous (blind sweep case 17: round 2's six candidates crawled 15-30
-# evaluations above the current model's error, every one refused)
+# iterations, its remaining evaluations could not bring it under the fitting error it must
+# beat (a fit that ends above it is refused: its BIC cannot be lower). A trust-region fit's
+# pace only slows, so the projection is generous (blind sweep case 17: round 2's six
+# candidates crawled 15-30 evaluations above the current model's error, every one refused)
 FUTILE_WINDOW = 3
 
 
@@ -270,11 +272,11 @@ DIFF_STEP = 1e-3  # forward-difference step relative to the [0, 1] coordinate's 
 def forward_jacobian(fun: Callable[[np.ndarray], np.ndarray], workers: int
                      ) -> Iterator[tuple[Callable[[np.ndarray], np.ndarray],
                                          Callable[[np.ndarray], np.ndarray]]]:
-    """(fun remembering its last point, the Jacobian of fun) for solver.solve on [0, 1], for
+    """(fun remembering its last point, the Jacobian of fun) for least_squares on [0, 1], for
     the with block: scipy's '2-point' differences with rel_step DIFF_STEP (step DIFF_STEP x z,
     sqrt(eps) at z = 0, backward where it would leave the bounds), the same columns, but on
     up to ``workers`` processes (parallel.PointMap, kept for the block) instead of one after
-    the other. The value at the point itself is the first's last one (the solver evaluates
+    the other. The value at the point itself is the first's last one (least_squares evaluates
     fun there just before the Jacobian) when the point is the same. The last Jacobian, and
     fun at its point, are kept: a fit restarted from where it stopped (_solve) starts with
     both, the same numbers without recomputing them (the bumper case: 6.8 % of its
@@ -389,22 +391,23 @@ def first_order_gain(m: mdl.Model, names: Sequence[str], tests: Sequence[TestDat
     return max(0.0, 1.0 - float(fitted @ fitted) / rr)
 
 
-def futility_stop(beat: float, max_nfev: int) -> Callable[[solver.Progress], None]:
-    """The solver's callback for a fit that must get under the normalised SSE ``beat``:
-    raises StopIteration (the solver stops, keeping the last iterate) once it cannot at
+def futility_stop(beat: float, max_nfev: int) -> Callable[[Any], None]:
+    """least_squares' callback for a fit that must get under the normalised SSE ``beat``:
+    raises StopIteration (scipy's way to stop, keeping the last iterate) once it cannot at
     its pace (FUTILE_WINDOW)."""
-    seen: list[tuple[float, int]] = []  # (normalised SSE, evaluations) after each step
+    seen: list[tuple[float, int]] = []  # (normalised SSE, evaluations) after each iteration
 
-    def stop(progress: solver.Progress) -> None:
-        now = 2.0 * progress.cost  # cost is half the sum of squares
-        seen.append((now, progress.nfev))
+    def stop(intermediate_result: Any) -> None:  # the name scipy passes the result by
+        now = 2.0 * float(intermediate_result.cost)  # cost is half the sum of squares
+        nfev = int(intermediate_result.nfev)
+        seen.append((now, nfev))
         if now <= beat or len(seen) <= FUTILE_WINDOW:
             return
-        # per evaluation, as the budget left is counted: a step that took several tries
-        # (rejected ones) used more of it
+        # per evaluation, as the budget left is counted: an iteration whose first steps were
+        # refused (its trust region shrunk) used more of it than one
         then, at = seen[-1 - FUTILE_WINDOW]
-        pace = (then - now) / max(progress.nfev - at, 1)
-        left = max_nfev - progress.nfev
+        pace = (then - now) / max(nfev - at, 1)
+        left = max_nfev - nfev
         if pace * left < now - beat:
             log.debug("fit stopped: normalised SSE %.4g, %.3g per evaluation, %d evaluations "
                       "left, %.4g to beat", now, pace, left, beat)
@@ -414,22 +417,23 @@ def futility_stop(beat: float, max_nfev: int) -> Callable[[solver.Progress], Non
 
 
 def _solve(fun_at: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray], np.ndarray],
-           z0: np.ndarray, max_nfev: int, beat: float | None) -> solver.Solution:
-    """solver.solve on [0, 1] from z0, restarted once from where it stopped on xtol with the
-    evaluations left: an xtol stop is a damping grown on a rough or ill-conditioned SSE, not
-    a gradient at zero, and a fresh start from there often goes on (blind free case 3: the
+           z0: np.ndarray, max_nfev: int, beat: float | None) -> Any:
+    """least_squares on [0, 1] from z0, restarted once from where it stopped on xtol with the
+    evaluations left: an xtol stop is a trust region collapsed on a rough or ill-conditioned
+    SSE, not a gradient at zero, and a fresh region often goes on (blind free case 3: the
     cubic's fit stopped there at 1.5 x the truth's SSE, 23 of that run's 35 fits did)."""
-    def run(z: np.ndarray, n: int) -> solver.Solution:
-        return solver.solve(fun_at, jac, z, n, XTOL, FTOL,
-                            callback=None if beat is None else futility_stop(beat, n))
+    def run(z: np.ndarray, n: int) -> Any:
+        return least_squares(fun_at, z, jac=jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0,
+                             max_nfev=n, xtol=XTOL, ftol=FTOL,
+                             callback=None if beat is None else futility_stop(beat, n))
 
     sol = run(z0, max_nfev)
-    left = max_nfev - sol.nfev
-    if sol.status != solver.XTOL or left < MIN_RESTART_NFEV:
+    left = max_nfev - int(sol.nfev)
+    if sol.status != _XTOL_STOP or left < MIN_RESTART_NFEV:
         return sol
     again = run(sol.x, left)
     best = again if again.cost < sol.cost else sol
-    best.nfev = sol.nfev + again.nfev  # every evaluation the fit spent
+    best.nfev = int(sol.nfev) + int(again.nfev)  # every evaluation the fit spent
     return best
 
 
