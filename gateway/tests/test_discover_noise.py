@@ -387,3 +387,10 @@ def test_a_sweeps_input_noise_between_its_passes_is_taken_out(method: str) -> No
     huge = nz.simulated_input("force", (u_true + noise) * 1e150, FS)
     np.testing.assert_allclose(huge / 1e150, nz.simulated_input("force", u_true + noise, FS),
                                atol=1e-9)
+
+
+@pytest.mark.parametrize("n", [5, 6, 513, 1025])
+def test_the_running_median_is_the_median_of_each_five_bins(n: int) -> None:
+    p = np.random.default_rng(n).random(n)
+    expected = [np.median(p[max(0, i - 2):i + 3]) for i in range(n)]
+    assert np.array_equal(nz._median5(p), expected)

@@ -191,3 +191,31 @@ def test_discover_says_it_and_writes_the_filter_with_the_model() -> None:
     assert r.model.daq_filter == AA
     tab, _ = rs.error_table(r.model, r.tests, r.chans, r.scales)
     assert tab.total(r.held_names) == pytest.approx(r.after.total(r.held_names), rel=1e-9)
+
+
+def test_a_fit_of_the_cutoff_takes_the_measured_input_through_its_noise_filters_once(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """TestData.input_for at a new cutoff prepares a new input, but the measured input as the
+    simulations take it (noise.simulated_input) does not depend on the model: it is computed
+    once per test and input kind, and the predictions are those of a fresh test's."""
+    from dynval.discover import noise
+
+    m = chain()
+    recs = synth.generate(m, synth.Truth(), n_tests=1, n_samples=2048, seed=3,
+                          levels_n_rms=(10.0,))
+    calls: list[int] = []
+    real = noise.simulated_input
+
+    def counting(kind: str, u: np.ndarray, fs_hz: float) -> np.ndarray:
+        calls.append(1)
+        return real(kind, u, fs_hz)
+
+    monkeypatch.setattr(noise, "simulated_input", counting)
+    t = rs.prepare(m, recs)[0]
+    for cut in (200.0, 230.0, 256.0, 230.0, 210.0):
+        filtered = dataclasses.replace(m, daq_filter=mdl.DaqFilter("butterworth", 8, cut))
+        p = rs.predict(filtered, t)
+        fresh = rs.predict(filtered, rs.prepare(m, recs)[0])
+        assert p is not None and fresh is not None
+        assert all(np.array_equal(p[c], fresh[c]) for c in p)
+    assert len(calls) == 1 + 5  # this test's once, and each fresh test's once
