@@ -136,7 +136,7 @@ static void fold(dv_obs_t *o)
 }
 
 /* x (ns) of the current state, whichever coordinates it is kept in. */
-static void state_x(const dv_obs_t *o, dv_real_t *x)
+void dv_priv_obs_state_x(const dv_obs_t *o, dv_real_t *x)
 {
     const size_t ns = o->ns;
     if (o->modal) {
@@ -159,7 +159,7 @@ static void state_x(const dv_obs_t *o, dv_real_t *x)
 static void refold(dv_obs_t *o)
 {
     dv_real_t x[2u * DV_MAX_DOF];
-    state_x(o, x);
+    dv_priv_obs_state_x(o, x);
     for (size_t i = 0; i < o->ns; i++) {
         o->sv[i] = x[i];
     }
@@ -295,6 +295,28 @@ dv_status_t dv_obs_set_gain(dv_obs_t *o, const dv_real_t *gain, size_t len)
     return DV_OK;
 }
 
+dv_status_t dv_obs_set_state(dv_obs_t *o, const dv_real_t *x, size_t len)
+{
+    if (o == NULL || x == NULL || o->m == NULL || (o->modal && o->m->ad == NULL)) {
+        return DV_EINVAL;
+    }
+    if (len < o->ns) {
+        return DV_ESIZE;
+    }
+    for (size_t i = 0; i < o->ns; i++) {
+        if (!dv_priv_finite(x[i])) {
+            return DV_EINVAL;
+        }
+    }
+    for (size_t i = 0; i < o->ns; i++) {
+        o->sv[i] = x[i];
+    }
+    if (o->modal) {
+        fold(o); /* back to modal coordinates: q = T^-1 x (refold's path) */
+    }
+    return DV_OK;
+}
+
 dv_status_t dv_obs_get_gain(const dv_obs_t *o, dv_real_t *gain, size_t len)
 {
     if (o == NULL || gain == NULL || o->m == NULL) {
@@ -398,6 +420,6 @@ dv_status_t dv_obs_get_state(const dv_obs_t *o, dv_real_t *x, size_t len)
     if (len < o->ns) {
         return DV_ESIZE;
     }
-    state_x(o, x);
+    dv_priv_obs_state_x(o, x);
     return DV_OK;
 }

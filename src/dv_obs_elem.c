@@ -244,13 +244,14 @@ void dv_priv_obs_first_forces_cubic(const dv_obs_t *o, dv_real_t *g)
 {
     const dv_model_t *m = o->m;
     const size_t nc = m->n_elem;
-    const dv_real_t *sv = o->sv;
-    const dv_real_t *win = sv + o->ns;
+    const dv_real_t *win = o->sv + o->ns;
+    dv_real_t xs[2u * DV_MAX_DOF]; /* a state set away from rest may be in modal coordinates */
+    dv_priv_obs_state_x(o, xs);
     for (size_t e = 0; e < nc; e++) {
         const dv_elem_desc_t *c = &m->elem[e];
         /* velocity laws: at rest, the ground's velocity at t0 is left out (first sample) */
         const bool vel = dv_priv_elem_on_velocity(c->law);
-        const dv_real_t x = dv_priv_elem_arg(c, sv, m->n_dof) +
+        const dv_real_t x = dv_priv_elem_arg(c, xs, m->n_dof) +
                             (vel ? DV_R(0.0) : m->elem_dx[e] * win[2]);
         /* history: at rest */
         g[e] = dv_priv_elem_force(c, dv_priv_elem_kh(c), o->elem_x[e], o->elem_g[e], x);

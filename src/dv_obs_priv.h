@@ -111,6 +111,9 @@ bool dv_priv_obs_make_modal(dv_obs_t *o, dv_real_t *x);
  * every force is zero because every element stays open (dv_obs_elem.c). */
 bool dv_priv_obs_elem_forces(dv_obs_t *o, dv_real_t *sv, size_t ns);
 
+/* x (ns) of the observer's state, whichever coordinates it is kept in (dv_obs.c). */
+void dv_priv_obs_state_x(const dv_obs_t *o, dv_real_t *x);
+
 /* The first sample with the cubic hold: each element's force (n_elem into g) from the state at
  * t0 directly, the input window [0, 0, u[0], u[1]], the element history at rest
  * (dv_obs_elem.c). */

@@ -239,10 +239,12 @@ static void step_first(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool correc
     if (o->nf > 0u) {
         dv_priv_obs_elem_forces(o, sv, ns); /* every node sees the same state: use node 0 */
     }
+    dv_real_t x[2u * DV_MAX_DOF]; /* a state set away from rest may be in modal coordinates */
+    dv_priv_obs_state_x(o, x);
     for (size_t q = 0; q < no; q++) {
         dv_real_t s = (m->d0[q] + m->d1[q]) * u;
         for (size_t j = 0; j < ns; j++) {
-            s += m->cy[q * ns + j] * sv[j];
+            s += m->cy[q * ns + j] * x[j];
         }
         for (size_t e = 0; e < nc; e++) {
             s += m->ey[q * nc + e] * sv[ns + 2u + e];
@@ -252,7 +254,8 @@ static void step_first(dv_obs_t *o, dv_real_t u, const dv_real_t *y, bool correc
     finish_first(o, y, correct);
 }
 
-/* First sample (cubic hold): the state is at t0 (at rest); the window is [0, 0, u[0], u[1]].
+/* First sample (cubic hold): the state is at t0 (at rest, or as set); the window is
+ * [0, 0, u[0], u[1]].
  * Output only (element forces from the state at t0 directly), then correct. */
 static void step_first_cubic(dv_obs_t *o, const dv_real_t *y, bool correct)
 {
@@ -265,13 +268,15 @@ static void step_first_cubic(dv_obs_t *o, const dv_real_t *y, bool correct)
     dv_real_t *yhat = o->z + ns;
     dv_real_t g[DV_MAX_ELEM];
     dv_priv_obs_first_forces_cubic(o, g);
+    dv_real_t x[2u * DV_MAX_DOF]; /* a state set away from rest may be in modal coordinates */
+    dv_priv_obs_state_x(o, x);
     for (size_t q = 0; q < no; q++) {
         dv_real_t s = DV_R(0.0);
         for (size_t i = 0; i < 4u; i++) {
             s += m->du[q * 4u + i] * win[i];
         }
         for (size_t j = 0; j < ns; j++) {
-            s += m->cy[q * ns + j] * sv[j];
+            s += m->cy[q * ns + j] * x[j];
         }
         for (size_t e = 0; e < nc; e++) {
             s += m->ey[q * nc + e] * g[e];

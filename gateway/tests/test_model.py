@@ -430,6 +430,44 @@ def test_free_response_of_an_oscillator_is_the_damped_cosine(n: int) -> None:
     np.testing.assert_allclose(r[:, 0, 1], from_v, atol=1e-9 / wn)
 
 
+@pytest.mark.parametrize("interp,over", [("foh", 1), ("cubic", 1), ("bandlimited", 4)])
+def test_a_simulation_from_a_state_adds_its_free_response(interp: str, over: int,
+                                                          force: np.ndarray) -> None:
+    """simulate(x0=...) (dv_obs_set_state) on a linear model: the run from rest plus the free
+    motion from x0 (free_response, the same exact discretisation), to rounding, with every
+    input hold, over several blocks; a non-finite state is refused."""
+    m = dataclasses.replace(report_model(), interpolation=interp, oversample=over)
+    rng = np.random.default_rng(3)
+    x0 = rng.standard_normal(2 * m.n_dof) * np.repeat([1e-4, 1e-2], m.n_dof)
+    u = np.tile(force, 3)
+    rest = mdl.simulate(m, u, 320.0)
+    moving = mdl.simulate(m, u, 320.0, x0=x0)
+    free = mdl.free_response(m, 320.0, u.size)
+    for j, c in enumerate(m.outputs):
+        want = free[:, j, :] @ x0
+        assert np.max(np.abs(want)) > 0.1 * np.max(np.abs(rest[c]))  # it shows
+        np.testing.assert_allclose(moving[c] - rest[c], want, rtol=0,
+                                   atol=1e-10 * np.max(np.abs(want)))
+    with pytest.raises(ConfigError, match="initial state"):
+        mdl.simulate(m, u, 320.0, x0=np.full(2 * m.n_dof, np.nan))
+
+
+def test_a_stuck_friction_element_holds_its_dof_where_it_starts() -> None:
+    """A mass held by a friction element stronger than its spring's pull (8 N against 5 N),
+    released from a displacement at rest: it stays there, but for the regularised law's
+    creep (eps atanh(5 / 8) = 73 um/s, 15 um in 0.2 s), where the linear model rings
+    through zero."""
+    m = mdl.Model(masses_kg=(10.0,), stiffness_n_per_m=(1e4,),
+                  damping=mdl.Damping("modal", (0.02,)), input=mdl.Input("force", 1, "f"),
+                  outputs={"x": mdl.Output("disp", 1)},
+                  elements=(mdl.Friction(0, 1, 8.0, 1e-4),))
+    x0 = np.array([5e-4, 0.0])
+    held = mdl.simulate(m, np.zeros(200), 1000.0, x0=x0)["x"]
+    rings = mdl.simulate(dataclasses.replace(m, elements=()), np.zeros(200), 1000.0, x0=x0)["x"]
+    assert np.max(np.abs(held - x0[0])) < 0.05 * x0[0]
+    assert np.min(rings) < -0.5 * x0[0]
+
+
 def test_a_model_simulated_again_reuses_its_core_bit_for_bit(force: np.ndarray) -> None:
     """simulate() builds the core once for a model object simulated again (simulation._built:
     a fit simulates one model per test): the same numbers as a fresh build, with another

@@ -256,6 +256,23 @@ dv_status_t dv_obs_get_gain(const dv_obs_t *o, dv_real_t *gain, size_t len);
 void dv_obs_reset(dv_obs_t *o);
 
 /**
+ * @brief Set the state x = [displacements (m); velocities (m/s)] at the next sample given:
+ *        after dv_obs_reset(), the start of a record that does not start at rest (a segment
+ *        cut from a running test). Relative to the ground for a ground-motion input, as
+ *        dv_obs_get_state(), which after a sample gives the state at that sample (so a run
+ *        goes on from it bit for bit with that sample given again). The input window and the
+ *        stick-slip elements' internal state are kept (at rest after a reset).
+ * @param[in,out] o    observer
+ * @param[in]     x    2n elements, finite
+ * @param[in]     len  elements in @p x (>= 2n)
+ * @retval DV_OK       set
+ * @retval DV_EINVAL   @p o or @p x NULL, a non-finite element, or a model kept for steps only
+ *                     (dv_model_keep_step_only()) whose state is kept in modal coordinates
+ * @retval DV_ESIZE    @p len < 2n
+ */
+dv_status_t dv_obs_set_state(dv_obs_t *o, const dv_real_t *x, size_t len);
+
+/**
  * @brief One sample: predict, form the residual, correct (see the file comment).
  * @param[in,out] o       observer
  * @param[in]     u       input at this sample (N, m/s^2 or m, per the model)

@@ -164,6 +164,16 @@ class _Core:
         """Simulate from rest into y (n x no, C-contiguous); returns the core's status."""
         return int(_core.lib.dv_obs_simulate(self.obs, _core.ptr(u), u.size, _core.ptr(y)))
 
+    def start_at(self, x0: np.ndarray) -> None:
+        """Back to rest, then the state x0 (displacements, velocities) at the next sample
+        (dv_obs_reset, dv_obs_set_state)."""
+        x = np.ascontiguousarray(x0, dtype=float)
+        if x.size != 2 * self.desc.n_dof or not np.all(np.isfinite(x)):
+            raise ConfigError(f"the initial state must be {2 * self.desc.n_dof} finite values "
+                              f"(displacements, then velocities), got {x.size}")
+        _core.lib.dv_obs_reset(self.obs)
+        _core.check(_core.lib.dv_obs_set_state(self.obs, _core.ptr(x), x.size), "dv_obs_set_state")
+
     def cont(self, u: np.ndarray, y: np.ndarray) -> int:
         """Simulate on from the current state, open loop (dv_obs_update_block without
         measurements: the same steps as dv_obs_simulate, bit for bit, for a first-order hold)."""
@@ -508,23 +518,26 @@ INTERPOLATE_ONCE_BYTES = 64 << 20
 
 
 def simulate(m: Model, force_or_motion: Any, fs_hz: float, *,
-             oversample: int | None = None) -> dict[str, np.ndarray]:
+             oversample: int | None = None, x0: np.ndarray | None = None
+             ) -> dict[str, np.ndarray]:
     """Predicted outputs (channel -> array) of the model driven from rest by the sampled input
     (or a PreparedInput of it), through the C core (dv_model_init, dv_obs_init open loop,
     dv_obs_simulate). oversample: band-limited interpolation factor (None: the model's; 1: the
-    samples as they are). Runs block by block (simulate_blocks)."""
+    samples as they are); x0: the state at the first sample instead of rest (displacements,
+    then velocities, m and m/s; relative to the ground for a ground input). Runs block by
+    block (simulate_blocks)."""
     u = force_or_motion
     n = u.fine.size // u.r if isinstance(u, PreparedInput) else np.asarray(u).size
     out = {name: np.empty(n) for name in m.outputs}
-    for a, y in simulate_blocks(m, u, fs_hz, oversample=oversample):
+    for a, y in simulate_blocks(m, u, fs_hz, oversample=oversample, x0=x0):
         for j, col in enumerate(out.values()):
             col[a:a + y.shape[0]] = y[:, j]
     return out
 
 
 def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
-                    oversample: int | None = None, block: int = BLOCK
-                    ) -> Iterator[tuple[int, np.ndarray]]:
+                    oversample: int | None = None, block: int = BLOCK,
+                    x0: np.ndarray | None = None) -> Iterator[tuple[int, np.ndarray]]:
     """simulate() in blocks of `block` input samples: (first sample, outputs as the sensors
     read them, samples x m.outputs) of each in turn, the state carried across blocks
     (dv_obs_simulate, then dv_obs_update_block open loop) and the input interpolated per block
@@ -536,7 +549,7 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
     if not fs_hz > 0:
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
     if daq.applied(m) is not None:
-        yield 0, _through_daq(m, force_or_motion, fs_hz, oversample)
+        yield 0, _through_daq(m, force_or_motion, fs_hz, oversample, x0)
         return
     r = oversample_factor(m, oversample)
     prepared = isinstance(force_or_motion, PreparedInput)
@@ -549,10 +562,10 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
         _check_input(u, r)
     # the cubic hold's core completes a sample at the next one's call: realigned across
     # blocks here for a complete input; with held (non-finite) samples in one block
-    late = m.interpolation == "cubic" and n > block
+    late = m.interpolation == "cubic" and (n > block or x0 is not None)
     if late and not all(np.isfinite(u[i:i + BLOCK]).all() for i in range(0, u.size, BLOCK)):
         log.info("cubic input hold with non-finite inputs: %d samples simulated in one block", n)
-        block, late = n, False
+        block, late = n, x0 is not None  # dv_obs_simulate would reset the start away
 
     def prefix(k: int) -> np.ndarray:  # the first k steps' input, to find a divergence's cause
         return u[:k] if prepared else _fine_block(u, r, 0, -(-k // r))[:k]
@@ -575,7 +588,9 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
         b = min(a + block, n)
         uf = u[a * r:b * r] if prepared else _fine_block(u, r, a, b)
         yf = np.empty((uf.size, core.no))
-        st = core.run(uf, yf) if a == 0 and not late else core.cont(uf, yf)
+        if a == 0 and x0 is not None:
+            core.start_at(x0)
+        st = core.run(uf, yf) if a == 0 and not late and x0 is None else core.cont(uf, yf)
         if st < 0 and not _checked_later(st):
             _core.check(st, "dv_obs_simulate")
         n_bad = int(core.obs.n_bad_input)  # read now: a shared core runs others after a yield
@@ -625,8 +640,8 @@ def _unfiltered(m: Model) -> Model:
     return bare
 
 
-def _through_daq(m: Model, force_or_motion: Any, fs_hz: float, oversample: int | None
-                 ) -> np.ndarray:
+def _through_daq(m: Model, force_or_motion: Any, fs_hz: float, oversample: int | None,
+                 x0: np.ndarray | None = None) -> np.ndarray:
     """simulate_blocks' outputs (samples x m.outputs) for a model with a DAQ filter, over the
     whole record at once: driven by the input with the filter divided out (prepare_input),
     measured through it (daq.measured; a sensor's offset is not filtered: it was on before
@@ -640,7 +655,7 @@ def _through_daq(m: Model, force_or_motion: Any, fs_hz: float, oversample: int |
     plain = PreparedInput(_prepared_fine(u, r, f), r)
     n = plain.fine.size // r
     y = np.concatenate([b for _, b in simulate_blocks(bare, plain, fs_hz, oversample=oversample,
-                                                      block=max(n, 1))])
+                                                      block=max(n, 1), x0=x0)])
     offsets = np.array([o.offset for o in m.outputs.values()])
     return np.asarray(daq.measured(f, y - offsets, fs_hz) + offsets)
 
