@@ -52,7 +52,8 @@ def analyse(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str]) -> di
     acc = [c for c in chans if m.outputs[c].kind == "acc"]
     if len(tests) < 2 or not acc:
         return {}
-    res = [residuals(m, TestData(t.name, t.fs_hz, t.u, t.y, start=t.start), acc) for t in tests]
+    res = [residuals(m, TestData(t.name, t.fs_hz, t.u, t.y, start=t.start,
+                                    start_x0=t.start_x0), acc) for t in tests]
     if any(r is None or r[acc[0]].size < BLOCKS for r in res):
         return {}
     out = {}

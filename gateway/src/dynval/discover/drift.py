@@ -137,5 +137,5 @@ def apply(m: mdl.Model, tests: Sequence[TestData], obs: Observer) -> bool:
         return False
     for t in tests:
         t.observer = obs
-        t.start = None  # the observer finds the state itself
+        t.start = t.start_x0 = None  # the observer finds the state itself
     return True

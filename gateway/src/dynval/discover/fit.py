@@ -26,7 +26,7 @@ import numpy as np
 
 from dynval import model as mdl
 from dynval.discover import effects as fx
-from dynval.discover import parallel
+from dynval.discover import initial, parallel
 from dynval.discover.residual import TestData, predict
 from dynval.errors import ConfigError
 
@@ -452,12 +452,15 @@ def fit(m: mdl.Model, cand: fx.Candidate, init: Sequence[float], tests: Sequence
     the start ``init`` takes instead of m's (its other starts, EffectType.other_starts, keep
     m's; the search ranges are m's)."""
     base = m.with_params(dict(declared_start)) if declared_start else m
-    pb = problem(m, cand, temper(base, cand, init, tests, chans, scales), tests, chans, scales,
-                 uncertain, declared_start)
+    # records that do not start at rest start where the candidate at its start puts them
+    with initial.starts_under(fx.by_type(cand.type).apply(base, cand, init), tests, chans,
+                              scales):
+        pb = problem(m, cand, temper(base, cand, init, tests, chans, scales), tests, chans,
+                     scales, uncertain, declared_start)
+        with forward_jacobian(pb.fun, workers) as (fun_at, jac):
+            sol = min((_solve(fun_at, jac, z0, max_nfev, beat) for z0 in (pb.z0, *pb.z_others)),
+                      key=lambda s: float(np.sum(s.fun ** 2)))
     ps_all = pb.params
-    with forward_jacobian(pb.fun, workers) as (fun_at, jac):
-        sol = min((_solve(fun_at, jac, z0, max_nfev, beat) for z0 in (pb.z0, *pb.z_others)),
-                  key=lambda s: float(np.sum(s.fun ** 2)))
     vals = pb.values(sol.x)
     mm = pb.build(vals)
     r = sol.fun

@@ -401,6 +401,12 @@ class Judge:
         self._refs: dict[tuple[str, ...], tuple[mdl.Model, rs.ErrorTable, int]] = {}
         self._peak: list[float | None] | None = None
 
+    def table(self, m: mdl.Model, tests: Sequence[rs.TestData]) -> rs.ErrorTable:
+        """m's error table on ``tests``, every record that does not start at rest started
+        where m puts it (initial.starts_under)."""
+        with initial.starts_under(m, [*self.fit_t, *self.held_t], self.chans, self.scales):
+            return rs.error_table(m, tests, self.chans, self.scales)[0]
+
     def readjusted(self, cand: fx.Candidate) -> tuple[str, ...]:
         local = fx.by_type(cand.type).readjust(self.cur, cand, self.band) \
             if self.o.readjust else ()
@@ -415,8 +421,7 @@ class Judge:
             try:
                 cal = ft.fit(self.cur, fx.NONE.candidates(self.cur)[0], [], self.fit_t,
                              self.chans, self.scales, self.o.max_nfev, names)
-                tab, _ = rs.error_table(cal.model, [*self.fit_t, *self.held_t], self.chans,
-                                        self.scales)
+                tab = self.table(cal.model, [*self.fit_t, *self.held_t])
                 if tab.total(self.held_names) < self.cur_table.total(self.held_names):
                     ref = (cal.model, tab, len(names))
             except ConfigError as exc:
@@ -470,7 +475,7 @@ class Judge:
                 res = r1
         if res is None:
             return None
-        tab, _ = rs.error_table(res.model, self.held_t, self.chans, self.scales)
+        tab = self.table(res.model, self.held_t)
         info = {"candidate": cand, "evidence": e.r2, "fit": res, "readjusted": names,
                 "table": tab, "confirmed": not names,
                 "reference": _reference_label(names, "") if ref_p else "the current model"}
@@ -590,7 +595,7 @@ class Judge:
         except ConfigError as exc:
             log.info("%s without re-adjusting %s failed: %s", res.cand.label, name, exc)
             return None
-        tab, _ = rs.error_table(r1.model, self.held_t, self.chans, self.scales)
+        tab = self.table(r1.model, self.held_t)
         log.info("%s without re-adjusting %s: held-out %.4g (with it %.4g)", res.cand.label,
                  name, tab.total(self.held_names), info["nsse_held_after"])
         return tab.total(self.held_names)
@@ -607,8 +612,7 @@ class Judge:
         except ConfigError as exc:
             log.info("re-adjusting %s alone (warm) failed: %s", ", ".join(names), exc)
             return None
-        tab, _ = rs.error_table(cal.model, [*self.fit_t, *self.held_t], self.chans,
-                                self.scales)
+        tab = self.table(cal.model, [*self.fit_t, *self.held_t])
         return tab
 
     def _verdict(self, res: ft.FitResult, tab: rs.ErrorTable, ref_table: rs.ErrorTable,

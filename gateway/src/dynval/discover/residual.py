@@ -79,6 +79,13 @@ class TestData:
     # what the channels read of the free motion from the estimated initial state (a record
     # that does not start at rest, discover/initial.py); None: the structure starts at rest
     start: dict[str, np.ndarray] | None = None
+    # that initial state (displacements, then velocities): a model with elements is
+    # simulated from it (their forces act on the start-up transient too; the free motion
+    # above is the linear part's)
+    start_x0: np.ndarray | None = None
+    start_window: int = 0  # the samples it was estimated over (the start-up transient's)
+    # the elements it was refined through (initial.refined)
+    start_elements: tuple[Any, ...] = ()
     # predict with the core's observer (one step ahead, steady-state Kalman gain) instead of
     # open loop: a model that drifts (discover/drift.py); None: open loop
     observer: Observer | None = None
@@ -191,8 +198,9 @@ def channel_scales(tests: Sequence[TestData], chans: Sequence[str]) -> dict[str,
 def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     """The model's open-loop (or observer) prediction, or None when the core refuses the
     model; on the channels in t.demean, with the test's own mean residual (acc_offsets.py)."""
+    x0 = _nonlinear_start(m, t)
     try:
-        p = (mdl.simulate(m, t.input_for(m), t.fs_hz) if t.observer is None else
+        p = (mdl.simulate(m, t.input_for(m), t.fs_hz, x0=x0) if t.observer is None else
              mdl.predict_observed(m, t.observer_input(m), t.observed(), t.fs_hz,
                                   t.observer.q_force_n2, t.observer.r_meas))
     except ConfigError as exc:
@@ -200,11 +208,40 @@ def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
         return None
     if t.free_start is not None and t.observer is None:
         p = _with_free_start(m, t, p, t.free_start)
-    elif t.start is not None:
+    elif t.start is not None and x0 is None:
         p = {c: p[c] + t.start[c] if c in t.start else p[c] for c in p}
     for c in t.demean:
         p[c] = p[c] + float(np.mean(t.counted(t.y[c] - p[c])))
     return p
+
+
+def _nonlinear_start(m: mdl.Model, t: TestData) -> np.ndarray | None:
+    """The state an open-loop simulation of m starts from instead of adding the free motion
+    t.start: for a model with elements (a friction element stuck at the start moves
+    nothing the linear free motion would) of the size the state was estimated at."""
+    if t.start_x0 is None or not m.elements or t.observer is not None or t.free_start is not None:
+        return None
+    return sized_start(m, t.start_x0)
+
+
+def sized_start(m: mdl.Model, x0: np.ndarray) -> np.ndarray | None:
+    """An initial state estimated under a model with fewer DOFs, for m: a DOF m adds (an
+    appendage's, held by a link) starts where its host does. None when m has fewer DOFs or
+    a new one is not held by a link."""
+    n0, n = x0.size // 2, m.n_dof
+    if n0 == n:
+        return x0
+    if n0 > n:
+        return None
+    host = {lk.dof_b: lk.dof_a for lk in m.links}
+    d, v = list(x0[:n0]), list(x0[n0:])
+    for j in range(n0 + 1, n + 1):
+        a = host.get(j)
+        if a is None or a >= j:
+            return None
+        d.append(d[a - 1] if a > 0 else 0.0)
+        v.append(v[a - 1] if a > 0 else 0.0)
+    return np.array(d + v)
 
 
 def _with_free_start(m: mdl.Model, t: TestData, p: dict[str, np.ndarray],
