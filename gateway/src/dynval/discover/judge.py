@@ -628,12 +628,7 @@ class Judge:
         nsse_fit_before = ref_table.total(self.fit_names)
         dbic = (bic(res.nsse_fit, n_eff, len(res.values))
                 - bic(nsse_fit_before, n_eff, ref_p))
-        # or every held-out test (two at least) gains half of it: a consistent gain near the
-        # floor, where a whole effect is a few per cent (blind two effects 11: an appendage,
-        # the truth's second effect, refused at 9.2 %, each test at least 8 %)
-        consistent = len(self.held_names) >= 2 and worst <= -0.5 * self.o.min_gain
-        ok = ((gain >= self.o.min_gain or consistent) and worst <= self.o.max_worse
-              and dbic < 0)
+        ok = gain >= self.o.min_gain and worst <= self.o.max_worse and dbic < 0
         return gain, worst, dbic, held_before, nsse_fit_before, ok
 
 
