@@ -22,11 +22,16 @@ from dynval.io.recording import Recording
 N = 8192
 
 
-def cut_from_a_run(truth: gen.Truth, seed: int) -> list[Recording]:
-    """The second half of longer runs: the structure is moving when each record starts."""
-    runs = gen.generate(declared(), truth, n_tests=4, n_samples=2 * N, seed=seed)
+def second_halves(runs: list[Recording], n: int) -> list[Recording]:
+    """Each run from sample n on: the structure is moving when each record starts."""
     return [Recording(r.name, r.fs_hz, [dataclasses.replace(
-        c, data=np.ascontiguousarray(c.data[N:])) for c in r.channels]) for r in runs]
+        c, data=np.ascontiguousarray(c.data[n:])) for c in r.channels]) for r in runs]
+
+
+def cut_from_a_run(truth: gen.Truth, seed: int) -> list[Recording]:
+    """The second half of longer runs of the 4-DOF structure."""
+    return second_halves(gen.generate(declared(), truth, n_tests=4, n_samples=2 * N,
+                                      seed=seed), N)
 
 
 @pytest.mark.parametrize("with_contact", [False, True])
@@ -61,8 +66,7 @@ def test_a_fit_that_moves_the_damping_moves_the_records_free_motion_with_it() ->
     n = 2048
     runs = gen.generate(truth, gen.Truth(), n_tests=4, n_samples=2 * n, seed=1,
                         levels_n_rms=(3.0, 1.8), excitation=gen.Sweep(6.0, 200.0))
-    recs = [Recording(r.name, r.fs_hz, [dataclasses.replace(
-        c, data=np.ascontiguousarray(c.data[n:])) for c in r.channels]) for r in runs]
+    recs = second_halves(runs, n)
     dec = truth.with_params({"zeta1": 0.06})
     s = make_session(dec, recs, Options())
     assert len(initial.apply(dec, s.evals, s.chans, s.scales, s.settle)) == len(recs)
@@ -93,9 +97,7 @@ def stuck_chain() -> tuple[mdl.Model, gen.Truth, list[Recording]]:
     truth = gen.Truth(elements=(mdl.Friction(0, 4, 0.3, 1e-4),), label="cut")
     runs = gen.generate(chain, truth, n_tests=4, n_samples=2 * N, seed=5, fs_hz=640.0,
                         excitation=gen.Sweep(100.0, 250.0, "linear"))
-    recs = [Recording(r.name, r.fs_hz, [dataclasses.replace(
-        c, data=np.ascontiguousarray(c.data[N:])) for c in r.channels]) for r in runs]
-    return chain, truth, recs
+    return chain, truth, second_halves(runs, N)
 
 
 def test_a_friction_element_stuck_where_the_cut_left_it_starts_there() -> None:
@@ -141,6 +143,7 @@ def test_the_joint_readjustment_is_judged_on_the_starts_it_is_kept_with() -> Non
     # own stiffness)
     k = kept[0].stiffness_n_per_m[2:]
     assert np.allclose(k, KS[2:], rtol=0.001), k
+
 
 def test_a_prediction_that_overflowed_is_left_to_its_caller() -> None:
     """A free start on a non-finite prediction (a diverging element) gives the prediction
