@@ -6,6 +6,7 @@ record's initial state again under every model it tries (TestData.free_start).""
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 import pytest
@@ -16,7 +17,8 @@ from dynval import synth as gen
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
 from dynval.discover import initial, loop
-from dynval.discover.session import Options, make_session
+from dynval.discover import residual as rs
+from dynval.discover.session import Options, make_session, settle_samples
 from dynval.io.recording import Recording
 
 N = 8192
@@ -186,3 +188,50 @@ def test_a_sweep_that_starts_at_rest_stays_at_rest(seed: int) -> None:
     assert all(initial.estimate(tm, t, s.chans, s.scales, s.settle) is None for t in s.evals)
     cut = make_session(tm, second_halves(recs, N // 2), Options())
     assert not any(initial.quiet_start(tm, t, cut.chans) for t in cut.evals)
+
+
+def three_dof() -> mdl.Model:
+    """A 3-DOF chain forced at its middle."""
+    return mdl.Model(masses_kg=(3.0, 2.0, 1.5), stiffness_n_per_m=(2.5e5, 2.0e5, 1.5e5),
+                     damping=mdl.Damping("modal", (0.02, 0.015, 0.02)),
+                     input=mdl.Input("force", 2, "force_N"),
+                     outputs={f"acc{j}": mdl.Output("acc", j) for j in (1, 2, 3)},
+                     fs_hz=640.0)
+
+
+def stepped_sine(m: mdl.Model, truth: gen.Truth, levels: tuple[float, float]
+                 ) -> list[Recording]:
+    """A stepped-sine test: a record in periodic steady state (2 s after switch-on) at each of
+    five frequencies beside the flexible modes, at two levels."""
+    fr = [f for f in mdl.natural_frequencies(m) if f > 1.0]
+    freqs = [0.92 * fr[0], 1.04 * fr[0], 0.96 * fr[1], 1.05 * fr[1], 0.97 * fr[-1]]
+    recs = []
+    for i, f in enumerate(freqs):
+        for j, level in enumerate(levels):
+            r = gen.generate(m, truth, n_tests=1, n_samples=4096, seed=10 * i + j,
+                             levels_n_rms=(level,), excitation=gen.Sine(float(f)))[0]
+            recs.append(Recording(f"sine_{f:.0f}Hz_{('high', 'low')[j]}", r.fs_hz, r.channels))
+    return recs
+
+
+@pytest.mark.parametrize(("model", "element", "levels", "found"), [
+    (declared, mdl.CubicSpring(2, 3, 5e12), (30.0, 15.0), ("cubic_stiffness", [2, 3])),
+    (three_dof, mdl.Contact(1, 2, 4e-5, 2e-5, 1.5e6), (20.0, 8.0), ("contact", [1, 2])),
+])
+def test_a_stepped_sine_in_steady_state(model: Any, element: mdl.Element,
+                                        levels: tuple[float, float],
+                                        found: tuple[str, list[int]]) -> None:
+    """Every record starts in steady state (issue 16, item 3: periodic steady state): the
+    right element, and a held-out error within 1.3 x the true model's at its own initial
+    states. The contact's open-loop fit stopped in another basin (7 % gained, one test 181 %
+    worse: "no effect" at 9 x the true model's error); fitted again through the observer's
+    gains (judge.stuck_unexplained) 0.85 x."""
+    m = model()
+    truth = gen.Truth(elements=(element,), label="sine")
+    r = loop.discover(m, stepped_sine(m, truth, levels))
+    assert [(e["type"], e["location"]["between"]) for e in r.effects] == [found]
+    tm = dataclasses.replace(gen.truth_model(m, truth), outputs=m.outputs)
+    initial.apply(tm, r.tests, r.chans, r.scales,
+                  settle_samples(r.modes_hz, r.band_hz, r.tests[0].fs_hz))
+    ideal = rs.error_table(tm, r.tests, r.chans, r.scales)[0].total(r.held_names)
+    assert r.after.total(r.held_names) < 1.3 * ideal, (r.after.total(r.held_names), ideal)
