@@ -167,3 +167,24 @@ def test_a_linear_winner_is_kept() -> None:
     fits = [win, _fit("stiffness_change", {"story": 2, "between": [1, 2]}, 0.06)]
     assert _carried(win, fits, 1.0) is win
     assert _carried(None, fits, 1.0) is None
+
+
+def _table(nsse: dict[str, float]) -> Any:
+    from dynval.discover import residual as rs
+    return rs.ErrorTable({t: {} for t in nsse}, nsse)
+
+
+def test_a_gain_one_held_out_test_alone_makes_is_not_replicated() -> None:
+    """judge.replicated_gain: the held-out gain without the test the fit helps most. The
+    stepped sine's force offset: one of five tests 1.90 -> 1.43, the others +0.5 % (gain 20 %
+    over all, -0.5 % over the rest: refused at REPLICATED x min_gain); an effect that acts on
+    every test keeps its gain; with two held-out tests nothing is left to replicate."""
+    held = ["a", "b", "c", "d", "e"]
+    ref = _table({"a": 1.90, "b": 0.39, "c": 0.02, "d": 0.004, "e": 0.0001})
+    knife = _table({"a": 1.43, "b": 0.39 * 1.005, "c": 0.02 * 1.005, "d": 0.004 * 1.005,
+                    "e": 0.0001 * 1.005})
+    assert judge.replicated_gain(knife, ref, held) == pytest.approx(-0.005)
+    assert judge.replicated_gain(knife, ref, held) < judge.REPLICATED * 0.10
+    every = _table({h: 0.6 * v for h, v in ref.nsse.items()})
+    assert judge.replicated_gain(every, ref, held) == pytest.approx(0.4)
+    assert math.isinf(judge.replicated_gain(knife, ref, held[:2]))

@@ -146,8 +146,9 @@ def judge_all(s: Session, rd: Round, judge: Judge, evs: list[tr.Evidence],
             best = info
             break
     for info in new:
-        log.info("round %d: %s: held-out gain %.3f, worst test %+.3f, dBIC %.1f -> %s",
-                 rd.index, info["candidate"].label, info["held_gain"],
+        log.info("round %d: %s: held-out gain %.3f (%.3f without its best test), worst test "
+                 "%+.3f, dBIC %.1f -> %s", rd.index, info["candidate"].label,
+                 info["held_gain"], info["held_gain_replicated"],
                  info["held_worst_test_change"], info["delta_bic"],
                  "accept" if info["accepted"] else "reject")
     return best
@@ -164,6 +165,13 @@ RIVALS_FLOOR_RATIO = 1.1
 PLACE_FREE = ("appendage",)
 START = "start:"  # shape keys: a candidate's own starting values (from a sibling's fit)
 THROUGH_GAINS = "through gains"  # shape key: fitted through the observer's gains
+# a candidate fitted again in a stuck round is also fitted open loop from the best
+# STUCK_SCAN of its type's stuck_starts that screen under STUCK_GATE x its evidence start's
+# error: the grid's best can lie in another basin of the type (a stepped sine seen at DOF 1
+# and 3 of a 3-DOF chain: a contact's two best grid starts ended at a soft one-sided spring
+# from gap 0, 2.3 x the true contact's held-out error; its third and fourth at the contact)
+STUCK_SCAN = 4
+STUCK_GATE = 0.5
 
 
 def siblings(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
@@ -464,30 +472,24 @@ class Judge:
 
     def candidate(self, e: tr.Evidence) -> dict[str, Any] | None:
         cand = with_shape(e)
-        et = fx.by_type(cand.type)
         names = self.readjusted(cand)
         given = [v for k, v in cand.shape.items() if k.startswith(START)]
         if cand.type == "appendage" and e.amp < 0 and not given:
             cand, e = self.at_residual_peak(cand, e)
-        starts = et.starts(self.cur, cand, e.amp)
-        if given:  # a sibling's values (siblings): the other starts were tried already
-            starts = [given]
-        if len(starts) > 2:
-            starts = ft.screen(self.cur, cand, starts, self.fit_t, self.chans, self.scales)
-        scan = [] if given else et.scan_starts(self.cur, cand, e.amp)
-        if scan:
-            starts += ft.screen(self.cur, cand, scan, self.fit_t, self.chans, self.scales, 1)
+        starts, scanned = self.starts(cand, e, given)
         declared: dict[str, float] = {}
         if not given:
             cand, starts, declared = self.joint_start(e, cand, starts, names)
         _, ref_table, ref_p = self.reference(names)
         beat = ref_table.total(self.fit_names)  # a fit left above it is refused (_verdict)
         res = None
-        if cand.shape.get(THROUGH_GAINS):
+        if cand.shape.get(THROUGH_GAINS):  # the other starts were fitted in the first pass
             res = continuation.fit_candidate(self.cur, cand, starts[0], names, self.fit_t,
                                              self.chans, self.scales, self.o.max_nfev,
                                              self.workers)
-            starts = []
+            starts, declared = scanned, {}
+        else:
+            starts += scanned
         for i, init in enumerate(starts):
             try:
                 # workers: the Jacobian's columns on the cores when this fit is a map's
@@ -509,6 +511,37 @@ class Judge:
                 "reference": _reference_label(names, "") if ref_p else "the current model"}
         self._judged(info, ref_table, ref_p)
         return info
+
+    def starts(self, cand: fx.Candidate, e: tr.Evidence, given: list[float]
+               ) -> tuple[list[list[float]], list[list[float]]]:
+        """(the evidence's starts, the others) of a candidate: a sibling's values alone
+        (``given``), else the type's starts (the best two by one simulation each when there
+        are more) and the best of its scan_starts by one simulation each; in a round fitted
+        again (THROUGH_GAINS) its stuck_starts instead (the scan's was fitted already)."""
+        et = fx.by_type(cand.type)
+        if given:
+            return [given], []
+        starts = et.starts(self.cur, cand, e.amp)
+        if len(starts) > 2:
+            starts = ft.screen(self.cur, cand, starts, self.fit_t, self.chans, self.scales)
+        if cand.shape.get(THROUGH_GAINS):
+            return starts, self.stuck_starts(cand, e, starts)
+        scan = et.scan_starts(self.cur, cand, e.amp)
+        if not scan:
+            return starts, []
+        return starts, ft.screen(self.cur, cand, scan, self.fit_t, self.chans, self.scales, 1)
+
+    def stuck_starts(self, cand: fx.Candidate, e: tr.Evidence, starts: list[list[float]]
+                     ) -> list[list[float]]:
+        """The best STUCK_SCAN of the type's stuck_starts by one simulation each, of those
+        leaving the fitting tests under STUCK_GATE x the evidence's first start's error."""
+        grid = fx.by_type(cand.type).stuck_starts(self.cur, cand, e.amp)
+        if not grid:
+            return []
+        own = ft.screen_scored(self.cur, cand, starts[:1], self.fit_t, self.chans, self.scales)
+        bar = STUCK_GATE * own[0][0] if own else math.inf
+        scored = ft.screen_scored(self.cur, cand, grid, self.fit_t, self.chans, self.scales)
+        return [st for v, st in scored if v < bar][:STUCK_SCAN]
 
     def at_residual_peak(self, cand: fx.Candidate, e: tr.Evidence
                          ) -> tuple[fx.Candidate, tr.Evidence]:
@@ -580,12 +613,7 @@ class Judge:
         return cand_j, [starts_j[0], *starts[1:]], declared
 
     def _judged(self, info: dict[str, Any], ref_table: rs.ErrorTable, ref_p: int) -> None:
-        gain, worst, dbic, held_before, nsse_fit_before, ok = self._verdict(
-            info["fit"], info["table"], ref_table, ref_p)
-        info.update(held_gain=gain, held_worst_test_change=worst, delta_bic=dbic, accepted=ok,
-                    nsse_fit_before=nsse_fit_before, nsse_fit_after=info["fit"].nsse_fit,
-                    nsse_held_before=held_before,
-                    nsse_held_after=info["table"].total(self.held_names))
+        info.update(self._verdict(info["fit"], info["table"], ref_table, ref_p))
 
     def confirm(self, info: dict[str, Any]) -> bool:
         """Whether an accepted fit stays accepted against its warm reference: the
@@ -644,20 +672,46 @@ class Judge:
         return tab
 
     def _verdict(self, res: ft.FitResult, tab: rs.ErrorTable, ref_table: rs.ErrorTable,
-                 ref_p: int) -> tuple[float, float, float, float, float, bool]:
-        """(held-out gain, worst held-out test change, dBIC, held-out and fitting normalised
-        SSE of the reference, accepted) of a fit against a reference."""
+                 ref_p: int) -> dict[str, Any]:
+        """A fit against a reference: its held-out gain, worst held-out test change, gain on
+        the held-out tests but the one it helps most (replicated_gain), dBIC, the
+        reference's held-out and fitting normalised SSE, the fit's, and the verdict."""
         held_before = ref_table.total(self.held_names)
         held_after = tab.total(self.held_names)
         gain = 1.0 - held_after / held_before if held_before > 0 else 0.0
         worst = max((tab.nsse[h] / ref_table.nsse[h] - 1.0 for h in self.held_names
                      if ref_table.nsse[h] > 0), default=0.0)
+        again = replicated_gain(tab, ref_table, self.held_names)
         n_eff = sum(t.n for t in self.fit_t for c in self.chans) / res.n_eff_factor
         nsse_fit_before = ref_table.total(self.fit_names)
         dbic = (bic(res.nsse_fit, n_eff, len(res.values))
                 - bic(nsse_fit_before, n_eff, ref_p))
-        ok = gain >= self.o.min_gain and worst <= self.o.max_worse and dbic < 0
-        return gain, worst, dbic, held_before, nsse_fit_before, ok
+        ok = (gain >= self.o.min_gain and worst <= self.o.max_worse and dbic < 0
+              and again >= REPLICATED * self.o.min_gain)
+        return {"held_gain": gain, "held_worst_test_change": worst,
+                "held_gain_replicated": again, "delta_bic": dbic, "accepted": ok,
+                "nsse_fit_before": nsse_fit_before, "nsse_fit_after": res.nsse_fit,
+                "nsse_held_before": held_before, "nsse_held_after": held_after}
+
+
+# an effect must gain on more than one held-out test: with the test it helps most left out
+# the others still gain REPLICATED x min_gain. A response on a knife edge (a contact near a
+# jump) moves with any small change: on a stepped sine seen at DOF 1 and 3, a 0.02 N force
+# offset (its per-test refits +-0.18 N) gained 20 %, all of it on one of five held-out
+# tests (the others -1 %). Every effect the 72 blind cases accept keeps >= 0.097 of it.
+REPLICATED = 0.5
+
+
+def replicated_gain(tab: rs.ErrorTable, ref_table: rs.ErrorTable, held: Sequence[str]
+                    ) -> float:
+    """The held-out gain of ``tab`` over ``ref_table`` without the held-out test whose
+    error it lowers most; inf with fewer than three held-out tests (nothing to replicate)."""
+    if len(held) < 3:
+        return math.inf
+    top = max(held, key=lambda h: ref_table.nsse[h] - tab.nsse[h])
+    before = sum(ref_table.nsse[h] for h in held if h != top)
+    after = sum(tab.nsse[h] for h in held if h != top)
+    return 1.0 - after / before if before > 0 else 0.0
 
 
 def _reference_label(names: Sequence[str], start: str) -> str:

@@ -57,6 +57,7 @@ def _evidence_list(rd: Any) -> list[dict[str, Any]]:
                                                              res.units, strict=True)},
                         "held_out_gain": _f(info["held_gain"]),
                         "held_out_worst_test_change": _f(info["held_worst_test_change"]),
+                        "held_out_gain_without_best_test": _f(info["held_gain_replicated"]),
                         "delta_bic": _f(info["delta_bic"]), "accepted": info["accepted"],
                         "reference": info["reference"], "n_evaluations": res.nfev}
         out.append(d)

@@ -258,6 +258,12 @@ class EffectType:
         is fitted too (none by default)."""
         return []
 
+    def stuck_starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        """Starting points for a candidate fitted again in a round that accepted nothing
+        with its residual still large (judge.stuck_unexplained): the best few by one
+        simulation each are fitted too (none by default)."""
+        return []
+
     def motion_scales(self, st: States, cand: Candidate) -> dict[str, float]:
         """Scales of the motion the effect acts on (recorded in the candidate's shape, they
         set its parameter bounds)."""

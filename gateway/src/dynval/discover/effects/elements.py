@@ -84,6 +84,23 @@ class Contact(EffectType):
         return add_element(m, "contact", a, b, values, f"discovered contact {a}-{b}",
                             cand.location["side"])
 
+    # the scan's gaps and transitions (x the drift's RMS) and contact stiffnesses (x the
+    # stiffest story's)
+    _SCAN_GAPS = (0.0, 0.1, 0.25, 0.5, 1.0, 2.0)
+    _SCAN_DELTAS = (0.1, 0.3)
+    _SCAN_KB = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)
+
+    def stuck_starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
+        """A grid of gaps, transitions and contact stiffnesses. The evidence reads a
+        contact's stiffness to first order, and from estimated states it can be far off: a
+        stepped sine on a 3-DOF chain seen at DOF 1 and 3 read a contact 12 x too soft at a
+        gap 12 x too wide (its simulation 5 x the grid's best error), and the fit from there
+        stopped at a bilinear spring (gap 0) with 3 x the true contact's held-out error."""
+        d = float(cand.shape.get("drift_rms_m", 1e-4))
+        k = max(m.stiffness_n_per_m)
+        return [[g * d, dl * d, kb * k] for g in self._SCAN_GAPS for dl in self._SCAN_DELTAS
+                for kb in self._SCAN_KB]
+
     def other_starts(self, m: mdl.Model, cand: Candidate, init: Sequence[float]
                      ) -> list[list[float]]:
         """A soft transition as well: the evidence's bilinear gap (delta = 0) is where a soft
