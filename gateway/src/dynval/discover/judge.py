@@ -92,8 +92,14 @@ def stuck_nested(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
              if nested_in(f["candidate"], best["candidate"])
              and f["nsse_fit_after"] > f["nsse_fit_before"]
              and not f["candidate"].shape.get(THROUGH_GAINS)}
+    return through_gains(rd, stuck)
+
+
+def through_gains(rd: Round, keys: set[str]) -> list[tr.Evidence]:
+    """The round's evidence of the candidates ``keys`` (cand_key), marked to be fitted again
+    through the observer's gains (THROUGH_GAINS)."""
     return [tr.Evidence(e.cand, e.r2, e.amp, {**e.shape, THROUGH_GAINS: 1.0})
-            for e in rd.evidence if cand_key(e.cand) in stuck]
+            for e in rd.evidence if cand_key(e.cand) in keys]
 
 
 # a round that accepts nothing while its residual stays this many times the noise floor:
@@ -115,9 +121,7 @@ def stuck_unexplained(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidenc
     gained = sorted((f for f in rd.fits if fx.by_type(f["candidate"].type).nonlinear
                      and f["held_gain"] > 0 and not f["candidate"].shape.get(THROUGH_GAINS)),
                     key=lambda f: -float(f["held_gain"]))
-    keys = {cand_key(f["candidate"]) for f in gained[:UNEXPLAINED_REFITS]}
-    return [tr.Evidence(e.cand, e.r2, e.amp, {**e.shape, THROUGH_GAINS: 1.0})
-            for e in rd.evidence if cand_key(e.cand) in keys]
+    return through_gains(rd, {cand_key(f["candidate"]) for f in gained[:UNEXPLAINED_REFITS]})
 
 
 def judge_all(s: Session, rd: Round, judge: Judge, evs: list[tr.Evidence],
