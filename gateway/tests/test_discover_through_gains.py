@@ -92,3 +92,31 @@ def test_only_the_winners_nested_types_that_ended_above_their_reference_are_fitt
     rd.fits[1] = _fit("cubic_stiffness", 5, 3.9, 4.9, **{judge.THROUGH_GAINS: 1.0})
     assert judge.stuck_nested(rd, winner) == []
     assert judge.stuck_nested(rd, None) == []
+
+
+def _held(kind: str, story: int, gain: float, worst: float) -> dict[str, Any]:
+    return {**_fit(kind, story, 1.0, 1.0), "held_gain": gain, "held_worst_test_change": worst}
+
+
+def test_with_nothing_accepted_only_fits_that_crossed_branches_are_fitted_again() -> None:
+    """judge.stuck_unexplained: a round that accepts nothing with its residual at twice the
+    floor fits again the nonlinear elements that gained overall and made a held-out test
+    worse than max_worse (a fit between the response's branches); one that gained a little
+    and harmed no test found the element not needed."""
+    fits = [_held("contact", 2, 0.07, 1.81),  # gained, one test 181 % worse: again
+            _held("cubic_stiffness", 2, 0.21, 0.61),  # gained more: first
+            _held("contact", 3, 0.09, 0.016),  # gained, harmed no test: not again
+            _held("vv_damping", 2, -0.04, 1.2),  # gained nothing: not again
+            _held("stiffness_change", 2, 0.5, 0.9)]  # linear: not again
+    ev = [tr.Evidence(f["candidate"], 0.1, 1e6, {}) for f in fits]
+    rd = session.Round(3, {"acc1": 2.08, "acc2": 1.3}, {}, ev, fits, None, "")
+    got = judge.stuck_unexplained(rd, None, max_worse=0.05)
+    assert sorted((e.cand.type, e.cand.location["story"]) for e in got) == [
+        ("contact", 2), ("cubic_stiffness", 2)]
+    assert all(e.shape[judge.THROUGH_GAINS] == 1.0 for e in got)
+    # the worse test within max_worse: none again; under twice the floor or with a winner: none
+    assert judge.stuck_unexplained(rd, None, max_worse=2.0) == []
+    rd.ratio = {"acc1": 1.99, "acc2": 1.3}
+    assert judge.stuck_unexplained(rd, None, max_worse=0.05) == []
+    rd.ratio = {"acc1": 2.08}
+    assert judge.stuck_unexplained(rd, fits[0], max_worse=0.05) == []
