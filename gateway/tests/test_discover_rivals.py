@@ -192,3 +192,31 @@ def test_a_change_refused_for_one_worse_test_has_the_elements_at_its_story_fitte
         rd.fits = [{**_change([0, 1], 0.56, 0.38), **f}]
         assert judge.level_dependent(rd, o) is None
         assert judge.rivals_to_fit(_session(monkeypatch), rd, None, set()) == []
+
+
+def _side(side: str, r2: float) -> tr.Evidence:
+    return tr.Evidence(fx.Candidate("contact", {"between": [0, 1], "side": side},
+                                    f"contact {side}", True), r2, 1.0)
+
+
+def test_a_linear_winner_has_every_side_of_a_contact_at_its_story_fitted_from_the_grid(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A stiffness change stands in for a contact seen by two sensors of three under a
+    stepped sine, and the view's best side there was a two-sided one: each side is a rival,
+    marked to be fitted from the grid's starts too (judge.RIVAL)."""
+    ev = [_side("both", 0.6), _ev("cubic_stiffness", [0, 1], 0.5), _side("neg", 0.4),
+          _side("pos", 0.3)]
+    rd = session.Round(1, {}, {}, ev, [], None, "", noise=dict(NOISE))
+    best = {"candidate": fx.Candidate("stiffness_change", {"between": [0, 1]}, "k1", True)}
+    got = judge.nonlinear_rivals(rd, best, set())
+    assert sorted(e.cand.label for e in got) == ["contact both", "contact neg", "contact pos",
+                                                 "cubic_stiffness [0, 1]"]
+    s = _session(monkeypatch)
+    above = _best("stiffness_change", {"a1": (3.0, 3.0), "a2": (3.0, 3.0)})
+    marked = judge.rivals_to_fit(s, rd, {**above, "candidate": best["candidate"]}, set())
+    assert len(marked) == 4 and all(e.shape[judge.RIVAL] == 1.0 for e in marked)
+    # a nonlinear winner with an accepted stiffness change: the best-placed of each type there
+    win = {"candidate": fx.Candidate("cubic_stiffness", {"between": [0, 1]}, "k3", True)}
+    rd.fits = [{"candidate": best["candidate"], "accepted": True, "nsse_held_after": 1.0}]
+    got = judge.nonlinear_rivals(rd, win, set())
+    assert [e.cand.label for e in got] == ["contact both", "cubic_stiffness [0, 1]"]

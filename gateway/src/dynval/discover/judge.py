@@ -105,6 +105,9 @@ def through_gains(rd: Round, keys: set[str]) -> list[tr.Evidence]:
 # a round that accepts nothing while its residual stays this many times the noise floor:
 # the nonlinear element fits that gained most are fitted again through the observer's gains
 UNEXPLAINED_RATIO = 2.0
+# shape key: a rival of a winning linear change, fitted from the type's stuck_starts too (a
+# contact seen at two DOFs of three, its evidence 12 x too soft, lost to a stiffness change)
+RIVAL = "rival of a linear change"
 UNEXPLAINED_REFITS = 2
 
 
@@ -259,6 +262,7 @@ def rivals_to_fit(s: Session, rd: Round, best: dict[str, Any] | None, accepted: 
                f"({len(rivals)}) are not fitted")
         rivals = []
     elif best["candidate"].type in LINEAR_CHANGES:
+        rivals = [tr.Evidence(e.cand, e.r2, e.amp, {**e.shape, RIVAL: 1.0}) for e in rivals]
         msg = (f"round {rd.index}: {label} would win; the best-placed candidate of each "
                f"nonlinear element type is fitted too ({len(rivals)}): an element seen at a "
                f"few excitation levels can pass for a linear change")
@@ -300,7 +304,8 @@ def nonlinear_rivals(rd: Round, best: dict[str, Any] | None, accepted: set[str]
                       ) -> list[tr.Evidence]:
     """When a stiffness or damping change would win the round: the best-placed candidate of
     each nonlinear element type; and each type's candidate where the round's best accepted
-    stiffness change is (the lowest held-out error), whatever wins. All not fitted yet.
+    stiffness change is (the lowest held-out error), whatever wins, every one there (each
+    side of a contact) when the change wins. All not fitted yet.
     Friction at a few excitation levels reads as extra damping, a hardening spring as a
     stiffer story, and the evidence view may rank them below the change (a view that does not
     see every DOF: blind sweep case 15, a hardening spring under a sweep, where an appendage
@@ -320,7 +325,7 @@ def nonlinear_rivals(rd: Round, best: dict[str, Any] | None, accepted: set[str]
     offered = _not_fitted(rd, accepted)
     picked = list(best_placed_nonlinear(offered).values()) if linear_wins else []
     if top is not None:
-        picked += nonlinear_at(offered, top)
+        picked += nonlinear_at(offered, top, every_side=linear_wins)
     return list({cand_key(e.cand): e for e in picked}.values())
 
 
@@ -526,8 +531,9 @@ class Judge:
                ) -> tuple[list[list[float]], list[list[float]]]:
         """(the evidence's starts, the others) of a candidate: a sibling's values alone
         (``given``), else the type's starts (the best two by one simulation each when there
-        are more) and the best of its scan_starts by one simulation each; in a round fitted
-        again (THROUGH_GAINS) its stuck_starts instead (the scan's was fitted already)."""
+        are more) and the best of its scan_starts by one simulation each, and a rival of a
+        linear change (RIVAL) its stuck_starts too; in a round fitted again (THROUGH_GAINS)
+        its stuck_starts instead (the scan's was fitted already)."""
         et = fx.by_type(cand.type)
         if given:
             return [given], []
@@ -537,9 +543,11 @@ class Judge:
         if cand.shape.get(THROUGH_GAINS):
             return starts, self.stuck_starts(cand, e, starts)
         scan = et.scan_starts(self.cur, cand, e.amp)
+        grid = self.stuck_starts(cand, e, starts) if cand.shape.get(RIVAL) else []
         if not scan:
-            return starts, []
-        return starts, ft.screen(self.cur, cand, scan, self.fit_t, self.chans, self.scales, 1)
+            return starts, grid
+        return starts, ft.screen(self.cur, cand, scan, self.fit_t, self.chans, self.scales,
+                                 1) + grid
 
     def stuck_starts(self, cand: fx.Candidate, e: tr.Evidence, starts: list[list[float]]
                      ) -> list[list[float]]:
