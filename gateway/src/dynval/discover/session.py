@@ -145,20 +145,21 @@ def twins(tests: Sequence[rs.TestData], med: Mapping[str, float]
     third mode, the fit never saw that mode and its re-adjusted damping wandered (a
     stick-slip joint fitted within 2 % was refused at 130 x the true model's held-out
     error)."""
-    key = {t.name: (math.log(med[t.name]), math.log(max(float(np.std(t.u)), 1e-300)))
-           for t in tests}
     left = sorted(tests, key=lambda t: (med[t.name], float(np.std(t.u)), t.name))
+    key = np.array([(math.log(med[t.name]), math.log(max(float(np.std(t.u)), 1e-300)))
+                    for t in left])
+    dist = np.abs(key[:, None, :] - key[None, :, :]).sum(axis=2)
+    dist[np.tril_indices(len(left))] = np.inf  # each pair once, i < j: i the lower frequency
     fit: list[rs.TestData] = []
     held: list[rs.TestData] = []
-    while len(left) > 1:
-        i, j = min(((i, j) for i in range(len(left)) for j in range(i + 1, len(left))),
-                   key=lambda p: sum(abs(a - b) for a, b in zip(key[left[p[0]].name],
-                                                                key[left[p[1]].name],
-                                                                strict=True)))
-        fit.append(left[i])  # left is sorted: i < j is the lower frequency
+    for _ in range(len(left) // 2):
+        i, j = np.unravel_index(int(np.argmin(dist)), dist.shape)
+        fit.append(left[i])
         held.append(left[j])
-        del left[j], left[i]
-    return fit + left, held
+        dist[[i, j], :] = np.inf
+        dist[:, [i, j]] = np.inf
+    paired = {id(t) for t in fit + held}
+    return fit + [t for t in left if id(t) not in paired], held
 
 
 def settle_s(modes_hz: Sequence[float], zeta: float = 0.01) -> float:
