@@ -105,9 +105,6 @@ def through_gains(rd: Round, keys: set[str]) -> list[tr.Evidence]:
 # a round that accepts nothing while its residual stays this many times the noise floor:
 # the nonlinear element fits that gained most are fitted again through the observer's gains
 UNEXPLAINED_RATIO = 2.0
-# shape key: a rival of a winning linear change, fitted from the type's stuck_starts too (a
-# contact seen at two DOFs of three, its evidence 12 x too soft, lost to a stiffness change)
-RIVAL = "rival of a linear change"
 UNEXPLAINED_REFITS = 2
 
 
@@ -178,6 +175,9 @@ RIVALS_FLOOR_RATIO = 1.1
 PLACE_FREE = ("appendage",)
 START = "start:"  # shape keys: a candidate's own starting values (from a sibling's fit)
 THROUGH_GAINS = "through gains"  # shape key: fitted through the observer's gains
+# shape key: a rival of a winning linear change, fitted from the type's stuck_starts too (a
+# contact seen at two DOFs of three, its evidence 12 x too soft, lost to a stiffness change)
+RIVAL = "rival of a linear change"
 # a candidate fitted again in a stuck round is also fitted open loop from the best
 # STUCK_SCAN of its type's stuck_starts that screen under STUCK_GATE x its evidence start's
 # error: the grid's best can lie in another basin of the type (a stepped sine seen at DOF 1
@@ -543,11 +543,10 @@ class Judge:
         if cand.shape.get(THROUGH_GAINS):
             return starts, self.stuck_starts(cand, e, starts)
         scan = et.scan_starts(self.cur, cand, e.amp)
+        scanned = ft.screen(self.cur, cand, scan, self.fit_t, self.chans, self.scales, 1) \
+            if scan else []
         grid = self.stuck_starts(cand, e, starts) if cand.shape.get(RIVAL) else []
-        if not scan:
-            return starts, grid
-        return starts, ft.screen(self.cur, cand, scan, self.fit_t, self.chans, self.scales,
-                                 1) + grid
+        return starts, scanned + grid
 
     def stuck_starts(self, cand: fx.Candidate, e: tr.Evidence, starts: list[list[float]]
                      ) -> list[list[float]]:

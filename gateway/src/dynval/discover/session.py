@@ -3,7 +3,6 @@ fitting and held-out sets (Session), each round's record (Round) and the result
 (DiscoverResult)."""
 from __future__ import annotations
 
-import importlib
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -18,8 +17,7 @@ from dynval.discover import residual as rs
 from dynval.discover import trace as tr
 from dynval.errors import ConfigError
 from dynval.io.recording import Recording
-
-signal: Any = importlib.import_module("scipy.signal")
+from dynval.validate import measurement
 
 
 @dataclass
@@ -120,12 +118,11 @@ SAME_BAND_RATIO = 1.25
 
 
 def median_frequency(u: np.ndarray, fs_hz: float) -> float:
-    """The frequency below which half the input's power lies (Welch PSD, mean removed); at
-    least one bin."""
-    f, p = signal.welch(u - np.mean(u), fs=fs_hz, nperseg=min(1024, u.size))
-    c = np.cumsum(p)
-    at = float(f[min(int(np.searchsorted(c, 0.5 * c[-1])), f.size - 1)]) if c[-1] > 0 else 0.0
-    return max(at, float(f[1]) if f.size > 1 else fs_hz / 2)
+    """The frequency below which half the input's power lies (mean removed); at least one
+    bin of its PSD."""
+    at = measurement.power_quantiles(u - np.mean(u), fs_hz, (0.5,))[0]
+    bins = np.fft.rfftfreq(min(1024, u.size), 1.0 / fs_hz)  # power_quantiles' PSD bins
+    return max(at, float(bins[1]) if bins.size > 1 else fs_hz / 2)
 
 
 def one_band(medians: Iterable[float]) -> bool:

@@ -109,13 +109,22 @@ def _rms(recs: Sequence[Recording], c: str) -> float:
     return float(np.sqrt(np.mean([np.mean(r.channel(c).data ** 2) for r in recs])))
 
 
-def input_band(u: np.ndarray, fs_hz: float) -> tuple[float, float]:
-    """The band holding 98 % of the input's power (1 %-99 % of its cumulative PSD)."""
+def power_quantiles(u: np.ndarray, fs_hz: float, shares: Sequence[float]) -> list[float]:
+    """The frequencies (Hz) below which the given shares (0..1) of u's power lie (Welch PSD,
+    segments of at most 1024 samples); 0.0 each when u has no power."""
     sig = importlib.import_module("scipy.signal")
     f, p = sig.welch(u, fs=fs_hz, nperseg=min(1024, u.size))
-    c = np.cumsum(p) / (p.sum() or 1e-300)
-    return float(f[np.searchsorted(c, 0.01)]), float(f[min(np.searchsorted(c, 0.99),
-                                                             f.size - 1)])
+    total = float(p.sum())
+    if not total > 0:
+        return [0.0 for _ in shares]
+    c = np.cumsum(p) / total
+    return [float(f[min(int(np.searchsorted(c, q)), f.size - 1)]) for q in shares]
+
+
+def input_band(u: np.ndarray, fs_hz: float) -> tuple[float, float]:
+    """The band holding 98 % of the input's power (1 %-99 % of its cumulative PSD)."""
+    lo, hi = power_quantiles(u, fs_hz, (0.01, 0.99))
+    return lo, hi
 
 
 def estimate_noise(m: mdl.Model, recs: Sequence[Recording], chans: Sequence[str],
