@@ -18,9 +18,12 @@ at 0.4 fs: simulation.daq_filter), and the ideal is simulated with it too. So is
 discover found a filter (the daq_filter effect: the generator's DAQ is the truth's measurement
 chain, and it is listed after the effects found, not counted among them); such a row also gives
 the after-error against the ideal without any filter.
+``--sensors vel|disp|mix``: every sensor a velocity or displacement one (a vibrometer, a
+proximity probe), or each drawn among the three; with a force input (a shake table's chain is
+driven at DOF 1 instead).
 
     python3 bench/bench_discover_blind.py [--cases 16] [--first 0] [--effects 0|1|2]
-        [--only KIND --out FILE] [--free] [--sweep] [--dofs N]
+        [--only KIND --out FILE] [--free] [--sweep] [--dofs N] [--sensors KIND]
 """
 from __future__ import annotations
 
@@ -63,6 +66,22 @@ def structure(rng: np.random.Generator, dofs: int = 0) -> tuple[mdl.Model, bool]
     return mdl.Model(masses_kg=masses, stiffness_n_per_m=ks, damping=mdl.Damping("modal", zeta),
                      input=inp, outputs={f"acc{j}_mps2": mdl.Output("acc", j) for j in outs},
                      fs_hz=FS), table
+
+
+SENSORS = ("acc", "vel", "disp", "mix")
+UNIT = {"acc": "mps2", "vel": "mps", "disp": "m"}
+
+
+def with_sensors(m: mdl.Model, kind: str, rng: np.random.Generator) -> mdl.Model:
+    """m's sensors made velocity or displacement ones (``kind`` 'vel', 'disp'), or each drawn
+    among the three ('mix'); a shake table's chain driven by a force at DOF 1 instead (a
+    force input is what such sensors are read with)."""
+    outs = {}
+    for o in m.outputs.values():
+        k = kind if kind != "mix" else str(rng.choice(["acc", "vel", "disp"]))
+        outs[f"{k}{o.index}_{UNIT[k]}"] = dataclasses.replace(o, kind=k)
+    inp = m.input if m.input.kind == "force" else mdl.Input("force", 1, "force_N")
+    return dataclasses.replace(m, outputs=outs, input=inp)
 
 
 def freed(m: mdl.Model, rng: np.random.Generator) -> mdl.Model:
@@ -200,14 +219,17 @@ def sweep(rng: np.random.Generator) -> gen.Sweep:
 
 
 def run(seed: int, count: int = 1, only: str = "", free: bool = False,
-        swept: bool = False, dofs: int = 0, declare_daq: bool = False) -> str:
+        swept: bool = False, dofs: int = 0, declare_daq: bool = False,
+        sensors: str = "acc") -> str:
     """One blind case: its table row. ``count`` 2 draws two effects (another seed stream);
     ``free`` frees the chain from the ground (its own draws, after the structure's);
     ``swept`` drives every test with a swept sine (its own draws) instead of random noise;
     ``dofs`` sets the chain's size (else 3-5); ``declare_daq``: the declared model states the
-    generator's anti-alias filter."""
+    generator's anti-alias filter; ``sensors``: with_sensors' kind (its own draws)."""
     rng = np.random.default_rng((1000 if count <= 1 else 2000) + seed)
     m, table = structure(rng, dofs)
+    if sensors != "acc":
+        m, table = with_sensors(m, sensors, np.random.default_rng(5000 + seed)), False
     if free:
         m, table = freed(m, np.random.default_rng(3000 + seed)), False
     truth, wants = effects(rng, m, count, only)
@@ -317,13 +339,17 @@ def main() -> None:
                     "appendage adds one)")
     ap.add_argument("--daq", action="store_true",
                     help="the declared model states the generator's anti-alias filter")
+    ap.add_argument("--sensors", default="acc", choices=SENSORS,
+                    help="every sensor a velocity or displacement one, or each drawn among "
+                    "the three (mix); a shake table becomes a force at DOF 1")
     a = ap.parse_args()
     out = a.out or str(ROOT / "bench" / {0: "RESULTS.blind-clean.md", 1: "RESULTS.blind.md",
                                          2: "RESULTS.blind-two.md"}[a.effects])
     rows, skipped = [], []
     for seed in range(a.first, a.first + a.cases):
         try:
-            rows.append(run(seed, a.effects, a.only, a.free, a.sweep, a.dofs, a.daq))
+            rows.append(run(seed, a.effects, a.only, a.free, a.sweep, a.dofs, a.daq,
+                            a.sensors))
         except ConfigError as exc:  # the drawn truth itself runs away (a softening spring)
             skipped.append(f"- seed {seed}: not generated: {exc}")
             print(skipped[-1], flush=True)  # noqa: T201 (a benchmark's table)
@@ -338,7 +364,8 @@ def main() -> None:
             f"`python3 bench/bench_discover_blind.py --cases {a.cases} --first {a.first} "
             f"--effects {a.effects}{' --only ' + a.only if a.only else ''}"
             f"{' --free' if a.free else ''}{' --sweep' if a.sweep else ''}"
-            f"{f' --dofs {a.dofs}' if a.dofs else ''}{' --daq' if a.daq else ''}`: "
+            f"{f' --dofs {a.dofs}' if a.dofs else ''}{' --daq' if a.daq else ''}"
+            f"{f' --sensors {a.sensors}' if a.sensors != 'acc' else ''}`: "
             f"right type and place in {right} of {len(rows)} (and among the effects as well "
             f"supported as the one named in {tied} more: 'tied'); held-out error within 1.3 x the "
             f"ideal in {within} of {len(rows)}, and in {within_sound} of the {len(sound)} whose "

@@ -475,8 +475,8 @@ def _trace(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable, rnd: int,
         # on the SECOND_TESTS loudest fitting tests (where elements act most): the view
         # propagates every basis through the model, the costliest scoring there is
         loud = sorted(s.fit_t, key=lambda t: -float(np.std(t.u)))[:SECOND_TESTS]
-        other = (tr.output_view(cur, loud, s.chans, s.scales)
-                 if view.propagate is None else None)
+        other = (tr.output_view(cur, loud, s.chans, s.scales) if view.propagate is None
+                 else tr.force_view(cur, s.fit_t, motions=True))
         second = (_second_opinion(evidence, tr.score(other, cands, s.workers)) if other
                   else [])
     else:
@@ -503,7 +503,10 @@ def _second_opinion(first: list[tr.Evidence], second: list[tr.Evidence],
     missing force alike (errors in variables: a noisy DAQ lends a mass change at that DOF
     evidence it does not have, and buries a rarely acting effect); the output view builds
     them from the model's simulated states, free of the sensors' noise, but its first-order
-    evidence ranks less sharply on clean data, so it adds candidates, not ranks them."""
+    evidence ranks less sharply on clean data, so it adds candidates, not ranks them. With
+    velocity or displacement sensors the roles swap: the output view ranks, the force view
+    built from the differentiated motions (trace.force_view's ``motions``) adds its
+    candidates (a strong element is out of the first-order view's reach)."""
     own = {cand_key(e.cand): e for e in first}
     ranked = sorted((e for e in second if not e.cand.type.startswith("sensor")
                      and e.cand.available and e.cand.type != "none"), key=lambda e: -e.r2)

@@ -115,34 +115,44 @@ def input_band(tests: Sequence[TestData]) -> tuple[float, float]:
     return measurement.input_band(np.concatenate([t.u for t in tests]), tests[0].fs_hz)
 
 
-def _hp_response(n: int, fs: float, f_hp: float) -> tuple[np.ndarray, np.ndarray]:
+def _hp_response(n: int, fs: float, f_hp: float, f_lp: float | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
     f = np.fft.rfftfreq(n, 1.0 / fs)
     with np.errstate(divide="ignore"):
         h = 1.0 / (1.0 + (f_hp / np.maximum(f, 1e-12)) ** 8)  # |4th-order Butterworth|^2
     h[0] = 0.0
+    if f_lp is not None:
+        h /= 1.0 + (f / f_lp) ** 8
     return f, h
 
 
-def _integrate(a: np.ndarray, fs: float, f_hp: float) -> tuple[np.ndarray, np.ndarray,
-                                                                 np.ndarray]:
-    """High-passed acceleration, velocity and displacement (zero phase, frequency domain,
-    zero-padded to twice the length)."""
-    n = a.shape[-1]
+# a motion sensor's derivative order below an acceleration (its spectrum times (j w)^order)
+ORDER = {"acc": 0, "vel": 1, "disp": 2}
+
+
+def _integrate(y: np.ndarray, orders: Sequence[int], fs: float, f_hp: float,
+               f_lp: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """High-passed (and low-passed below f_lp) acceleration, velocity and displacement (zero
+    phase, frequency domain, zero-padded to twice the length) from rows of accelerations,
+    velocities or displacements (orders: ORDER of each row)."""
+    n = y.shape[-1]
     nf = next_fast_len(2 * n, real=True)
-    f, h = _hp_response(nf, fs, f_hp)
+    f, h = _hp_response(nf, fs, f_hp, f_lp)
     w = 2 * np.pi * f
     w[0] = 1.0
-    spec = np.fft.rfft(a, nf, axis=-1) * h
+    spec = np.fft.rfft(y, nf, axis=-1) * h
+    if any(orders):
+        spec *= (1j * w)[None, :] ** np.asarray(orders)[:, None]
     ah = np.fft.irfft(spec, nf, axis=-1)[..., :n]
     vh = np.fft.irfft(spec / (1j * w), nf, axis=-1)[..., :n]
     xh = np.fft.irfft(-spec / (w ** 2), nf, axis=-1)[..., :n]
     return ah, vh, xh
 
 
-def _hp(x: np.ndarray, fs: float, f_hp: float) -> np.ndarray:
+def _hp(x: np.ndarray, fs: float, f_hp: float, f_lp: float | None = None) -> np.ndarray:
     n = x.shape[-1]
     nf = next_fast_len(n + n // 4, real=True)
-    _, h = _hp_response(nf, fs, f_hp)
+    _, h = _hp_response(nf, fs, f_hp, f_lp)
     return np.asarray(np.fft.irfft(np.fft.rfft(x, nf, axis=-1) * h, nf, axis=-1)[..., :n])
 
 
@@ -180,18 +190,37 @@ def _external(m: mdl.Model, t: TestData, mass: np.ndarray, k: np.ndarray, c: np.
     return k.sum(axis=1)[:, None] * u + c.sum(axis=1)[:, None] * vg, u, vg
 
 
-def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
+# a view built from differentiated velocities or displacements stops at this x the input
+# band's upper edge (at most 0.45 fs): their noise grows with frequency there (1 % white noise
+# on a single-DOF oscillator's velocity sensor: its missing force correlates at 0.99 with an
+# accelerometer's in the band)
+LP_BAND = 1.5
+
+
+def force_view(m: mdl.Model, tests: Sequence[TestData], motions: bool = False
+               ) -> ForceView | None:
     """Reconstruct states and the missing force, or None when not every DOF carries an
     accelerometer. A force input, a shake table (ground acceleration: the states relative to
     the ground, from the measured absolute accelerations minus the table's) and a prescribed
-    ground displacement all give the same view."""
+    ground displacement all give the same view. ``motions``: with a force input, a DOF
+    without an accelerometer may have a velocity or displacement sensor, differentiated (the
+    view then stops above the input band, LP_BAND); None when every DOF has an accelerometer
+    (the plain view)."""
     chan_dof: dict[str, int] = {}
-    for name, o in m.outputs.items():
-        if o.kind == "acc" and all(name in t.y for t in tests):
-            chan_dof.setdefault(name, o.index)
+    # per DOF its accelerometer; with a force input, a DOF without one its velocity or
+    # displacement sensor (differentiated)
+    kinds = ORDER if motions and m.input.kind == "force" else ("acc",)
+    for kind in kinds:
+        for name, o in m.outputs.items():
+            if (o.kind == kind and all(name in t.y for t in tests)
+                    and (kind == "acc" or o.index not in chan_dof.values())):
+                chan_dof.setdefault(name, o.index)
     dofs = {d: name for name, d in chan_dof.items()}
     n = m.n_dof
     if sorted(dofs) != list(range(1, n + 1)):
+        return None
+    orders = [ORDER[m.outputs[dofs[j]].kind] for j in range(1, n + 1)]
+    if motions and not any(orders):
         return None
     mass, k, c, w, phi = matrices(m)
     flex = w[w > 2 * np.pi * 1.0]
@@ -202,6 +231,9 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
     # displacements a gap or a stick-slip acts on
     band = input_band(tests)
     f_hp = max(f_hp, 0.5 * band[0])
+    # a differentiated displacement or velocity sensor's noise grows with frequency: the view
+    # stops above the input band (LP_BAND x its upper edge)
+    f_lp = min(LP_BAND * band[1], 0.45 * fs) if any(orders) else None
     xs: list[np.ndarray] = []
     vs: list[np.ndarray] = []
     as_: list[np.ndarray] = []
@@ -212,14 +244,14 @@ def force_view(m: mdl.Model, tests: Sequence[TestData]) -> ForceView | None:
 
     def hp(z: np.ndarray) -> np.ndarray:
         # bases built from nonlinear functions of the states get the same high-pass
-        return _hp(z, fs, f_hp)
+        return _hp(z, fs, f_hp, f_lp)
 
     for t in tests:
         a = np.vstack([(t.y[dofs[j]] - m.outputs[dofs[j]].offset) / m.outputs[dofs[j]].gain
                        for j in range(1, n + 1)])
         if m.input.kind == "ground_acc":
             a = a - t.u[None, :]  # the model's coordinates are relative to the table
-        ah, vh, xh = _integrate(a, fs, f_hp)
+        ah, vh, xh = _integrate(a, orders, fs, f_hp, f_lp)
         fext, ug, vg = _external(m, t, mass, k, c, hp)
         f_el = hp(el.restoring(m.elements, xh, vh, 0.0 if ug is None else ug,
                                0.0 if vg is None else vg))
