@@ -247,11 +247,12 @@ def force_view(m: mdl.Model, tests: Sequence[TestData], motions: bool = False
         return _hp(z, fs, f_hp, f_lp)
 
     for t in tests:
-        a = np.vstack([(t.y[dofs[j]] - m.outputs[dofs[j]].offset) / m.outputs[dofs[j]].gain
+        # each DOF's motion as its sensor reads it (an acceleration, else as ``orders`` say)
+        y = np.vstack([(t.y[dofs[j]] - m.outputs[dofs[j]].offset) / m.outputs[dofs[j]].gain
                        for j in range(1, n + 1)])
         if m.input.kind == "ground_acc":
-            a = a - t.u[None, :]  # the model's coordinates are relative to the table
-        ah, vh, xh = _integrate(a, orders, fs, f_hp, f_lp)
+            y = y - t.u[None, :]  # the model's coordinates are relative to the table
+        ah, vh, xh = _integrate(y, orders, fs, f_hp, f_lp)
         fext, ug, vg = _external(m, t, mass, k, c, hp)
         f_el = hp(el.restoring(m.elements, xh, vh, 0.0 if ug is None else ug,
                                0.0 if vg is None else vg))
