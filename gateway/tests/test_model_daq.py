@@ -97,6 +97,14 @@ def test_through_the_filter_is_the_filter_and_unmeasured_undoes_it_in_band() -> 
     assert float(np.std(got[64:-64] - u[64:-64])) > 0.3 * float(np.std(u))
     two = daq.measured(AA, np.stack([u, 2 * u], axis=1), FS)
     assert two[:, 1] == pytest.approx(2 * got, abs=1e-12)
+    # at 4 fs: through the samples, with nothing above fs/2 (an exact band-limited
+    # interpolation: no image for the outputs to carry through the filter at 4 fs)
+    fine_back = daq.unmeasured(AA, got, FS, 4)
+    assert fine_back.size == 4 * n
+    assert fine_back[::4] == pytest.approx(back, abs=1e-9 * float(np.std(u)))
+    spec = np.abs(np.fft.rfft(fine_back * np.hanning(4 * n)))  # the window: no edge leakage
+    above = np.fft.rfftfreq(4 * n, 1 / (4 * FS)) > 0.52 * FS
+    assert float(spec[above].max()) < 1e-6 * float(spec.max())
 
 
 def test_a_linear_model_commutes_with_the_filter_and_is_simulated_without_it() -> None:
@@ -123,9 +131,11 @@ def test_a_linear_model_commutes_with_the_filter_and_is_simulated_without_it() -
 def test_a_nonlinear_rigs_true_model_is_measured_as_the_daq_measured_it(kind: str) -> None:
     """A contact on the generator's tests without noise (its filter: 8th order at 0.4 fs):
     the true model driven by the measured input leaves, on the contact's two channels, more
-    than twice what it leaves with the filter declared (measured: force 0.0229 -> 0.0086,
-    table sweep 0.66 -> 0.15 m/s^2), through simulate, simulate_batch and discover's test
-    views alike."""
+    than five times what it leaves with the filter declared, through simulate,
+    simulate_batch and discover's test views alike. Measured (m/s^2): force 0.070 / 0.067 ->
+    0.011 / 0.008, table sweep 0.60 / 0.59 -> 0.011 / 0.011; read through the filter after
+    the samples were taken from the simulation at 4 x fs (before: the element's harmonics
+    above fs/2 aliased at full strength) 0.018 / 0.016 and 0.16 / 0.16 (3.7-4.2 x)."""
     m = chain(kind)
     contact = (mdl.Contact(3, 4, 1.114e-4, 1e-4, 1.925e6) if kind == "force"
                else mdl.Contact(1, 2, 1.5e-4, 5e-5, 8e5))
@@ -148,7 +158,7 @@ def test_a_nonlinear_rigs_true_model_is_measured_as_the_daq_measured_it(kind: st
         for j, c in enumerate(m.outputs):
             assert batch[:, j] == pytest.approx(sim[c], abs=1e-12)
         left[f] = [float(np.std(res[c])) for c in near]
-    assert all(a > 2 * b for a, b in zip(left[None], left[AA], strict=True)), left
+    assert all(a > 5 * b for a, b in zip(left[None], left[AA], strict=True)), left
 
 
 def test_an_input_prepared_for_one_filter_is_refused_by_another() -> None:

@@ -9,8 +9,12 @@ by the input with the filter divided out and read through it: a contact closing 
 shake-table sweep 0.66 -> 0.15 m/s^2 (the sensors' noise at 1 %: 0.16), a bumper 0.023 ->
 0.0086 (noise 0.03), a friction joint 0.081 -> 0.054 (noise 0.02: most of its harmonics lie
 above the sample rate and alias, which no filtering at the samples can undo). A linear model is
-left as it is (applied). The filter is applied by FFT over the whole record (what is left out:
-the DAQ's aliasing of harmonics above fs/2).
+left as it is (applied). The filter is applied by FFT over the whole record; an oversampled
+simulation (r x fs) is read through it at its own rate and then sampled, as the DAQ does: a
+harmonic above fs/2 aliases only as far as the filter lets it. The true model's residual on the
+generator's tests without noise, band-limited x 4, sampled first and then filtered -> filtered
+and then sampled: the sweep's contact channels 0.153 / 0.150 -> 0.011 / 0.010 m/s^2, the
+friction joint's 0.054 / 0.054 -> 0.010 / 0.009.
 """
 from __future__ import annotations
 
@@ -94,10 +98,13 @@ def measured(f: DaqFilter, y: np.ndarray, fs_hz: float) -> np.ndarray:
     return np.asarray(_fft.irfft(spec, nfft, axis=0)[:n])
 
 
-def unmeasured(f: DaqFilter, u: np.ndarray, fs_hz: float) -> np.ndarray:
+def unmeasured(f: DaqFilter, u: np.ndarray, fs_hz: float, r: int = 1) -> np.ndarray:
     """The input the DAQ read as u: u with the filter divided out where its gain is at least
     INVERSE_FLOOR (its content beyond dropped). The record is mirrored at both ends over the
-    filter's ring (the input went on before and after it)."""
+    filter's ring (the input went on before and after it). r > 1: at r x fs_hz, interpolated
+    exactly band-limited (its spectrum zero above fs_hz / 2: an interpolating filter's images
+    just above fs / 2, where the division has raised the input up to 1 / INVERSE_FLOOR, would
+    reach the outputs and be read through the filter at the simulation's rate, measured)."""
     u = np.asarray(u, dtype=np.float64)
     bad = np.flatnonzero(~np.isfinite(u))
     if bad.size:  # the FFT would spread it over the whole record
@@ -111,4 +118,7 @@ def unmeasured(f: DaqFilter, u: np.ndarray, fs_hz: float) -> np.ndarray:
     keep = np.abs(h) >= INVERSE_FLOOR
     g = np.zeros_like(h)
     g[keep] = 1.0 / h[keep]
-    return np.asarray(_fft.irfft(_fft.rfft(x, nfft) * g, nfft)[pad:pad + n])
+    spec = _fft.rfft(x, nfft) * g
+    if r > 1 and nfft % 2 == 0:  # the Nyquist bin, a cosine at fs / 2: halved, it stays one
+        spec[-1] *= 0.5
+    return np.asarray(_fft.irfft(spec, nfft * r)[pad * r:(pad + n) * r] * r)

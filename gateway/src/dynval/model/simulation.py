@@ -492,11 +492,12 @@ def prepare_input(m: Model, force_or_motion: Any, oversample: int | None = None,
     """The input as simulate() would interpolate it for m (see simulate); with m's DAQ
     filter divided out when it declares one (fs_hz, else m.fs_hz, is then needed)."""
     r = oversample_factor(m, oversample)
-    u = force_or_motion
     f = daq.applied(m)
-    if f is not None:
-        u = daq.unmeasured(f, _core.as_doubles(u), _daq_rate(m, fs_hz))
-    return PreparedInput(_prepare_input(u, r), r, f)
+    if f is None:
+        return PreparedInput(_prepare_input(force_or_motion, r), r)
+    a = _core.as_doubles(force_or_motion)
+    _check_input(a, 1)
+    return PreparedInput(daq.unmeasured(f, a, _daq_rate(m, fs_hz), r), r, f)
 
 
 def _daq_rate(m: Model, fs_hz: float | None) -> float:
@@ -537,7 +538,8 @@ def simulate(m: Model, force_or_motion: Any, fs_hz: float, *,
 
 def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
                     oversample: int | None = None, block: int = BLOCK,
-                    x0: np.ndarray | None = None) -> Iterator[tuple[int, np.ndarray]]:
+                    x0: np.ndarray | None = None, every_step: bool = False
+                    ) -> Iterator[tuple[int, np.ndarray]]:
     """simulate() in blocks of `block` input samples: (first sample, outputs as the sensors
     read them, samples x m.outputs) of each in turn, the state carried across blocks
     (dv_obs_simulate, then dv_obs_update_block open loop) and the input interpolated per block
@@ -545,7 +547,9 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
     input may be memory-mapped: a block of it is read at a time. The cubic hold's samples,
     which the core completes a call late, are realigned across blocks (dv_obs_flush completes
     the last one, as dv_obs_simulate does). A model with a DAQ filter that takes part
-    (daq.applied) is simulated over the whole record and given as one block (_through_daq)."""
+    (daq.applied) is simulated over the whole record and given as one block (_through_daq).
+    every_step: the outputs of every step of the oversampled simulation (r per sample, the
+    first at the first sample; not with the cubic hold's realignment), not every r-th."""
     if not fs_hz > 0:
         raise ConfigError(f"fs_hz must be > 0, got {fs_hz!r}")
     if daq.applied(m) is not None:
@@ -563,6 +567,8 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
     # the cubic hold's core completes a sample at the next one's call: realigned across
     # blocks here for a complete input; with held (non-finite) samples in one block
     late = m.interpolation == "cubic" and (n > block or x0 is not None)
+    if late and every_step:
+        raise ConfigError("every step of a simulation is not kept with the cubic input hold")
     if late and not all(np.isfinite(u[i:i + BLOCK]).all() for i in range(0, u.size, BLOCK)):
         log.info("cubic input hold with non-finite inputs: %d samples simulated in one block", n)
         block, late = n, x0 is not None  # dv_obs_simulate would reset the start away
@@ -572,7 +578,7 @@ def simulate_blocks(m: Model, force_or_motion: Any, fs_hz: float, *,
 
     def outputs(a: int, uf: np.ndarray, yf: np.ndarray) -> tuple[int, np.ndarray]:
         _check_finite(m, uf, yf, dt, a * r, n * r, prefix)
-        y = yf[::r]
+        y = yf if every_step else yf[::r]
         return a, np.stack([_sensor(np.ascontiguousarray(y[:, j]), o)
                             for j, o in enumerate(m.outputs.values())], axis=1)
 
@@ -645,7 +651,10 @@ def _through_daq(m: Model, force_or_motion: Any, fs_hz: float, oversample: int |
     """simulate_blocks' outputs (samples x m.outputs) for a model with a DAQ filter, over the
     whole record at once: driven by the input with the filter divided out (prepare_input),
     measured through it (daq.measured; a sensor's offset is not filtered: it was on before
-    the record)."""
+    the record). An oversampled simulation is read through the filter at its own rate and
+    then sampled, as the DAQ filters the analog signal before it samples it: an element's
+    harmonics above fs/2 alias only as far as the filter lets them (taken from every r-th
+    step first, they aliased at full strength: see daq's module comment)."""
     f = daq.applied(m)
     assert f is not None
     u = (force_or_motion if isinstance(force_or_motion, PreparedInput)
@@ -654,10 +663,14 @@ def _through_daq(m: Model, force_or_motion: Any, fs_hz: float, oversample: int |
     r = oversample_factor(m, oversample)
     plain = PreparedInput(_prepared_fine(u, r, f), r)
     n = plain.fine.size // r
-    y = np.concatenate([b for _, b in simulate_blocks(bare, plain, fs_hz, oversample=oversample,
-                                                      block=max(n, 1), x0=x0)])
+    # (the cubic hold's start at a state x0 is realigned by a step: simulate_blocks' late)
+    fine = r > 1 and not (m.interpolation == "cubic" and x0 is not None)
+    y = np.concatenate([b for _, b in simulate_blocks(bare, plain, fs_hz, oversample=r,
+                                                      block=max(n, 1), x0=x0,
+                                                      every_step=fine)])
     offsets = np.array([o.offset for o in m.outputs.values()])
-    return np.asarray(daq.measured(f, y - offsets, fs_hz) + offsets)
+    read = daq.measured(f, y - offsets, fs_hz * r if fine else fs_hz)
+    return np.asarray((read[::r] if fine else read) + offsets)
 
 
 def _run(m: Model, u: np.ndarray, dt: float) -> np.ndarray:
