@@ -33,6 +33,29 @@ def test_features_table_and_json(tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert res["fs_hz"] == pytest.approx(100.0)
 
 
+def test_a_dead_or_constant_channel_has_its_undefined_features_null(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    """An all-zero channel (a sensor recorded but not wired) has no central time, RMS
+    duration, skew, kurtosis or crest factor, a constant one no skew or kurtosis: null in
+    the JSON and n/a in the table, with a warning naming the file and channel; the file's
+    other channels as usual (the core's DV_ENUMERIC failed the whole file before)."""
+    p = write(tmp_path, "time_s,force_N,acc1_mps2,acc2_mps2\n" + "".join(
+        f"{i / 100:.2f},0,2.5,{(i % 5) * 0.5}\n" for i in range(200)))
+    assert main(["features", "--json", str(p)]) == 0
+    res = json.loads(capsys.readouterr().out)["channels"]
+    dead, const, live = res["force_N"], res["acc1_mps2"], res["acc2_mps2"]
+    assert [dead[k] for k in ("energy", "rms", "peak")] == [0.0, 0.0, 0.0]
+    assert all(dead[k] is None for k in ("central_time", "rms_duration", "skew", "kurt", "crest"))
+    assert const["skew"] is None and const["kurt"] is None and const["crest"] == 1.0
+    assert const["central_time"] == pytest.approx(0.995)  # the middle of 0..1.99 s
+    assert all(live[k] is not None for k in ("skew", "kurt", "crest", "central_time"))
+    assert any(f"{p}: channel force_N: every sample is 0" in r.getMessage()
+               for r in caplog.records if r.levelname == "WARNING")
+    assert main(["features", str(p)]) == 0
+    assert capsys.readouterr().out.splitlines()[2].split()[-2:] == ["n/a", "n/a"]
+
+
 @pytest.mark.parametrize("text, where, what", [
     ("", ":1", "empty file"),
     ("time_s,force_N\n0,1\n0.01,abc\n0.02,3\n", ":3 (column force_N)", "not a number"),
@@ -43,6 +66,9 @@ def test_features_table_and_json(tmp_path: Path, capsys: pytest.CaptureFixture[s
      "irregular sampling: step 0.03 s where the period is 0.01 s"),
     ("time_s,force_N,acc1_mps2\n0,1,2\n0.01,2,3\n0.02,3", ":4", "truncated"),
     ("1,2\n3,4\n", ":1", "header"),
+    # a binary file read as text: its 'header' escaped and cut, on one line
+    ("\x01\x82garbage\x1b[2J" + "x" * 200 + ",y\n0,1\n", ":1",
+     "found '\\x01\\x82garbage\\x1b[2J" + "x" * 18 + "...' (not a CSV text file?)"),
 ])
 def test_bad_files_exit_2_with_file_line_column(tmp_path: Path, caplog: pytest.LogCaptureFixture,
                                                 text: str, where: str, what: str) -> None:

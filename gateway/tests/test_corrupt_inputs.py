@@ -460,6 +460,18 @@ def test_residual_counts_the_samples_of_each_rmse(seeds: dict[str, Path], tmp_pa
     assert ch["acc2_mps2"]["n_used"] == 199 and ch["acc1_mps2"]["n_used"] == 200
 
 
+def test_residual_of_a_sample_whose_square_overflows_is_one_line(
+        seeds: dict[str, Path], tmp_path: Path, caplog: pytest.LogCaptureFixture,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """A sample at 1e308 (a saturated or mis-scaled sensor): its square overflowed the RMSE
+    and `residual` printed inf and nan with exit 0 and numpy's RuntimeWarning."""
+    p = tmp_path / "one_1e308.csv"
+    p.write_text(_csv_with("1e308", row=20, col=3))  # acc2_mps2 of one row
+    out = run_cli(["residual", str(seeds["model"]), str(p)], caplog, capsys)
+    assert_clean(out, p, must_fail=True)
+    assert "channel acc2_mps2: sample 19 is 1e+308" in out.errors[0].getMessage()
+
+
 def test_csv_memory_is_a_small_multiple_of_the_samples(tmp_path: Path) -> None:
     import tracemalloc
 

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from dynval.cli_common import add_test_options, read_with_options
-from dynval.errors import InputFileError
+from dynval.errors import CoreError, InputFileError
 from dynval.io import Recording
 
 log = logging.getLogger(__name__)
@@ -42,10 +42,13 @@ def compute(rec: Recording, seg_len: int = 64) -> dict[str, Any]:
     for ch in rec.channels:
         dropped = _in_range(rec, ch.name, ch.data)
         st = features.moments(ch.data)
-        tm = features.temporal(ch.data, 1.0 / rec.fs_hz)
         seg = features.segstd(ch.data, seg_len) if ch.data.size >= seg_len else None
         row: dict[str, Any] = {"unit": ch.unit, "role": ch.role, **st.as_dict(),
-                               **{k: getattr(tm, k) for k in TEMPORAL}}
+                               **_temporal_row(rec, ch.name, ch.data)}
+        # what the core flags undefined (a constant channel's shape, a zero one's crest) is
+        # null, not the 0 it fills in: a number read as one would be wrong
+        row.update({k: None for k in ("skew", "kurt") if not st.shape_defined})
+        row.update({"crest": None} if not st.crest_defined else {})
         if seg is not None:
             row["segstd_min"], row["segstd_max"] = float(seg.min()), float(seg.max())
         _check_finite(rec, ch.name, ch.data, row)
@@ -54,6 +57,23 @@ def compute(rec: Recording, seg_len: int = 64) -> dict[str, Any]:
         out["channels"][ch.name] = row
         release_pages(ch.data)  # a memory-mapped long record: one channel's pages at a time
     return out
+
+
+def _temporal_row(rec: Recording, name: str, x: np.ndarray) -> dict[str, float | None]:
+    """The channel's temporal moments; for one without energy (every sample 0: a dead or
+    unplugged sensor, a channel recorded but not wired) the energy 0 and its central time
+    and RMS duration undefined (None, JSON null), logged: the core's DV_ENUMERIC there."""
+    from dynval import _core, features
+
+    try:
+        tm = features.temporal(x, 1.0 / rec.fs_hz)
+    except CoreError as exc:
+        if exc.status != _core.lib.DV_ENUMERIC:
+            raise
+        log.warning("%s: channel %s: every sample is 0: its central time and RMS duration "
+                    "are undefined (n/a)", rec.source or rec.name, name)
+        return {"energy": 0.0, "central_time": None, "rms_duration": None}
+    return {k: getattr(tm, k) for k in TEMPORAL}
 
 
 def _in_range(rec: Recording, name: str, x: np.ndarray) -> int:
@@ -99,7 +119,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"{'channel':<{width}} {'unit':<6} " + " ".join(f"{c:>12}" for c in cols))
     for n in names:
         r = res["channels"][n]
-        print(f"{n:<{width}} {r['unit']:<6} " + " ".join(f"{r[c]:>12.5g}" for c in cols))
+        print(f"{n:<{width}} {r['unit']:<6} "
+              + " ".join(f"{'n/a':>12}" if r[c] is None else f"{r[c]:>12.5g}" for c in cols))
     for n in names:
         if res["channels"][n].get("dropped_out_of_range"):
             print(f"{n}: {res['channels'][n]['dropped_out_of_range']} sample(s) beyond the "

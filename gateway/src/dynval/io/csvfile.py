@@ -102,13 +102,23 @@ def _header(p: Path, f: BinaryIO) -> tuple[int, list[str], _Dialect, bytes]:
     except ValueError:
         pass
     if not (header[0].lower().startswith("time") or header[0].lower() == "t"):
+        found = _shown(header[0])
+        hint = "" if found == header[0] else " (not a CSV text file?)"
         raise InputFileError(p, f"the first column must be the time (e.g. time_s), found "
-                             f"'{header[0]}'", ln, header[0])
+                             f"'{found}'{hint}", ln, None if hint else found)
     if len(header) < 2:
         raise InputFileError(p, "no channel columns besides the time", ln)
     first = f.readline()
     decimal = "," if sep != "," and b"," in first else "."
     return ln, header, _Dialect(sep, decimal), first
+
+
+def _shown(name: str, most: int = 40) -> str:
+    """A column name as an error message can show it on one line: control and other
+    unprintable characters escaped, at most ``most`` characters (a binary file read as text
+    has a 'header' of any length and bytes)."""
+    out = "".join(ch if ch.isprintable() else ascii(ch)[1:-1] for ch in name)
+    return out if len(out) <= most else out[:most] + "..."
 
 
 def _rows(p: Path, f: BinaryIO, pending: bytes, ln0: int, header: list[str], dialect: _Dialect,

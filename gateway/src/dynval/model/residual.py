@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from dynval.errors import ConfigError
+from dynval.errors import ConfigError, InputFileError
 from dynval.io.recording import Recording
 from dynval.model.schema import Model
 from dynval.model.simulation import BLOCK, simulate, simulate_blocks
@@ -114,16 +114,30 @@ def residual(m: Model, rec: Recording, *, oversample: int | None = None, keep: b
                 resid[c][a:b] = e
             ok = np.isfinite(e)
             used[c] += int(ok.sum())
-            sums[c][0] += _chunk_sums(np.where(ok, e, 0.0))
-            sums[c][1] += _chunk_sums(np.where(ok, y, 0.0))
+            with np.errstate(over="ignore"):  # an overflowed square is refused below
+                sums[c][0] += _chunk_sums(np.where(ok, e, 0.0))
+                sums[c][1] += _chunk_sums(np.where(ok, y, 0.0))
     chans: dict[str, ChannelResidual] = {}
     for c in common:
         k = used[c]
         rmse = math.sqrt(math.fsum(sums[c][0]) / k) if k else math.nan
         rms = math.sqrt(math.fsum(sums[c][1]) / k) if k else math.nan
+        if k and not (math.isfinite(rmse) and math.isfinite(rms)):
+            raise _overflowed(rec, c)
         chans[c] = ChannelResidual(None if resid is None else resid[c], rmse,
                                    rmse / rms if rms > 0 else math.nan, rms, k)
     return ResidualResult(rec.name, rec.fs_hz, n, chans, pred)
+
+
+def _overflowed(rec: Recording, c: str) -> InputFileError:
+    """The error for a channel whose squares overflow (a sample near the real type's range:
+    a saturated or mis-scaled sensor), naming its largest sample."""
+    y = np.asarray(rec.channel(c).data, dtype=np.float64)
+    big = np.where(np.isfinite(y), np.abs(y), 0.0)
+    i = int(np.argmax(big))
+    return InputFileError(rec.source or rec.name, f"channel {c}: sample {i} is {y[i]:.3g}: its "
+                          "square overflows the RMSE; rescale the channel (channel map "
+                          "'scale')")
 
 
 def _chunk_sums(x: np.ndarray) -> list[float]:
