@@ -3,6 +3,7 @@ limits: sizes from the compiled core's description struct and dv_model_buf_len, 
 and parameters by dv_elem_check (the registry's bounds only name the field it refused)."""
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import functools
 import logging
@@ -173,15 +174,40 @@ def _check_in_core(m: Model, c: Ctx) -> None:
     out of its range, is a validation error: stability depends on the sample period). After
     the checks above, what it can still refuse is a damping matrix that is not symmetric
     within its tolerance."""
+    if _core_refuses(m):
+        if m.damping.type == "matrix":
+            raise c.err("damping.c_n_s_per_m", "refused by the core's check (dv_model_init: "
+                        "DV_EINVAL): not symmetric within its tolerance")
+        bad = _out_of_range(m)
+        if bad is not None:
+            raise c.err(bad[0], f"{bad[1]:g} is out of the core's range (dv_model_init: "
+                        "DV_EINVAL; at the median of its kind the model is taken): too far "
+                        "from the others for the real type's arithmetic")
+        raise ConfigError(f"{c.source}: refused by the core's check (dv_model_init: DV_EINVAL)")
+
+
+def _core_refuses(m: Model) -> bool:
+    """Whether dv_model_init refuses m's description as out of its range (DV_EINVAL)."""
     from dynval.model.simulation import _Core  # the simulation reads this module
 
     core = _Core(m, 1.0 / m.fs_hz if m.fs_hz else 1e-3)
     st = _core.lib.dv_model_init(core.cm, core.desc, core.dt, core.mptr, core.mlen)
-    if st == _core.lib.DV_EINVAL:
-        if m.damping.type == "matrix":
-            raise c.err("damping.c_n_s_per_m", "refused by the core's check (dv_model_init: "
-                        "DV_EINVAL): not symmetric within its tolerance")
-        raise ConfigError(f"{c.source}: refused by the core's check (dv_model_init: DV_EINVAL)")
+    return bool(st == _core.lib.DV_EINVAL)
+
+
+def _out_of_range(m: Model) -> tuple[str, float] | None:
+    """The mass or story stiffness the core refuses m for ('masses_kg[0]', its value): the
+    first whose value set to the median of its kind makes the model acceptable; None when none
+    does (a mass
+    of 1e-200 kg among ones of 6.5 kg passes every field's own check but not the core's
+    modal arithmetic)."""
+    for name in ("masses_kg", "stiffness_n_per_m"):
+        vals = list(getattr(m, name))
+        for i in range(len(vals)):
+            trial = [*vals[:i], float(np.median(vals)), *vals[i + 1:]]
+            if trial != vals and not _core_refuses(dataclasses.replace(m, **{name: tuple(trial)})):
+                return f"{name}[{i}]", float(vals[i])
+    return None
 
 
 def _check_structure(m: Model, c: Ctx) -> None:
