@@ -205,7 +205,8 @@ def _out_of_range(m: Model) -> tuple[str, float] | None:
         vals = list(getattr(m, name))
         for i in range(len(vals)):
             trial = [*vals[:i], float(np.median(vals)), *vals[i + 1:]]
-            if trial != vals and not _core_refuses(dataclasses.replace(m, **{name: tuple(trial)})):
+            changed: dict[str, Any] = {name: tuple(trial)}
+            if trial != vals and not _core_refuses(dataclasses.replace(m, **changed)):
                 return f"{name}[{i}]", float(vals[i])
     return None
 
