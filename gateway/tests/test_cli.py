@@ -108,6 +108,23 @@ def test_usage_errors_are_64_and_third_party_info_is_quiet(
     assert not [r for r in caplog.records if r.name.startswith("numexpr")]
 
 
+@pytest.mark.parametrize("argv, what", [
+    (["validate", "--level", "1.5"], "--level: must be between 0 and 1 (exclusive): 1.5"),
+    (["validate", "--seed", "-1"], "--seed: must be >= 0: -1"),
+    (["validate", "--workers", "-1"], "--workers: must be >= 0: -1"),
+    (["validate", "--runs", "-5"], "--runs: must be >= 1: -5"),
+    (["calibrate", "--steps", "0"], "--steps: must be >= 1: 0"),
+    (["calibrate", "--oversample", "x"], "--oversample: not an integer: 'x'"),
+])
+def test_out_of_range_study_options_are_usage_errors(
+        argv: list[str], what: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """Each of these was an internal error (exit 3, 'a bug in dynval') deep in the study:
+    numpy's percentile, a process pool, a seed or an array size refused it."""
+    with pytest.raises(SystemExit) as e:
+        main([*argv, "--model", "m.json", "--experiments", "t.csv", "--features", "rms"])
+    assert e.value.code == 64 and what in capsys.readouterr().err
+
+
 def test_real_data_file(shared_data: Path, capsys: pytest.CaptureFixture[str]) -> None:
     f = shared_data / "synthetic" / "lanl4dof-clean" / "test_high_01.csv"
     assert main(["features", "--json", str(f)]) == 0

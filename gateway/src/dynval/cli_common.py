@@ -36,6 +36,28 @@ def nonnegative_int(text: str) -> int:
     return v
 
 
+def positive_int(text: str) -> int:
+    """argparse type of counts that must be at least 1, such as --runs."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1: {v}")
+    return v
+
+
+def open_unit(text: str) -> float:
+    """argparse type of a level or probability strictly between 0 and 1, such as --level."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 < v < 1.0:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 1 (exclusive): {v:g}")
+    return v
+
+
 def add_test_options(p: Any) -> None:
     """--fs, --channel-map, --lenient: how recorded tests are read."""
     p.add_argument("--fs", type=float, default=None, metavar="HZ",
@@ -159,8 +181,9 @@ def add_study_options(p: Any) -> None:
                    help="uncertain parameter with a uniform range (repeat), e.g. zeta2=0.01:0.08")
     p.add_argument("--rmse-channel", action="append", default=None, metavar="CH",
                    help="channel(s) of the RMSE (eq. 47) (default: the feature channels)")
-    p.add_argument("--seed", type=int, default=0, help="design / MCMC seed (%(default)s)")
-    p.add_argument("--workers", type=int, default=None,
+    p.add_argument("--seed", type=nonnegative_int, default=0,
+                   help="design / MCMC seed (%(default)s)")
+    p.add_argument("--workers", type=nonnegative_int, default=None,
                    help="worker processes (default: all cores)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run the sweeps on a Dask distributed scheduler (tcp://host:8786)")
@@ -170,7 +193,7 @@ def add_study_options(p: Any) -> None:
                    help="sensor noise the simulated features get, as the measured ones carry "
                    "it: estimated from the tests (auto), none, a fraction of each channel's "
                    "RMS (0.01) or an RMS per channel (%(default)s)")
-    p.add_argument("--level", type=float, default=0.95,
+    p.add_argument("--level", type=open_unit, default=0.95,
                    help="confidence level of the verdict: an exactly right model fails in "
                    "1 - level of studies (%(default)s)")
     p.add_argument("--json", dest="json_out", type=Path, default=None, metavar="OUT",

@@ -11,6 +11,8 @@ from typing import Any
 from dynval.cli_common import (
     Progress,
     add_study_options,
+    nonnegative_int,
+    positive_int,
     runner_for,
     study_inputs,
     write_study_reports,
@@ -24,18 +26,18 @@ def add_parser(sub: Any) -> None:
     add_study_options(p)
     p.add_argument("--method", choices=("gp", "direct", "both"), default="both",
                    help="GP emulator + MCMC, MCMC on the C model, or both (%(default)s)")
-    p.add_argument("--runs", type=int, default=150, help="LHS runs for the emulator "
+    p.add_argument("--runs", type=positive_int, default=150, help="LHS runs for the emulator "
                    "(%(default)s)")
-    p.add_argument("--holdout", type=int, default=None, metavar="K",
+    p.add_argument("--holdout", type=nonnegative_int, default=None, metavar="K",
                    help="last K tests held out for the consistency check (default: n/4)")
-    p.add_argument("--gp-forces", type=int, default=None, metavar="M",
+    p.add_argument("--gp-forces", type=positive_int, default=None, metavar="M",
                    help="training tests whose forces drive the sweep (default: all)")
-    p.add_argument("--direct-forces", type=int, default=4, metavar="M",
+    p.add_argument("--direct-forces", type=positive_int, default=4, metavar="M",
                    help="training tests whose forces drive each direct MCMC step (%(default)s)")
-    p.add_argument("--steps", type=int, default=1500, help="GP MCMC steps (%(default)s)")
-    p.add_argument("--direct-steps", type=int, default=300,
+    p.add_argument("--steps", type=positive_int, default=1500, help="GP MCMC steps (%(default)s)")
+    p.add_argument("--direct-steps", type=positive_int, default=300,
                    help="direct MCMC steps (%(default)s)")
-    p.add_argument("--oversample", type=int, default=None,
+    p.add_argument("--oversample", type=positive_int, default=None,
                    help="band-limited input oversampling before the core's cubic hold in the "
                    "sweeps/MCMC (default: 2, the validation hold)")
     p.add_argument("--model-out", type=Path, default=None, metavar="FILE",

@@ -11,6 +11,8 @@ from typing import Any
 from dynval.cli_common import (
     Progress,
     add_study_options,
+    nonnegative_int,
+    positive_int,
     read_tests,
     runner_for,
     study_inputs,
@@ -21,11 +23,12 @@ from dynval.cli_common import (
 def add_parser(sub: Any) -> None:
     p = sub.add_parser("validate", help="Mahalanobis validation + DOE sweep against tests")
     add_study_options(p)
-    p.add_argument("--runs", type=int, default=200, help="Latin hypercube runs (%(default)s)")
+    p.add_argument("--runs", type=positive_int, default=200,
+                   help="Latin hypercube runs (%(default)s)")
     p.add_argument("--doe", choices=("lhs", "factorial"), default="lhs",
                    help="design of experiments (%(default)s)")
-    p.add_argument("--levels", type=int, default=3, help="factorial levels (%(default)s)")
-    p.add_argument("--ref-test", type=int, default=0, metavar="I",
+    p.add_argument("--levels", type=positive_int, default=3, help="factorial levels (%(default)s)")
+    p.add_argument("--ref-test", type=nonnegative_int, default=0, metavar="I",
                    help="0-based test whose force drives the sweep and is the RMSE reference")
     p.add_argument("--check", action="append", default=[], metavar="KIND@CH",
                    help="the report's linearity / reciprocity check (5.3.1) on the tests and "
