@@ -109,19 +109,31 @@ def test_usage_errors_are_64_and_third_party_info_is_quiet(
 
 
 @pytest.mark.parametrize("argv, what", [
-    (["validate", "--level", "1.5"], "--level: must be between 0 and 1 (exclusive): 1.5"),
+    (["validate", "--level", "1.5"], "--level: must be in (0, 1): 1.5"),
     (["validate", "--seed", "-1"], "--seed: must be >= 0: -1"),
     (["validate", "--workers", "-1"], "--workers: must be >= 0: -1"),
     (["validate", "--runs", "-5"], "--runs: must be >= 1: -5"),
     (["calibrate", "--steps", "0"], "--steps: must be >= 1: 0"),
     (["calibrate", "--oversample", "x"], "--oversample: not an integer: 'x'"),
+    # silently wrapped into the DV_CTRL frame's u32, or accepted and meaningless, before
+    (["replay", "--record-id", "-1"], "--record-id: must be 0..4294967295: -1"),
+    (["discover", "--min-gain", "-1"], "--min-gain: must be in [0, 1): -1"),
+    (["discover", "--max-effects", "-1"], "--max-effects: must be >= 0: -1"),
+    (["features", "--seg-len", "0"], "--seg-len: must be >= 2: 0"),  # a ZeroDivisionError
+    (["features", "--fs", "nan"], "--fs: must be in (0, inf): nan"),
+    (["log", "--chunk-kb", "0"], "--chunk-kb: must be >= 1: 0"),
+    (["run", "--win", "0"], "--win: must be >= 1: 0"),
 ])
-def test_out_of_range_study_options_are_usage_errors(
+def test_out_of_range_options_are_usage_errors(
         argv: list[str], what: str, capsys: pytest.CaptureFixture[str]) -> None:
-    """Each of these was an internal error (exit 3, 'a bug in dynval') deep in the study:
-    numpy's percentile, a process pool, a seed or an array size refused it."""
+    """The study's were internal errors (exit 3, 'a bug in dynval') deep in it: numpy's
+    percentile, a process pool, a seed or an array size refused them."""
+    rest = {"validate": ["--model", "m.json", "--experiments", "t.csv", "--features", "rms"],
+            "discover": ["m.json", "t.csv"], "run": ["-o", "x.mcap", "m.json", "t.csv"],
+            "log": ["-o", "x.mcap"]}
+    rest["calibrate"] = rest["validate"]
     with pytest.raises(SystemExit) as e:
-        main([*argv, "--model", "m.json", "--experiments", "t.csv", "--features", "rms"])
+        main([*argv, *rest.get(argv[0], ["t.csv"])])
     assert e.value.code == 64 and what in capsys.readouterr().err
 
 

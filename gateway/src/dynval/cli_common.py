@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import math
 import signal
 import sys
 import threading
@@ -25,42 +26,48 @@ from dynval.io import Recording, collect_tests, load_channel_map, read_test
 log = logging.getLogger(__name__)
 
 
-def nonnegative_int(text: str) -> int:
-    """argparse type of counts such as --workers (a usage error otherwise)."""
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0: {v}")
-    return v
+def int_at_least(lo: int, hi: int | None = None) -> Callable[[str], int]:
+    """argparse type of an integer >= lo (and <= hi when given; a usage error naming the
+    option otherwise, never a value wrapped or clipped later)."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if v < lo or (hi is not None and v > hi):
+            raise argparse.ArgumentTypeError(f"must be >= {lo}: {v}" if hi is None
+                                             else f"must be {lo}..{hi}: {v}")
+        return v
+    return parse
 
 
-def positive_int(text: str) -> int:
-    """argparse type of counts that must be at least 1, such as --runs."""
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1: {v}")
-    return v
+def number_in(lo: float, hi: float, *, lo_open: bool = False,
+              hi_open: bool = False) -> Callable[[str], float]:
+    """argparse type of a finite number in [lo, hi] (either end open as asked)."""
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        above = v > lo if lo_open else v >= lo
+        below = v < hi if hi_open else v <= hi
+        if not (math.isfinite(v) and above and below):
+            raise argparse.ArgumentTypeError(
+                f"must be in {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}: "
+                f"{text}")
+        return v
+    return parse
 
 
-def open_unit(text: str) -> float:
-    """argparse type of a level or probability strictly between 0 and 1, such as --level."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not 0.0 < v < 1.0:
-        raise argparse.ArgumentTypeError(f"must be between 0 and 1 (exclusive): {v:g}")
-    return v
+nonnegative_int = int_at_least(0)  # counts such as --workers (0: the default's choice)
+positive_int = int_at_least(1)  # counts such as --runs
+open_unit = number_in(0.0, 1.0, lo_open=True, hi_open=True)  # a level such as --level
+positive_number = number_in(0.0, math.inf, lo_open=True, hi_open=True)  # a rate such as --fs
 
 
 def add_test_options(p: Any) -> None:
     """--fs, --channel-map, --lenient: how recorded tests are read."""
-    p.add_argument("--fs", type=float, default=None, metavar="HZ",
+    p.add_argument("--fs", type=positive_number, default=None, metavar="HZ",
                    help="sampling rate of whitespace text tests (no time column)")
     p.add_argument("--channel-map", type=Path, default=None, metavar="FILE",
                    help="JSON/YAML channel map: column, name, unit, scale, role, dof")
@@ -143,7 +150,7 @@ def add_bus_options(p: Any) -> None:
                    "or ~/.canrc, else socketcan)")
     g.add_argument("-c", "--channel", default=None, help="bus channel, e.g. vcan0, "
                    "PCAN_USBBUS1, 0 (default: CAN_CHANNEL or ~/.canrc, else vcan0)")
-    g.add_argument("-b", "--bitrate", type=int, default=None, help="bit rate in bit/s")
+    g.add_argument("-b", "--bitrate", type=positive_int, default=None, help="bit rate in bit/s")
     g.add_argument("--bus-option", action="append", default=[], metavar="KEY=VALUE",
                    help="more can.Bus keyword arguments (repeat), e.g. fd=true, "
                    "app_name=CANalyzer, tty_baudrate=115200")

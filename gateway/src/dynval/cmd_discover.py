@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from dynval.cli_common import add_test_options, nonnegative_int, read_tests
+from dynval.cli_common import add_test_options, nonnegative_int, number_in, read_tests
 from dynval.errors import ConfigError, InputFileError
 from dynval.io import Recording
 
@@ -33,8 +33,9 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--html", type=Path, default=None, metavar="OUT.html", help="HTML report")
     p.add_argument("--model-out", type=Path, default=None, metavar="UPDATED",
                    help="write the model with the accepted effects (dynval format)")
-    p.add_argument("--max-effects", type=int, default=3, help="at most this many effects")
-    p.add_argument("--min-gain", type=float, default=0.10,
+    p.add_argument("--max-effects", type=nonnegative_int, default=3,
+                   help="at most this many effects")
+    p.add_argument("--min-gain", type=number_in(0.0, 1.0, hi_open=True), default=0.10,
                    help="held-out SSE reduction an effect must bring (default 0.10)")
     p.add_argument("--noise", default=None, metavar="FRACTION|CH=RMS,...",
                    help="stated sensor noise: one number is a fraction of each channel's RMS; "

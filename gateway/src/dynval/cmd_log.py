@@ -5,6 +5,7 @@ is any python-can interface (--interface/--channel/--bitrate, CAN_INTERFACE, ~/.
 from __future__ import annotations
 
 import argparse
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -15,6 +16,8 @@ from dynval.cli_common import (
     add_bus_options,
     add_test_options,
     bus_config_of,
+    number_in,
+    positive_int,
     read_with_options,
     stop_signals,
 )
@@ -31,10 +34,11 @@ def add_parser(sub: Any) -> None:
                    help="the recorded test being replayed: its name, channel map, rate, units "
                    "and hash go into the metadata record")
     p.add_argument("--model", type=Path, default=None, help="model file (metadata only)")
-    p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
-    p.add_argument("--idle-timeout", type=float, default=None,
+    p.add_argument("--duration", type=number_in(0.0, math.inf), default=None,
+                   help="stop after S seconds (0: when stopped)")
+    p.add_argument("--idle-timeout", type=number_in(0.0, math.inf), default=None,
                    help="stop after S seconds without a frame")
-    p.add_argument("--chunk-kb", type=int, default=4096,
+    p.add_argument("--chunk-kb", type=positive_int, default=4096,
                    help="MCAP chunk size, KiB uncompressed (%(default)s; a chunk is also closed "
                    "every 0.5 s)")
     add_test_options(p)  # of --test

@@ -15,6 +15,9 @@ from dynval.cli_common import (
     Progress,
     add_test_options,
     fmt_timing,
+    nonnegative_int,
+    number_in,
+    positive_int,
     read_with_options,
     stop_signals,
     test_files,
@@ -40,15 +43,18 @@ def add_parser(sub: Any) -> None:
     g = p.add_mutually_exclusive_group()
     g.add_argument("--speed", type=float, default=1.0, help="replay speed (%(default)s)")
     g.add_argument("--asap", action="store_true", help="replay as fast as the bus takes it")
-    p.add_argument("--win", type=int, default=256, help="firmware window (%(default)s)")
-    p.add_argument("--seg", type=int, default=64, help="firmware segment (%(default)s)")
-    p.add_argument("--nseg", type=int, default=64, help="segments per record (%(default)s)")
-    p.add_argument("--ar-order", type=int, default=0, help="firmware AR stage (%(default)s)")
-    p.add_argument("--resid-decim", type=int, default=1,
+    p.add_argument("--win", type=positive_int, default=256, help="firmware window (%(default)s)")
+    p.add_argument("--seg", type=positive_int, default=64, help="firmware segment (%(default)s)")
+    p.add_argument("--nseg", type=positive_int, default=64,
+                   help="segments per record (%(default)s)")
+    p.add_argument("--ar-order", type=nonnegative_int, default=0,
+                   help="firmware AR stage (%(default)s)")
+    p.add_argument("--resid-decim", type=positive_int, default=1,
                    help="a residual frame every N observer steps (%(default)s)")
-    p.add_argument("--obs-q", type=float, default=0.0,
+    p.add_argument("--obs-q", type=number_in(0.0, math.inf), default=0.0,
                    help="observer process noise N^2 (0 = open-loop prediction)")
-    p.add_argument("--obs-r", type=float, default=0.0, help="observer measurement noise")
+    p.add_argument("--obs-r", type=number_in(0.0, math.inf), default=0.0,
+                   help="observer measurement noise")
     add_test_options(p)
     p.set_defaults(run=run)
 
