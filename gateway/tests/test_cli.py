@@ -137,6 +137,20 @@ def test_out_of_range_options_are_usage_errors(
     assert e.value.code == 64 and what in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("command", ["discover", "validate"])
+def test_an_output_that_cannot_be_written_is_refused_before_the_work(
+        command: str, tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """discover wrote its reports after the whole run and only then failed on a missing
+    folder; now the paths are checked first (the model is not even read here)."""
+    out = tmp_path / "no" / "r.json"
+    argv = {"discover": ["discover", "--json", str(out), "m.json", "t.csv"],
+            "validate": ["validate", "--json", str(out), "--model", "m.json",
+                         "--experiments", "t.csv", "--features", "rms"]}[command]
+    assert main(argv) == 2
+    msgs = [r.getMessage() for r in caplog.records if r.levelname == "ERROR"]
+    assert msgs == [f"{out}: cannot write: no folder {out.parent}"]
+
+
 def test_real_data_file(shared_data: Path, capsys: pytest.CaptureFixture[str]) -> None:
     f = shared_data / "synthetic" / "lanl4dof-clean" / "test_high_01.csv"
     assert main(["features", "--json", str(f)]) == 0

@@ -65,6 +65,18 @@ open_unit = number_in(0.0, 1.0, lo_open=True, hi_open=True)  # a level such as -
 positive_number = number_in(0.0, math.inf, lo_open=True, hi_open=True)  # a rate such as --fs
 
 
+def check_writable(*paths: Path | None) -> None:
+    """Refuse, before any work, an output path whose folder does not exist or that is a
+    folder (discover wrote its reports after a minute's run, then failed)."""
+    for path in paths:
+        if path is None:
+            continue
+        if path.is_dir():
+            raise InputFileError(path, "cannot write: is a folder")
+        if not path.parent.is_dir():
+            raise InputFileError(path, f"cannot write: no folder {path.parent}")
+
+
 def add_test_options(p: Any) -> None:
     """--fs, --channel-map, --lenient: how recorded tests are read."""
     p.add_argument("--fs", type=positive_number, default=None, metavar="HZ",
@@ -215,6 +227,7 @@ def study_inputs(args: argparse.Namespace) -> tuple[Any, list[Recording], list[A
     from dynval import model as mdl
     from dynval.validate.doe import parse_param
 
+    check_writable(args.json_out, args.html_out, getattr(args, "model_out", None))
     m = mdl.load(args.model)
     recs = read_tests(args.experiments, args, besides=args.model)
     return m, recs, [parse_param(t) for t in args.param]

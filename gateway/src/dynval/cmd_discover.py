@@ -9,7 +9,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from dynval.cli_common import add_test_options, nonnegative_int, number_in, read_tests
+from dynval.cli_common import (
+    add_test_options,
+    check_writable,
+    nonnegative_int,
+    number_in,
+    read_tests,
+)
 from dynval.errors import ConfigError, InputFileError
 from dynval.io import Recording
 
@@ -68,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
     from dynval.discover import loop, report
 
     t0 = time.perf_counter()
+    check_writable(args.model_out, args.json, args.html)
     m = mdl.load(args.model)
     recs = read_tests(args.tests, args, besides=args.model)
     for rec in recs:
