@@ -138,7 +138,8 @@ MAX_ABS = 1e150  # squares and sums of squares of a test's samples stay finite (
 
 def _preflight(m: Any, rec: Recording) -> None:
     """What discover needs of a test, as one-line errors naming the file: enough samples, a
-    measured input that is not zero throughout, samples whose squares are finite. (A declared
+    measured input that is not zero throughout, samples whose squares are finite and none
+    missing (a NaN --lenient kept). (A declared
     model that diverges is named by run() when the loop fails, not simulated twice here.)"""
     import numpy as np
 
@@ -151,11 +152,18 @@ def _preflight(m: Any, rec: Recording) -> None:
                              f"{rec.n_samples}")
     for c in rec.channels:
         for a in range(0, c.data.size, 1 << 20):  # a long record: a block at a time
-            big = np.flatnonzero(np.abs(c.data[a:a + (1 << 20)]) > MAX_ABS)
+            block = c.data[a:a + (1 << 20)]
+            big = np.flatnonzero(np.abs(block) > MAX_ABS)
             if big.size:
                 raise InputFileError(where, f"channel {c.name}: sample {a + int(big[0])} is "
                                      f"{c.data[a + big[0]]:.3g}, beyond what discover's least "
                                      f"squares take (|x| <= {MAX_ABS:g}); rescale the channel")
+            gap = np.flatnonzero(~np.isfinite(block))
+            if gap.size:  # kept by --lenient: the simulations and spectra need every sample
+                missing = int(np.count_nonzero(~np.isfinite(c.data)))
+                raise InputFileError(where, f"channel {c.name}: {missing} missing sample(s), "
+                                     f"the first at sample {a + int(gap[0])}: discover needs "
+                                     "complete records (cut the test around them)")
         release_pages(c.data)  # a memory-mapped record: its pages go once checked
     u = rec.channel(mdl.input_channel(m, rec)).data
     if not np.any(np.nan_to_num(u) != 0):

@@ -360,7 +360,9 @@ def sub_band_corner(u: np.ndarray, fs_hz: float) -> float | None:
     if u.size < 1024:
         return None
     f, p = signal.welch(u, fs=fs_hz, nperseg=min(u.size, max(1024, u.size // 8)))
-    c = np.cumsum(p) / (p.sum() or 1e-300)
+    if not p.sum() > 0:  # a constant input (a static load): no band
+        return None
+    c = np.cumsum(p) / p.sum()
     f_lo = float(f[np.searchsorted(c, 0.01)])
     below = np.flatnonzero((f > 0) & (f < f_lo))
     if below.size < 3:

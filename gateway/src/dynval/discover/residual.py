@@ -291,10 +291,14 @@ def free_motion_fit(m: mdl.Model, t: TestData, p: dict[str, np.ndarray],
 def summed_spectrum(res: Sequence[np.ndarray], fs_hz: float
                     ) -> tuple[np.ndarray, np.ndarray | None]:
     """The residuals' Welch spectra (segments of up to 1024 samples) summed, and their
-    frequencies; None for no residual."""
+    frequencies; None for no residual. A residual shorter than the longest one's segment is
+    left out (a test of 300 samples among ones of 8192: its spectrum has other bins)."""
     psd, f = None, np.zeros(0)
+    seg = min(1024, max((r.size for r in res), default=0))
     for r in res:
-        f, p = signal.welch(r, fs=fs_hz, nperseg=min(1024, r.size))
+        if r.size < seg:
+            continue
+        f, p = signal.welch(r, fs=fs_hz, nperseg=seg)
         psd = p if psd is None else psd + p
     return f, psd
 

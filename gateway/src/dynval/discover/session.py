@@ -3,6 +3,7 @@ fitting and held-out sets (Session), each round's record (Round) and the result
 (DiscoverResult)."""
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -18,6 +19,8 @@ from dynval.discover import trace as tr
 from dynval.errors import ConfigError
 from dynval.io.recording import Recording
 from dynval.validate import measurement
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -233,9 +236,11 @@ class Session:
 
 def make_session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> Session:
     tests = rs.prepare(m, recs)
+    dead = dead_channels(tests)
     chans = rs.common_channels(m, tests)
     if not chans:
-        raise ConfigError("no model output is a column of every test")
+        raise ConfigError("no model output is a column of every test" + (
+            f" that reads anything (constant throughout: {'; '.join(dead)})" if dead else ""))
     fs_set = {round(t.fs_hz, 6) for t in tests}
     if len(fs_set) != 1:
         raise ConfigError(f"the tests have different sample rates: {sorted(fs_set)}")
@@ -244,8 +249,27 @@ def make_session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> Session
     settle = settle_samples(modes_hz, band, tests[0].fs_hz)
     tests, cut = segments.bound(tests, settle)  # long records: evenly spaced segments
     fit_t, held_t, how = split(tests)
+    dead_note = [f"left out, constant throughout (a dead or unplugged sensor): "
+                 f"{'; '.join(dead)}"] if dead else []
     return Session(o, tests, chans, rs.channel_scales(tests, chans), fit_t, held_t, band,
-                   modes_hz, settle, [how, *cut, *sub_band_note(m, tests)])
+                   modes_hz, settle, [how, *dead_note, *cut, *sub_band_note(m, tests)])
+
+
+def dead_channels(tests: Sequence[rs.TestData]) -> list[str]:
+    """Output channels that read one constant value throughout a test (a sensor not wired or
+    dead: fitted, it drew a sensor gain at its bound and a spurious mass change), taken out of
+    every test (discover uses the channels all tests have), logged; 'channel (test, ...)'."""
+    where: dict[str, list[str]] = {}
+    for t in tests:
+        for c in [c for c, y in t.y.items() if y.size and float(np.ptp(y)) == 0.0]:
+            where.setdefault(c, []).append(t.name)
+    for t in tests:
+        for c in where:
+            t.y.pop(c, None)
+    out = [f"{c} ({', '.join(names)})" for c, names in where.items()]
+    for text in out:
+        log.warning("channel %s is constant throughout: left out", text)
+    return out
 
 
 def sub_band_note(m: mdl.Model, tests: Sequence[rs.TestData]) -> list[str]:

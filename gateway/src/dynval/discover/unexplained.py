@@ -77,9 +77,11 @@ def coherence(tests: Sequence[TestData], res: Mapping[str, Mapping[str, np.ndarr
             n = min(1024, r.size // 4)
             if n < 64:
                 continue
-            f, coh = signal.coherence(t.u, r, fs=t.fs_hz, nperseg=n)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                f, coh = signal.coherence(t.u, r, fs=t.fs_hz, nperseg=n)
             _, p = signal.welch(r, fs=t.fs_hz, nperseg=n)
-            num += float(np.sum(coh * p))
+            # no coherence where the input or the residual has no power (a constant input)
+            num += float(np.sum(np.nan_to_num(coh, nan=0.0, posinf=0.0) * p))
             den += float(np.sum(p))
     return num / den if den > 0 else None
 

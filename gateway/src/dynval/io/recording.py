@@ -90,9 +90,9 @@ def parse_row(path: Path, ln: int, cells: Sequence[str], names: Sequence[str], *
               lenient: bool, warnings: list[str], required: int = -1) -> list[float] | None:
     """One data row of a text table (the CSV and the whitespace readers): its cells as floats.
     Errors name the file, line and column: a wrong number of cells, a non-number, NaN/Inf.
-    lenient=True drops a short last row (a truncated file: returns None) and keeps NaN/Inf as
-    NaN (the core drops and counts it), each counted in warnings; column `required` (the time)
-    must be finite even then."""
+    lenient=True drops a short last row (a truncated file: returns None) and keeps NaN/Inf and
+    empty cells as NaN (the core drops and counts it), each counted in warnings; column
+    `required` (the time) must be finite even then."""
     ncol = len(names)
     if len(cells) != ncol:
         msg = f"expected {ncol} cells, found {len(cells)}"
@@ -104,10 +104,14 @@ def parse_row(path: Path, ln: int, cells: Sequence[str], names: Sequence[str], *
     row = []
     for j, cell in enumerate(cells):
         try:
-            v = float(cell)
+            v = math.nan if lenient and j != required and not cell.strip() else float(cell)
         except ValueError:
             raise InputFileError(path, f"not a number: {cell.strip()!r}", ln, names[j]) from None
-        if not math.isfinite(v):
+        if not cell.strip():  # lenient: an empty cell is a missing sample (a spreadsheet's)
+            warnings.append(f"{path}:{ln}: empty {names[j]} cell kept as NaN (dropped and "
+                            "counted by the core)")
+            logging.getLogger(__name__).warning(warnings[-1])
+        elif not math.isfinite(v):
             if not lenient or j == required:
                 raise InputFileError(path, f"non-finite value {cell.strip()!r}", ln, names[j])
             warnings.append(f"{path}:{ln}: non-finite {names[j]} kept as NaN (dropped and "
