@@ -42,14 +42,31 @@ def test_a_dead_channel_is_left_out_of_every_test_and_said(
     s = session.make_session(m, recs, loop.Options())
     assert s.chans == ["acc1_mps2", "acc2_mps2", "acc4_mps2"]
     assert all("acc3_mps2" not in t.y for t in s.tests)
-    assert "(a dead or unplugged sensor): acc3_mps2 (test_high_01)" in s.notes[1]
+    assert ("unusable in some test: acc3_mps2 (test_high_01: constant throughout (a dead or "
+            "unplugged sensor))") in s.notes[1]
     assert any("acc3_mps2" in r.getMessage() for r in caplog.records
                if r.levelno == logging.WARNING)
     # every channel dead: one line naming them, not "no output is a column"
     for c in m.outputs:
         recs = [with_channel(r, c, np.full(r.n_samples, 0.25)) for r in recs]
-    with pytest.raises(ConfigError, match="constant throughout: acc1_mps2"):
+    with pytest.raises(ConfigError, match=r"can be fitted \(unusable: acc1_mps2 \(test_high"):
         session.make_session(m, recs, loop.Options())
+
+
+def test_a_clipped_channel_is_left_out_and_a_live_or_coarsely_quantised_one_is_not() -> None:
+    """The bumper's high test with acc4 clipped at +-2 m/s^2 (its RMS 2.5: an overloaded
+    range): discover named a sensor gain on it; now it is left out (and the contact found, by
+    the fuzz). A live channel's extreme is one sample; rounded to 0.5 m/s^2 (a quarter of its
+    RMS) a few."""
+    m, recs = bumper()
+    y = recs[0].channel("acc4_mps2").data
+    assert session.unusable(y) == ""
+    assert session.unusable(np.round(y / 0.5) * 0.5) == ""
+    assert session.unusable(np.clip(y, -2.0, 2.0)).startswith("clipped (")
+    assert session.unusable(np.clip(y, -2.0, 2.0), "disp") == ""  # a position's plateau
+    recs[0] = with_channel(recs[0], "acc4_mps2", np.clip(y, -2.0, 2.0))
+    s = session.make_session(m, recs, loop.Options())
+    assert s.chans == ["acc1_mps2", "acc2_mps2", "acc3_mps2"]
 
 
 def test_a_short_test_among_long_ones_leaves_the_summed_spectrum_to_the_long_ones() -> None:

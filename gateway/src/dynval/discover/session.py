@@ -236,11 +236,11 @@ class Session:
 
 def make_session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> Session:
     tests = rs.prepare(m, recs)
-    dead = dead_channels(tests)
+    dead = dead_channels(m, tests)
     chans = rs.common_channels(m, tests)
     if not chans:
         raise ConfigError("no model output is a column of every test" + (
-            f" that reads anything (constant throughout: {'; '.join(dead)})" if dead else ""))
+            f" that can be fitted (unusable: {', '.join(dead)})" if dead else ""))
     fs_set = {round(t.fs_hz, 6) for t in tests}
     if len(fs_set) != 1:
         raise ConfigError(f"the tests have different sample rates: {sorted(fs_set)}")
@@ -249,26 +249,55 @@ def make_session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> Session
     settle = settle_samples(modes_hz, band, tests[0].fs_hz)
     tests, cut = segments.bound(tests, settle)  # long records: evenly spaced segments
     fit_t, held_t, how = split(tests)
-    dead_note = [f"left out, constant throughout (a dead or unplugged sensor): "
-                 f"{'; '.join(dead)}"] if dead else []
+    dead_note = [f"left out, unusable in some test: {', '.join(dead)}"] if dead else []
     return Session(o, tests, chans, rs.channel_scales(tests, chans), fit_t, held_t, band,
                    modes_hz, settle, [how, *dead_note, *cut, *sub_band_note(m, tests)])
 
 
-def dead_channels(tests: Sequence[rs.TestData]) -> list[str]:
-    """Output channels that read one constant value throughout a test (a sensor not wired or
-    dead: fitted, it drew a sensor gain at its bound and a spurious mass change), taken out of
-    every test (discover uses the channels all tests have), logged; 'channel (test, ...)'."""
+# a channel holding its largest (or smallest) value at this many samples, and this share of
+# the record, is clipped: a live sensor's extreme is one sample (a Gaussian response's within
+# a quarter-sigma quantisation step: about 0.3 of 8192 samples)
+CLIPPED_SAMPLES = 8
+CLIPPED_SHARE = 0.002
+
+
+def unusable(y: np.ndarray, kind: str = "acc") -> str:
+    """Why a test's output channel cannot be fitted: '' when it can; constant throughout (a
+    sensor not wired or dead); an accelerometer's clipped (an overloaded sensor or DAQ range:
+    the response beyond its limits is not in the record, and a model fitted to it takes a
+    sensor gain or worse). Only an acceleration: a position held at a step's plateau, a
+    quantised one flickering there, reads its extreme for long (a BRFD step test: 103 samples
+    of 15 361)."""
+    if not y.size:
+        return ""
+    hi, lo = float(np.max(y)), float(np.min(y))
+    if hi == lo:
+        return "constant throughout (a dead or unplugged sensor)"
+    if kind != "acc":
+        return ""
+    at = max(int(np.count_nonzero(y == hi)), int(np.count_nonzero(y == lo)))
+    if at >= max(CLIPPED_SAMPLES, CLIPPED_SHARE * y.size):
+        return f"clipped ({at} samples at its limit: an overloaded sensor or DAQ range)"
+    return ""
+
+
+def dead_channels(m: mdl.Model, tests: Sequence[rs.TestData]) -> list[str]:
+    """Output channels that cannot be fitted in some test (unusable: constant or clipped; a
+    dead one drew a sensor gain at its bound and a spurious mass change, a clipped one a
+    sensor gain), taken out of every test (discover uses the channels all tests have),
+    logged; 'channel: why (test, ...)'."""
     where: dict[str, list[str]] = {}
     for t in tests:
-        for c in [c for c, y in t.y.items() if y.size and float(np.ptp(y)) == 0.0]:
-            where.setdefault(c, []).append(t.name)
+        for c, y in t.y.items():
+            why = unusable(y, m.outputs[c].kind)
+            if why:
+                where.setdefault(c, []).append(f"{t.name}: {why}")
     for t in tests:
         for c in where:
             t.y.pop(c, None)
-    out = [f"{c} ({', '.join(names)})" for c, names in where.items()]
+    out = [f"{c} ({'; '.join(whys)})" for c, whys in where.items()]
     for text in out:
-        log.warning("channel %s is constant throughout: left out", text)
+        log.warning("channel %s: left out", text)
     return out
 
 
