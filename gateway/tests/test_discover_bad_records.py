@@ -53,6 +53,19 @@ def test_a_dead_channel_is_left_out_of_every_test_and_said(
         session.make_session(m, recs, loop.Options())
 
 
+def test_a_channel_some_tests_lack_is_said_to_be_left_out(
+        caplog: pytest.LogCaptureFixture) -> None:
+    """discover fits the channels every test has: acc4 missing from one test left it out of
+    the whole run without a word (found by the fuzz)."""
+    m, recs = bumper()
+    recs[1] = dataclasses.replace(recs[1], channels=[c for c in recs[1].channels
+                                                     if c.name != "acc4_mps2"])
+    s = session.make_session(m, recs, loop.Options())
+    assert s.chans == ["acc1_mps2", "acc2_mps2", "acc3_mps2"]
+    assert "left out, a column of some tests only: acc4_mps2 (not in test_low_01)" in s.notes
+    assert "acc4_mps2 (not in test_low_01)" in caplog.text
+
+
 def test_a_clipped_channel_is_left_out_and_a_live_or_coarsely_quantised_one_is_not() -> None:
     """The bumper's high test with acc4 clipped at +-2 m/s^2 (its RMS 2.5: an overloaded
     range): discover named a sensor gain on it; now it is left out (and the contact found, by

@@ -250,6 +250,7 @@ def make_session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> Session
     tests, cut = segments.bound(tests, settle)  # long records: evenly spaced segments
     fit_t, held_t, how = split(tests)
     dead_note = [f"left out, unusable in some test: {', '.join(dead)}"] if dead else []
+    dead_note += partial_channels(m, tests, dead)
     return Session(o, tests, chans, rs.channel_scales(tests, chans), fit_t, held_t, band,
                    modes_hz, settle, [how, *dead_note, *cut, *sub_band_note(m, tests)])
 
@@ -279,6 +280,21 @@ def unusable(y: np.ndarray, kind: str = "acc") -> str:
     if at >= max(CLIPPED_SAMPLES, CLIPPED_SHARE * y.size):
         return f"clipped ({at} samples at its limit: an overloaded sensor or DAQ range)"
     return ""
+
+
+def partial_channels(m: mdl.Model, tests: Sequence[rs.TestData], dead: Sequence[str]
+                     ) -> list[str]:
+    """A note (and a warning) for the model's outputs that some tests have and others lack:
+    discover uses the channels every test has, so those are left out (silently before)."""
+    gone = {d.split(" ", 1)[0] for d in dead}
+    lacking = {c: [t.name for t in tests if c not in t.y] for c in m.outputs if c not in gone}
+    parts = [f"{c} (not in {', '.join(names)})" for c, names in lacking.items()
+             if names and len(names) < len(tests)]
+    if not parts:
+        return []
+    text = f"left out, a column of some tests only: {', '.join(parts)}"
+    log.warning("%s", text)
+    return [text]
 
 
 def dead_channels(m: mdl.Model, tests: Sequence[rs.TestData]) -> list[str]:
