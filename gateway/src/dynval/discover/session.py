@@ -237,6 +237,8 @@ class Session:
 def make_session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> Session:
     tests = rs.prepare(m, recs)
     dead = dead_channels(m, tests)
+    left = [f"left out, unusable in some test: {', '.join(dead)}"] if dead else []
+    left += partial_channels(m, tests, dead)  # by the records' names, before any segments
     chans = rs.common_channels(m, tests)
     if not chans:
         raise ConfigError("no model output is a column of every test" + (
@@ -249,10 +251,8 @@ def make_session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> Session
     settle = settle_samples(modes_hz, band, tests[0].fs_hz)
     tests, cut = segments.bound(tests, settle)  # long records: evenly spaced segments
     fit_t, held_t, how = split(tests)
-    dead_note = [f"left out, unusable in some test: {', '.join(dead)}"] if dead else []
-    dead_note += partial_channels(m, tests, dead)
     return Session(o, tests, chans, rs.channel_scales(tests, chans), fit_t, held_t, band,
-                   modes_hz, settle, [how, *dead_note, *cut, *sub_band_note(m, tests)])
+                   modes_hz, settle, [how, *left, *cut, *sub_band_note(m, tests)])
 
 
 # a channel holding its largest (or smallest) value at this many samples, and this share of
@@ -301,7 +301,7 @@ def dead_channels(m: mdl.Model, tests: Sequence[rs.TestData]) -> list[str]:
     """Output channels that cannot be fitted in some test (unusable: constant or clipped; a
     dead one drew a sensor gain at its bound and a spurious mass change, a clipped one a
     sensor gain), taken out of every test (discover uses the channels all tests have),
-    logged; 'channel: why (test, ...)'."""
+    logged; 'channel (test: why; ...)'."""
     where: dict[str, list[str]] = {}
     for t in tests:
         for c, y in t.y.items():
