@@ -26,9 +26,9 @@ from dynval.io import Recording, collect_tests, load_channel_map, read_test
 log = logging.getLogger(__name__)
 
 
-def int_at_least(lo: int, hi: int | None = None) -> Callable[[str], int]:
-    """argparse type of an integer >= lo (and <= hi when given; a usage error naming the
-    option otherwise, never a value wrapped or clipped later)."""
+def int_in(lo: int, hi: int | None = None) -> Callable[[str], int]:
+    """argparse type of an integer in lo..hi (no upper end when hi is None): a usage error
+    naming the option otherwise, never a value wrapped or clipped later."""
     def parse(text: str) -> int:
         try:
             v = int(text)
@@ -59,8 +59,8 @@ def number_in(lo: float, hi: float, *, lo_open: bool = False,
     return parse
 
 
-nonnegative_int = int_at_least(0)  # counts such as --workers (0: the default's choice)
-positive_int = int_at_least(1)  # counts such as --runs
+nonnegative_int = int_in(0)  # counts such as --workers (0: the default's choice)
+positive_int = int_in(1)  # counts such as --runs
 open_unit = number_in(0.0, 1.0, lo_open=True, hi_open=True)  # a level such as --level
 positive_number = number_in(0.0, math.inf, lo_open=True, hi_open=True)  # a rate such as --fs
 

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from dynval.cli_common import add_test_options, int_at_least, read_with_options
+from dynval.cli_common import add_test_options, int_in, read_with_options
 from dynval.errors import CoreError, InputFileError
 from dynval.io import Recording
 
@@ -26,7 +26,7 @@ def add_parser(sub: Any) -> None:
     p.add_argument("file", type=Path,
                    help="recorded test: CSV with a header (time_s,force_N,...), text, BRFD JSON, "
                    "MCAP, UFF 58, MDF 4, HDF5 or MATLAB .mat")
-    p.add_argument("--seg-len", type=int_at_least(2), default=64,
+    p.add_argument("--seg-len", type=int_in(2), default=64,
                    help="segment length for segmented STD (%(default)s)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     add_test_options(p)

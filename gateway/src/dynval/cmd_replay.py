@@ -19,7 +19,7 @@ from dynval.cli_common import (
     add_test_options,
     bus_config_of,
     fmt_timing,
-    int_at_least,
+    int_in,
     read_with_options,
     stop_point,
     stop_signals,
@@ -45,7 +45,7 @@ def add_parser(sub: Any) -> None:
                    help="who keeps time: c = dv_pacer (SocketCAN only; found as $DV_PACER, on "
                    "PATH or in build/*/firmware_sim), python = dynval.pacing, auto = c on "
                    "SocketCAN when dv_pacer is found (%(default)s)")
-    p.add_argument("--record-id", type=int_at_least(0, 0xFFFFFFFF), default=1,
+    p.add_argument("--record-id", type=int_in(0, 0xFFFFFFFF), default=1,
                    help="DV_CTRL record_id (%(default)s)")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     add_test_options(p)

@@ -198,9 +198,8 @@ def _core_refuses(m: Model) -> bool:
 def _out_of_range(m: Model) -> tuple[str, float] | None:
     """The mass or story stiffness the core refuses m for ('masses_kg[0]', its value): the
     first whose value set to the median of its kind makes the model acceptable; None when none
-    does (a mass
-    of 1e-200 kg among ones of 6.5 kg passes every field's own check but not the core's
-    modal arithmetic)."""
+    does. A mass of 1e-200 kg among ones of 6.5 kg passes every field's own check, not the
+    core's modal arithmetic."""
     for name in ("masses_kg", "stiffness_n_per_m"):
         vals = list(getattr(m, name))
         for i in range(len(vals)):
