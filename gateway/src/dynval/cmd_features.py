@@ -47,8 +47,10 @@ def compute(rec: Recording, seg_len: int = 64) -> dict[str, Any]:
                                **_temporal_row(rec, ch.name, ch.data)}
         # what the core flags undefined (a constant channel's shape, a zero one's crest) is
         # null, not the 0 it fills in: a number read as one would be wrong
-        row.update({k: None for k in ("skew", "kurt") if not st.shape_defined})
-        row.update({"crest": None} if not st.crest_defined else {})
+        if not st.shape_defined:
+            row["skew"] = row["kurt"] = None
+        if not st.crest_defined:
+            row["crest"] = None
         if seg is not None:
             row["segstd_min"], row["segstd_max"] = float(seg.min()), float(seg.max())
         _check_finite(rec, ch.name, ch.data, row)

@@ -238,7 +238,7 @@ def make_session(m: mdl.Model, recs: Sequence[Recording], o: Options) -> Session
     tests = rs.prepare(m, recs)
     dead = dead_channels(m, tests)
     left = [f"left out, unusable in some test: {', '.join(dead)}"] if dead else []
-    left += partial_channels(m, tests, dead)  # by the records' names, before any segments
+    left += partial_channels(m, tests)  # by the records' names, before any segments
     chans = rs.common_channels(m, tests)
     if not chans:
         raise ConfigError("no model output is a column of every test" + (
@@ -282,12 +282,11 @@ def unusable(y: np.ndarray, kind: str = "acc") -> str:
     return ""
 
 
-def partial_channels(m: mdl.Model, tests: Sequence[rs.TestData], dead: Sequence[str]
-                     ) -> list[str]:
+def partial_channels(m: mdl.Model, tests: Sequence[rs.TestData]) -> list[str]:
     """A note (and a warning) for the model's outputs that some tests have and others lack:
-    discover uses the channels every test has, so those are left out (silently before)."""
-    gone = {d.split(" ", 1)[0] for d in dead}
-    lacking = {c: [t.name for t in tests if c not in t.y] for c in m.outputs if c not in gone}
+    discover uses the channels every test has, so those are left out (silently before). A
+    dead one is out of every test already (dead_channels), so not among them."""
+    lacking = {c: [t.name for t in tests if c not in t.y] for c in m.outputs}
     parts = [f"{c} (not in {', '.join(names)})" for c, names in lacking.items()
              if names and len(names) < len(tests)]
     if not parts:

@@ -103,19 +103,18 @@ def parse_row(path: Path, ln: int, cells: Sequence[str], names: Sequence[str], *
         raise InputFileError(path, msg + (" (truncated file?)" if last else ""), ln)
     row = []
     for j, cell in enumerate(cells):
+        # lenient: an empty cell is a missing sample (a spreadsheet's), as NaN is
+        empty = lenient and j != required and not cell.strip()
         try:
-            v = math.nan if lenient and j != required and not cell.strip() else float(cell)
+            v = math.nan if empty else float(cell)
         except ValueError:
             raise InputFileError(path, f"not a number: {cell.strip()!r}", ln, names[j]) from None
-        if not cell.strip():  # lenient: an empty cell is a missing sample (a spreadsheet's)
-            warnings.append(f"{path}:{ln}: empty {names[j]} cell kept as NaN (dropped and "
-                            "counted by the core)")
-            logging.getLogger(__name__).warning(warnings[-1])
-        elif not math.isfinite(v):
+        if not math.isfinite(v):
             if not lenient or j == required:
                 raise InputFileError(path, f"non-finite value {cell.strip()!r}", ln, names[j])
-            warnings.append(f"{path}:{ln}: non-finite {names[j]} kept as NaN (dropped and "
-                            "counted by the core)")
+            what = f"empty {names[j]} cell" if empty else f"non-finite {names[j]}"
+            warnings.append(f"{path}:{ln}: {what} kept as NaN (dropped and counted by the "
+                            "core)")
             logging.getLogger(__name__).warning(warnings[-1])
             v = math.nan
         row.append(v)
