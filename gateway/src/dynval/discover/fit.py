@@ -32,6 +32,7 @@ from dynval.errors import ConfigError
 
 log = logging.getLogger(__name__)
 least_squares: Any = importlib.import_module("scipy.optimize").least_squares
+_trf: Any = importlib.import_module("scipy.optimize._lsq.trf")  # its svd: see thin_svd
 _stats: Any = importlib.import_module("scipy.stats")
 
 _PENALTY = 1e3  # residual value for a parameter set the core refuses
@@ -418,6 +419,48 @@ def futility_stop(beat: float, max_nfev: int) -> Callable[[Any], None]:
     return stop
 
 
+# the largest condition number thin_svd takes through the Gram matrix: its eigenvalues then
+# span at most 1e12, each known to 1e-4 of itself or better in double precision; the 6-DOF
+# sweep's 696 trf Jacobians had 1 to 8.6e5 (median 1.5e3)
+GRAM_MAX_COND = 1e6
+
+
+def thin_svd(a: np.ndarray, full_matrices: bool = False, **kw: Any
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """scipy.linalg.svd as trust-region-reflective uses it (U, s, V^T of its Jacobian, then
+    only U^T f), for a tall, thin, well-conditioned matrix through the eigenvalues of a^T a:
+    U = a V / s. Why: on the fits' 245 777 x 17 Jacobians LAPACK's SVD took 83 ms a call,
+    58 s of the 6-DOF sweep's 212 (one process), the Gram matrix 7 ms. Anything else (wide,
+    short, conditioned beyond GRAM_MAX_COND, not finite) goes to LAPACK."""
+    m, n = a.shape
+    if full_matrices or m < 8 * n:
+        return _lapack_svd(a, full_matrices=full_matrices, **kw)
+    lam, v = np.linalg.eigh(a.T @ a)
+    lam, v = lam[::-1], v[:, ::-1]  # descending, as svd gives them
+    if not (np.all(np.isfinite(lam)) and lam[-1] > lam[0] / GRAM_MAX_COND ** 2 > 0):
+        return _lapack_svd(a, full_matrices=False, **kw)
+    s = np.sqrt(lam)
+    return a @ (v / s), s, v.T
+
+
+_lapack_svd: Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray]] = \
+    importlib.import_module("scipy.linalg").svd  # the one trf imports
+
+
+@contextlib.contextmanager
+def _trf_thin_svd() -> Iterator[None]:
+    """scipy's trust-region-reflective with thin_svd for the block (its module's svd, the only
+    SVD it calls; restored after). A scipy whose trf has no such name runs unchanged."""
+    if getattr(_trf, "svd", None) is not _lapack_svd:
+        yield
+        return
+    _trf.svd = thin_svd
+    try:
+        yield
+    finally:
+        _trf.svd = _lapack_svd
+
+
 def _solve(fun_at: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray], np.ndarray],
            z0: np.ndarray, max_nfev: int, beat: float | None) -> Any:
     """least_squares on [0, 1] from z0, restarted once from where it stopped on xtol with the
@@ -425,9 +468,10 @@ def _solve(fun_at: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray
     SSE, not a gradient at zero, and a fresh region often goes on (blind free case 3: the
     cubic's fit stopped there at 1.5 x the truth's SSE, 23 of that run's 35 fits did)."""
     def run(z: np.ndarray, n: int) -> Any:
-        return least_squares(fun_at, z, jac=jac, bounds=(0.0, 1.0), method="trf", x_scale=1.0,
-                             max_nfev=n, xtol=XTOL, ftol=FTOL,
-                             callback=None if beat is None else futility_stop(beat, n))
+        with _trf_thin_svd():
+            return least_squares(fun_at, z, jac=jac, bounds=(0.0, 1.0), method="trf",
+                                 x_scale=1.0, max_nfev=n, xtol=XTOL, ftol=FTOL,
+                                 callback=None if beat is None else futility_stop(beat, n))
 
     sol = run(z0, max_nfev)
     left = max_nfev - int(sol.nfev)
