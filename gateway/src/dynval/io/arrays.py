@@ -17,6 +17,7 @@ import numpy as np
 from dynval.errors import DynvalError, InputFileError
 from dynval.io.recording import (
     MAX_RATE_HZ,
+    MIN_RATE_HZ,
     Channel,
     Recording,
     default_role,
@@ -97,7 +98,7 @@ def regular_period(p: Path | str, t: np.ndarray, *, lenient: bool, warnings: lis
         raise InputFileError(p, f"time does not increase ({float(t[i])!r} then "
                              f"{float(t[i + 1])!r}){where}", ln, column)
     period = float(np.median(dt))
-    if not 0 < 1.0 / period <= MAX_RATE_HZ:
+    if not MIN_RATE_HZ <= 1.0 / period <= MAX_RATE_HZ:
         ln, where = locate(0)
         raise InputFileError(p, f"time step {period:.9g} s is not a usable sample "
                              f"period{where}", ln, column)
@@ -119,11 +120,19 @@ def _sample(i: int) -> tuple[int | None, str]:
 
 
 def usable_rate(p: Path | str, fs_hz: Any, where: str) -> float:
+    """fs_hz as a rate in [MIN_RATE_HZ, MAX_RATE_HZ]: one real number (or its text); an array
+    of several, a boolean or a complex number is no rate (its first value or real part would
+    be a guess)."""
+    a = np.asarray(fs_hz)
+    v = a.reshape(-1)[0] if a.size == 1 else None
     try:
-        fs = float(np.asarray(fs_hz, dtype=np.float64).reshape(-1)[0])
-    except (TypeError, ValueError, IndexError):
-        raise InputFileError(p, f"{where}: the sampling rate is not a number ({fs_hz!r})") from None
-    if not 0 < fs <= MAX_RATE_HZ:
+        if v is None or a.dtype.kind in "bcV" or isinstance(v, bool | np.bool_):
+            raise TypeError
+        fs = float(v.decode() if isinstance(v, bytes) else v)
+    except (TypeError, ValueError, UnicodeDecodeError):
+        raise InputFileError(p, f"{where}: the sampling rate is not one number "
+                             f"({str(fs_hz)[:40]})") from None
+    if not MIN_RATE_HZ <= fs <= MAX_RATE_HZ:
         raise InputFileError(p, f"{where}: {fs!r} Hz is not a usable sampling rate")
     return fs
 
@@ -185,7 +194,7 @@ def recording_from_arrays(p: Path | str, name: str, columns: Mapping[str, Any], 
             warnings.append(f"{p} (column {col}): {msg}, kept as NaN (dropped and counted by "
                             "the core)")
             log.warning(warnings[-1])
-        unit = (units or {}).get(col) or split_unit(col)[1]
+        unit = checked_unit(p, col, (units or {}).get(col), warnings)
         role = (roles or {}).get(col) or default_role(col)
         if mapped(a):  # a mapped file stays mapped, not loaded (its checked pages let go)
             release_pages(a)
@@ -198,6 +207,28 @@ def recording_from_arrays(p: Path | str, name: str, columns: Mapping[str, Any], 
     sha = file_sha256(src) if src is not None and src.is_file() else ""
     return Recording(name=name, fs_hz=fs, channels=chans, source=src, sha256=sha,
                      warnings=warnings, t0_s=t0_s)
+
+
+def _unit_key(unit: str) -> str:
+    u = unit.strip().lower().replace(" ", "").replace("**", "").replace("^", "")
+    u = u.replace("\u00b2", "2").replace("\u00b5", "u").replace("\u03bc", "u")
+    return _SAME_UNIT.get(u, u)
+
+
+_SAME_UNIT = {"ms-2": "m/s2", "m/s/s": "m/s2", "m.s-2": "m/s2", "ue": "microstrain",
+              "u\u03b5": "microstrain", "ustrain": "microstrain", "micron": "um"}
+
+
+def checked_unit(p: Path | str, col: str, given: str | None, warnings: list[str]) -> str:
+    """The channel's unit: the file's where it gives one, else the name's suffix. A file's
+    unit that the suffix contradicts (acc1_mps2 in g) is kept and a counted warning: the
+    numbers are in one of them, and a model in SI units would take them for m/s^2."""
+    suffix = split_unit(col)[1]
+    if given and suffix and _unit_key(given) != _unit_key(suffix):
+        warnings.append(f"{p} (column {col}): the file gives the unit {given!r}, the name's "
+                        f"suffix says {suffix!r}: {given!r} kept")
+        log.warning(warnings[-1])
+    return given or suffix
 
 
 def _mmap_of(a: np.ndarray) -> mmap.mmap | None:

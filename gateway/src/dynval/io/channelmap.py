@@ -15,11 +15,15 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from dynval.errors import ConfigError, InputFileError
+from dynval.io.arrays import checked_unit
 from dynval.io.jsonfile import read_mapping_file
 from dynval.io.recording import Channel, Recording
 
@@ -79,6 +83,11 @@ def channel_map_from_dict(d: Any, source: str = "") -> ChannelMap:
         dof = c.get("dof")
         if dof is not None and (isinstance(dof, bool) or not isinstance(dof, int) or dof < 1):
             raise ConfigError(f"{w}.dof: an integer >= 1, got {dof!r}")
+        for key in ("name", "unit"):  # a number or a list would be a channel's name or unit
+            v = c.get(key)
+            if v is not None and (not isinstance(v, str) or (key == "name" and not v)):
+                raise ConfigError(f"{w}.{key}: a{' non-empty' if key == 'name' else ''} "
+                                  f"string, got {v!r}")
         unknown = set(c) - {"column", "name", "unit", "scale", "role", "dof"}
         if unknown:
             raise ConfigError(f"{w}: unknown key(s) {', '.join(sorted(unknown))}")
@@ -104,7 +113,8 @@ def apply_channel_map(rec: Recording, cmap: ChannelMap | None) -> Recording:
     if cmap is None:
         return default_dofs(rec)
     out: list[Channel] = []
-    for s in cmap.channels:
+    warnings = list(rec.warnings)
+    for i, s in enumerate(cmap.channels):
         if isinstance(s.column, int):
             if not 0 <= s.column < len(rec.channels):
                 raise ConfigError(f"{cmap.source}: column {s.column} out of range "
@@ -115,14 +125,34 @@ def apply_channel_map(rec: Recording, cmap: ChannelMap | None) -> Recording:
                 src = rec.channel(s.column)
             except KeyError as exc:
                 raise ConfigError(f"{cmap.source}: {exc.args[0]}") from None
-        out.append(Channel(name=s.name or src.name,
-                           data=src.data * s.scale if s.scale != 1.0 else src.data,
-                           unit=s.unit if s.unit is not None else src.unit,
+        name = s.name or src.name
+        out.append(Channel(name=name, data=_scaled(cmap, i, src, s.scale),
+                           unit=src.unit if s.unit is None else
+                           checked_unit(cmap.source, name, s.unit, warnings),
                            role=s.role or src.role, dof=s.dof if s.dof is not None else src.dof,
                            scale=s.scale))
+    twice = [n for n, k in Counter(c.name for c in out).items() if k > 1]
+    if twice:  # the second would be shadowed: a model's channel of the name gets the first
+        raise ConfigError(f"{cmap.source}: two channels named {twice[0]!r} (the map's 'name', "
+                          "or the column's where it gives none)")
     picked = {s.column if isinstance(s.column, str) else rec.channels[s.column].name
               for s in cmap.channels}
     left = [c.name for c in rec.channels if c.name not in picked]
     if left:
         log.info("%s: channel map leaves out %s", rec.name, ", ".join(left))
-    return default_dofs(dataclasses.replace(rec, channels=out))
+    return default_dofs(dataclasses.replace(rec, channels=out, warnings=warnings))
+
+
+def _scaled(cmap: ChannelMap, i: int, src: Channel, scale: float) -> np.ndarray:
+    """src's samples times the map's scale; a sample that the scale takes beyond the float
+    range is an error (numpy would make it inf with a RuntimeWarning on stderr)."""
+    if scale == 1.0:
+        return src.data
+    with np.errstate(over="ignore"):
+        x = src.data * scale
+    over = np.flatnonzero(np.isinf(x) & np.isfinite(src.data))
+    if over.size:
+        k = int(over[0])
+        raise ConfigError(f"{cmap.source}: channels[{i}].scale {scale:g} takes {src.name}'s "
+                          f"sample {k} ({float(src.data[k]):g}) beyond the float range")
+    return x

@@ -14,7 +14,6 @@ from __future__ import annotations
 import importlib
 import logging
 import mmap
-import re
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +22,7 @@ import numpy as np
 from dynval.errors import ConfigError, InputFileError
 from dynval.io.arrays import (
     RATE_NAMES,
+    TIME_JITTER,
     find_time,
     guarded,
     one_line,
@@ -43,8 +43,6 @@ _MAX_SAMPLES = 1 << 31  # a header claiming more is damaged (16 GiB of float64 p
 # UFF 58 record 8 "specific data type" of the ordinate: 13 excitation force is an input
 _UFF_INPUT_TYPES = {13}
 _UFF_DIRS = {1: "x", 2: "y", 3: "z", -1: "-x", -2: "-y", -3: "-z", 4: "rx", 5: "ry", 6: "rz"}
-# a dataset's start and end delimiter: a line '    -1'
-_UFF_TAG = re.compile(rb"^    -1[ \t]*\r?$", re.MULTILINE)
 
 
 def _need(p: Path, module: str, package: str) -> Any:
@@ -76,19 +74,19 @@ def read_uff(path: Path | str, *, lenient: bool = False) -> Recording:
         if not idx:
             raise InputFileError(p, "no dataset 58 (function at nodal DOF) in the universal "
                                  f"file (datasets: {sorted(set(types)) or 'none'})")
-        _check_uff_closed(p)
-        out = u.read_sets(idx)
-        return out if isinstance(out, list) else [out]
+        lines = _check_uff_blocks(p)
+        return [_uff_set(p, u, i, lines[i]) for i in idx]
 
     dsets = guarded(p, "universal (UFF 58)", sets, quiet=("pyuff",))
     cols: dict[str, Any] = {}
     units: dict[str, str] = {}
     roles: dict[str, str] = {}
+    notes: list[str] = []
     ref: tuple[float, float, int] | None = None
     for k, d in enumerate(dsets):
         try:
             func, x0, dx = int(d["func_type"]), float(d["abscissa_min"]), float(d["abscissa_inc"])
-            data = d["data"]
+            data, npts = d["data"], int(d["num_pts"])
         except (KeyError, TypeError, ValueError) as exc:
             raise InputFileError(p, f"dataset 58 #{k + 1} is incomplete ({one_line(exc)})") \
                 from None
@@ -100,7 +98,12 @@ def read_uff(path: Path | str, *, lenient: bool = False) -> Recording:
             raise InputFileError(p, f"dataset 58 #{k + 1}: complex ordinates in a time response")
         name = _label(d.get("id1", "")) or \
             f"node{d.get('rsp_node', k + 1)}{_UFF_DIRS.get(int(d.get('rsp_dir', 0)), '')}"
+        if npts != np.size(data):  # pyuff reads the values there are, whatever the header says
+            raise InputFileError(p, f"dataset 58 #{k + 1} ({name}): the header gives {npts} "
+                                 f"points, the data {np.size(data)} (truncated or damaged)")
+        _check_uneven(p, d, k, name)
         if name in cols:
+            notes.append(_renamed(p, name, f"{name}_{k + 1}", f"dataset 58 #{k + 1}"))
             name = f"{name}_{k + 1}"
         this = (x0, dx, int(np.size(data)))
         if ref is None:
@@ -117,28 +120,90 @@ def read_uff(path: Path | str, *, lenient: bool = False) -> Recording:
         raise InputFileError(p, "no time response (dataset 58 with function type 1) in the file")
     if not ref[1] > 0:
         raise InputFileError(p, f"abscissa increment {ref[1]!r} s is not a sample period")
-    return recording_from_arrays(p, p.stem, cols, units=units, roles=roles, fs_hz=1.0 / ref[1],
-                                 t0_s=ref[0], lenient=lenient)
+    rec = recording_from_arrays(p, p.stem, cols, units=units, roles=roles, fs_hz=1.0 / ref[1],
+                                t0_s=ref[0], lenient=lenient)
+    rec.warnings[:0] = notes
+    return rec
 
 
-def _check_uff_closed(p: Path) -> None:
-    """pyuff reads what lies between pairs of '    -1' lines and ignores an unclosed last
-    dataset: a truncated file would lose its last channels without a word."""
+def _renamed(p: Path, name: str, new: str, where: str) -> str:
+    """A channel whose name another one has already: kept as `new`, a counted warning (the
+    first of the name is the one a model's channel of that name gets)."""
+    msg = f"{p}: {where}: a second channel named {name!r}, read as {new!r}"
+    log.warning(msg)
+    return msg
+
+
+def _uff_tags(data: bytes) -> list[int]:
+    """The offsets of the '    -1' delimiter lines as pyuff finds them (followed by a line end,
+    the file's end or blanks to column 80); pyuff pairs them into datasets."""
+    out, i = [], data.find(b"    -1")
+    while i != -1:
+        end = data[i + 6:i + 7]
+        if not end or end in (b"\n", b"\r") or (
+                i + 80 < len(data) and data[i + 6:i + 80] == b" " * 74):
+            out.append(i)
+        i = data.find(b"    -1", i + 1)
+    return out
+
+
+def _check_uff_blocks(p: Path) -> list[int]:
+    """The first line of each dataset. pyuff pairs the '    -1' lines and passes over a pair
+    without a dataset number and an unpaired last line: a truncated file, or one whose
+    delimiter was damaged, would lose channels without a word."""
     data = p.read_bytes()
-    last = None
-    for tag in _UFF_TAG.finditer(data):
-        last = tag
-    if last is not None and data[last.end():].strip():
-        line = data.count(b"\n", 0, last.end()) + 2
-        raise InputFileError(p, f"line {line}: a dataset that is not closed by a '    -1' line "
-                             "(the file is truncated or damaged)")
+    tags = _uff_tags(data)
+    lines, ln = [], 1
+    for a, b in zip([0, *tags], tags, strict=False):  # counted tag to tag: a long file's once
+        ln += data.count(b"\n", a, b)
+        lines.append(ln)
+    for a, b, ln in zip(tags[::2], tags[1::2], lines[::2], strict=False):
+        head = data[a:b].splitlines()
+        if len(head) < 2 or not head[1][:6].strip().lstrip(b"-").isdigit():
+            raise InputFileError(p, f"line {ln + 1}: no dataset number after the '    -1' line "
+                                 "(a dataset not closed, or a damaged file)")
+    if len(tags) % 2 or (tags and data[tags[-1] + 6:].strip()):
+        raise InputFileError(p, f"line {lines[-1] + 1}: a dataset that is not closed by a "
+                             "'    -1' line (the file is truncated or damaged)")
+    return lines[::2]
+
+
+def _uff_set(p: Path, u: Any, i: int, line: int) -> dict[str, Any]:
+    """Dataset i of the file, an error naming it and its line where pyuff cannot read it."""
+    try:
+        d = u.read_sets(i)
+    except Exception as exc:  # noqa: BLE001 - pyuff raises bare Exceptions, its cause inside
+        cause: BaseException = exc
+        while cause.__context__ is not None:
+            cause = cause.__context__
+        raise InputFileError(p, f"line {line}: dataset #{i + 1} is not a readable dataset 58 "
+                             f"({one_line(cause)})") from None
+    return d if isinstance(d, dict) else {}
+
+
+def _check_uneven(p: Path, d: dict[str, Any], k: int, name: str) -> None:
+    """An uneven abscissa (spacing 0) gives a time per point: with an increment in the header
+    (which the channel is read at) they must agree, within the jitter and the 6 digits of
+    the file's abscissa values. Without one the increment's check refuses the dataset."""
+    dx = float(d["abscissa_inc"])
+    if int(d.get("abscissa_spacing", 1)) != 0 or not dx > 0:
+        return
+    x = np.asarray(d.get("x"), dtype=np.float64)
+    grid = float(d["abscissa_min"]) + dx * np.arange(x.size)
+    off = np.flatnonzero(~(np.abs(x - grid) <= TIME_JITTER * dx + 5e-6 * np.abs(grid)))
+    if off.size:
+        i = int(off[0])
+        raise InputFileError(p, f"dataset 58 #{k + 1} ({name}): uneven abscissa: point {i} "
+                             f"at {float(x[i])!r} s, not at {float(grid[i])!r} s (the "
+                             "header's start + increment)")
 
 
 # ---- MDF 4 -------------------------------------------------------------------------------------
 def read_mdf(path: Path | str, *, lenient: bool = False) -> Recording:
     """The channels of an MDF file (asammdf) that share the time base of the first data
     channel, with the units the file gives them; channels on another time base (another
-    rate or a bus log) are left out and reported."""
+    rate or a bus log) or not numeric are left out and a counted warning. Samples the file
+    marks invalid (invalidation bits) are an error, or with lenient=True missing (NaN)."""
     p = Path(path)
     asammdf = _need(p, "asammdf", "asammdf")
 
@@ -150,28 +215,51 @@ def read_mdf(path: Path | str, *, lenient: bool = False) -> Recording:
                 for ci in range(len(group.channels)):
                     if ci == master:
                         continue
-                    out.append(mdf.get(group=gi, index=ci, raw=False))
+                    out.append(mdf.get(group=gi, index=ci, raw=False,
+                                       ignore_invalidation_bits=True))
             return out
 
     sigs = guarded(p, "MDF", signals, quiet=("asammdf",))
-    sigs = [s for s in sigs if np.asarray(s.samples).dtype.kind in "biuf"
+    nums = [s for s in sigs if np.asarray(s.samples).dtype.kind in "biuf"
             and np.asarray(s.samples).ndim == 1]
-    if not sigs:
+    left = [f"{s.name} ({_kind(np.asarray(s.samples).dtype)})" for s in sigs
+            if not any(s is k for k in nums)]
+    if not nums:
         raise InputFileError(p, "no numeric channels in the MDF file")
-    t = np.asarray(sigs[0].timestamps, dtype=np.float64)
-    same = [s for s in sigs if np.asarray(s.timestamps).shape == t.shape
-            and np.array_equal(np.asarray(s.timestamps, dtype=np.float64), t)]
-    left = [s.name for s in sigs if not any(s is k for k in same)]
-    if left:
-        log.warning("%s: channels on another time base than %s left out: %s", p, sigs[0].name,
-                    ", ".join(left))
+    t = np.asarray(nums[0].timestamps, dtype=np.float64)
+    same = [s for s in nums if np.asarray(s.timestamps).shape == t.shape  # NaN: time's error
+            and np.array_equal(np.asarray(s.timestamps, dtype=np.float64), t, equal_nan=True)]
+    left += [f"{s.name} (on another time base than {nums[0].name})" for s in nums
+             if not any(s is k for k in same)]
     cols: dict[str, Any] = {}
     units: dict[str, str] = {}
+    notes: list[str] = []
     for s in same:
-        name = s.name if s.name not in cols else f"{s.name}_{len(cols)}"
-        cols[name] = np.asarray(s.samples)
+        name = s.name
+        if name in cols:
+            where = f"group {getattr(s, 'group_index', '?')}"
+            notes.append(_renamed(p, name, f"{name}_{len(cols)}", where))
+            name = f"{name}_{len(cols)}"
+        cols[name] = _mdf_valid(p, s, name, lenient)
         units[name] = str(s.unit or "")
-    return recording_from_arrays(p, p.stem, cols, units=units, time=t, lenient=lenient)
+    rec = recording_from_arrays(p, p.stem, cols, units=units, time=t, lenient=lenient)
+    rec.warnings[:0] = notes
+    return _notes(p, rec, left, None)
+
+
+def _mdf_valid(p: Path, s: Any, name: str, lenient: bool) -> np.ndarray:
+    """A channel's samples; those its invalidation bits mark are an error, or with lenient
+    NaN (missing, counted as the other readers' non-finite samples are)."""
+    a = np.asarray(s.samples)
+    inv = getattr(s, "invalidation_bits", None)
+    bad = np.zeros(a.shape, dtype=bool) if inv is None else np.asarray(inv, dtype=bool)
+    if not bad.any():
+        return a
+    if not lenient:
+        raise InputFileError(p, f"sample {int(np.flatnonzero(bad)[0])} is marked invalid "
+                             f"({int(bad.sum())} in the channel; --lenient reads them as "
+                             "missing)", column=name)
+    return np.where(bad, np.nan, a.astype(np.float64))
 
 
 # ---- HDF5 --------------------------------------------------------------------------------------
@@ -202,24 +290,18 @@ def read_hdf5(path: Path | str, *, lenient: bool = False) -> Recording:
     """Equal-length 1-D datasets of an HDF5 file (the root's, or else of the one group that
     holds such datasets), timed by a time dataset or a rate (a scalar dataset or an attribute
     of the file or group, RATE_NAMES). Units from each dataset's `unit` or `units` attribute.
-Contiguous float datasets are memory-mapped (_mapped)."""
+Contiguous float datasets are memory-mapped (_mapped). What is not read as a channel (another
+group's datasets, a complex, text or empty dataset, a broken link) is a counted warning."""
     p = Path(path)
     h5py = _need(p, "h5py", "h5py")
 
-    def load() -> tuple[dict[str, Any], dict[str, str], Any, Any]:
+    def load() -> tuple[dict[str, Any], dict[str, str], Any, Any, list[str]]:
         with h5py.File(p, "r") as f:
-            groups = [f] + [g for g in f.values() if isinstance(g, h5py.Group)]
-            for g in groups:
-                dsets = {k: v for k, v in g.items() if isinstance(v, h5py.Dataset)
-                         and v.dtype.kind in "biuf" and len(v.shape) >= 1 and v.size > 1}
-                if dsets:
-                    break
-            else:
-                raise InputFileError(p, "no numeric 1-D datasets in the HDF5 file (at the root "
-                                     "or in a group)")
+            g, dsets, left = _h5_group(p, h5py, f)
             for k, v in dsets.items():
                 if v.size > _MAX_SAMPLES:
                     raise InputFileError(p, f"{v.size} samples in one dataset", column=k)
+                _h5_written(p, v, k)
             rate = None
             for src in (g.attrs, f.attrs):
                 rate = next((src[k] for k in RATE_NAMES if k in src), None)
@@ -233,12 +315,84 @@ Contiguous float datasets are memory-mapped (_mapped)."""
             cols = {k: _mapped(p, v) for k, v in dsets.items()}
             units = {k: _attr_text(v.attrs.get("unit", v.attrs.get("units", "")))
                      for k, v in dsets.items()}
-            return cols, units, time, rate
+            return cols, units, time, rate, left
 
-    cols, units, time, rate = guarded(p, "HDF5", load)
+    cols, units, time, rate, left = guarded(p, "HDF5", load)
     fs = None if time is not None or rate is None else usable_rate(p, rate, "rate attribute")
-    return recording_from_arrays(p, p.stem, cols, units=units, time=time, fs_hz=fs,
-                                 lenient=lenient)
+    rec = recording_from_arrays(p, p.stem, cols, units=units, time=time, fs_hz=fs,
+                                lenient=lenient)
+    return _notes(p, rec, left, rate if time is not None else None)
+
+
+def _h5_group(p: Path, h5py: Any, f: Any) -> tuple[Any, dict[str, Any], list[str]]:
+    """The group read (the root, else the first top-level group with channel datasets), its
+    channel datasets, and what is left out: its other arrays and the other groups' channels."""
+    found = [(g, *_h5_split(h5py, g)) for g in
+             [f] + [g for g in f.values() if isinstance(g, h5py.Group)]]
+    with_data = [x for x in found if x[1]]
+    if not with_data:
+        raise InputFileError(p, "no numeric 1-D datasets in the HDF5 file (at the root or in "
+                             "a group)")
+    g, dsets, left = with_data[0]
+    left = left + [f"group {o.name} ({len(d)} datasets)" for o, d, _ in with_data[1:]]
+    return g, dsets, left
+
+
+def _h5_split(h5py: Any, g: Any) -> tuple[dict[str, Any], list[str]]:
+    """The numeric datasets of more than one sample in g, and its other arrays with why they
+    are not read; a scalar or one-value dataset (a rate, a gain) is no channel."""
+    dsets: dict[str, Any] = {}
+    left: list[str] = []
+    for k in g:
+        v = g.get(k)
+        if v is None:
+            left.append(f"{k} (a broken link)")
+        elif not isinstance(v, h5py.Dataset) or v.shape is None or v.size == 1 or not v.shape \
+                or _attr_text(v.attrs.get("MATLAB_class", "")) == "char":  # v7.3 text: uint16
+            continue
+        elif v.attrs.get("MATLAB_empty", 0):  # a v7.3 empty variable: its dimensions stored
+            left.append(f"{k} (no samples)")
+        elif v.dtype.kind in "biuf" and v.size > 1:
+            dsets[k] = v
+        else:
+            left.append(f"{k} ({'no samples' if v.size == 0 else _kind(v.dtype)})")
+    return dsets, left
+
+
+def _kind(dtype: Any) -> str:
+    return {"c": "complex", "S": "text", "U": "text", "O": "text or objects",
+            "V": "compound"}.get(dtype.kind, f"type {dtype}")
+
+
+def _h5_written(p: Path, v: Any, name: str) -> None:
+    """A dataset created but never (or only partly) written, by a writer that stopped: its
+    unwritten samples read as the fill value (zeros), numbers that were never measured."""
+    if v.is_virtual or v.external:
+        return
+    status = v.id.get_space_status()
+    if status != 2:  # h5d.SPACE_STATUS_ALLOCATED (1: partly, 0: not at all)
+        raise InputFileError(p, f"the dataset was {'only partly' if status else 'never'} "
+                             "written (a stopped writer?): its unwritten samples read as the "
+                             "fill value", column=name)
+
+
+def _notes(p: Path, rec: Recording, left: list[str], rate: Any) -> Recording:
+    """Counted warnings: the file's arrays that are not read as channels (a channel of a type
+    the reader passes over must not go without a word), and a rate that the time channel,
+    which is used, contradicts."""
+    notes = [f"{p}: not read as channels: {', '.join(left)}"] if left else []
+    if rate is not None:
+        try:
+            fs: float | None = usable_rate(p, rate, "rate")
+        except InputFileError:
+            fs = None
+        if fs is None or abs(fs - rec.fs_hz) > TIME_JITTER * rec.fs_hz:
+            notes.append(f"{p}: the file's rate {str(rate)[:40]} is not its time channel's "
+                         f"{rec.fs_hz:.9g} Hz: the time channel is used")
+    for n in notes:
+        log.warning(n)
+    rec.warnings.extend(notes)
+    return rec
 
 
 # ---- MATLAB ------------------------------------------------------------------------------------
@@ -246,7 +400,8 @@ def read_mat(path: Path | str, *, lenient: bool = False) -> Recording:
     """The equal-length numeric vectors of a MATLAB .mat file (v4 to v7; a v7.3 file is HDF5
     and read as such), timed by a time vector or a scalar rate variable (RATE_NAMES). A
     MATLAB file holds no units: a `units` struct (field per variable) gives them, else a
-    channel map."""
+    channel map. Variables not read as channels (complex, text, cells, structs, sparse, empty)
+    are a counted warning."""
     p = Path(path)
     sio = _need(p, "scipy.io", "scipy")
     try:
@@ -268,14 +423,28 @@ def read_mat(path: Path | str, *, lenient: bool = False) -> Recording:
         units = {k: str(getattr(u, k)) for k in u._fieldnames}
     vecs = {k: v for k, v in d.items() if not k.startswith("__") and isinstance(v, np.ndarray)
             and v.dtype.kind in "biuf" and v.ndim >= 1 and v.size > 1}
+    left = [f"{k} ({_mat_kind(v)})" for k, v in d.items() if k not in vecs and
+            not k.startswith("__") and k != "units" and _mat_kind(v)]
     rate = next((d[k] for k in RATE_NAMES if k in d and np.size(d[k]) == 1), None)
     if not vecs:
         raise InputFileError(p, "no numeric vectors in the MATLAB file")
     tname = find_time(list(vecs))
     time = vecs.pop(tname) if tname is not None else None
     fs = None if time is not None or rate is None else usable_rate(p, rate, "rate variable")
-    return recording_from_arrays(p, p.stem, vecs, units=units, time=time, fs_hz=fs,
-                                 lenient=lenient)
+    rec = recording_from_arrays(p, p.stem, vecs, units=units, time=time, fs_hz=fs,
+                                lenient=lenient)
+    return _notes(p, rec, left, rate if time is not None else None)
+
+
+def _mat_kind(v: Any) -> str:
+    """Why a MATLAB variable is not a channel ('' for a scalar or a string: no channel)."""
+    if isinstance(v, np.ndarray):
+        if v.size == 0:
+            return "no samples"
+        return "" if v.size == 1 else ("a cell array" if v.dtype.kind == "O" else _kind(v.dtype))
+    if hasattr(v, "_fieldnames"):
+        return "a struct"
+    return "a sparse matrix" if hasattr(v, "tocsr") else ""
 
 
 # ---- pandas ------------------------------------------------------------------------------------

@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib
 import io
 import logging
+import os
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -21,8 +22,9 @@ from typing import Any
 import numpy as np
 
 from dynval.errors import InputFileError
+from dynval.io.arrays import checked_unit
 from dynval.io.jsonfile import parse_json
-from dynval.io.recording import MAX_RATE_HZ, Channel, Recording, file_sha256
+from dynval.io.recording import MAX_RATE_HZ, MIN_RATE_HZ, Channel, Recording, file_sha256
 from dynval.topics import CHANNEL_NAMES_KEY, T_CONTROL, T_SAMPLES
 
 log = logging.getLogger(__name__)
@@ -265,29 +267,35 @@ def _int_field(p: Path, m: Message, key: str, lo: int, hi: int) -> int:
     return v
 
 
-def _number(p: Path, m: Message, x: Any) -> float:
+def _number(p: Path, m: Message, x: Any, lenient: bool) -> float:
     if isinstance(x, bool) or not isinstance(x, (int, float)):
         raise InputFileError(p, f"{m.topic} message: a sample value must be a number, got "
                              f"{str(x)[:40]}", None, f"sequence {m.sequence}")
     try:
-        return float(x)
+        v = float(x)
     except OverflowError:
         raise InputFileError(p, f"{m.topic} message: a value beyond the float range", None,
                              f"sequence {m.sequence}") from None
+    if v in (np.inf, -np.inf):  # the logger's missing sample is NaN (or absent), never inf
+        if not lenient:
+            raise InputFileError(p, f"{m.topic} message: a sample value of {v} (--lenient "
+                                 "reads it as missing)", None, f"sequence {m.sequence}")
+        return np.nan
+    return v
 
 
-def _values(p: Path, m: Message) -> list[float]:
+def _values(p: Path, m: Message, lenient: bool = False) -> list[float]:
     """The samples of a message: [value] (NaN when absent) of the one-sample layout, or the
     old layout's 'values' (null for missing)."""
     if "values" not in m.data:
         v = m.data.get("value")
-        return [np.nan if v is None else _number(p, m, v)]
+        return [np.nan if v is None else _number(p, m, v, lenient)]
     v = m.data["values"]
     if not isinstance(v, list) or len(v) > SAMPLES_PER_MESSAGE:
         raise InputFileError(p, f"{m.topic} message: 'values' must be a list of at most "
                              f"{SAMPLES_PER_MESSAGE} numbers or null", None,
                              f"sequence {m.sequence}")
-    return [np.nan if x is None else _number(p, m, x) for x in v]
+    return [np.nan if x is None else _number(p, m, x, lenient) for x in v]
 
 
 def _meta_json(p: Path, meta: dict[str, str], key: str) -> dict[str, str]:
@@ -298,6 +306,10 @@ def _meta_json(p: Path, meta: dict[str, str], key: str) -> dict[str, str]:
     if not isinstance(d, dict) or not all(isinstance(v, str) for v in d.values()):
         raise InputFileError(p, f"the 'dynval' metadata's '{key}' is not a JSON object of "
                              "strings")
+    bad = [k for k, v in d.items() if key == "roles" and v not in ("input", "output")]
+    if bad:  # any other role would make the channel neither the model's input nor an output
+        raise InputFileError(p, f"the 'dynval' metadata's roles: {d[bad[0]][:40]!r} for "
+                             f"{bad[0][:40]} is not input or output")
     return d
 
 
@@ -309,7 +321,7 @@ def _meta_rate(p: Path, meta: dict[str, str], chcfg_hz: float | None = None) -> 
         fs = float("nan")
     if fs != fs and chcfg_hz is not None:
         fs = chcfg_hz
-    if not 0 < fs <= MAX_RATE_HZ:
+    if not MIN_RATE_HZ <= fs <= MAX_RATE_HZ:
         raise InputFileError(p, "the 'dynval' metadata record has no usable fs_hz (nor the "
                              "DV_CHCFG frames)")
     return fs
@@ -330,6 +342,53 @@ def _meta_count(p: Path, meta: dict[str, str]) -> int | None:
     return n
 
 
+def _sample_name(p: Path, m: Message, had: str | None) -> str:
+    """The channel name of a sample topic; a channel number must keep one name (two topics
+    of one channel would be merged into one channel, the other's name lost)."""
+    name = m.topic[len(T_SAMPLES):]
+    if not name:
+        raise InputFileError(p, f"topic {m.topic}: no channel name", None,
+                             f"sequence {m.sequence}")
+    if had is not None and had != name:
+        raise InputFileError(p, f"{m.topic} message: channel {m.data.get('channel')} is on "
+                             f"{T_SAMPLES}{had} too", None, f"sequence {m.sequence}")
+    return name
+
+
+def _check_channels(p: Path, names: dict[int, str], n: int, n_msgs: int) -> None:
+    """One channel per name (two would be one name twice in the recording), and the samples
+    of the record within memory (a damaged n_samples would ask for terabytes)."""
+    seen: dict[str, int] = {}
+    for ch, name in sorted(names.items()):
+        if name in seen:
+            raise InputFileError(p, f"{T_SAMPLES}{name} carries channels {seen[name]} and {ch}")
+        seen[name] = ch
+    try:
+        mem = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):  # not POSIX: 16 GiB
+        mem = 1 << 34
+    if 8 * n * len(names) > mem // 2:
+        raise InputFileError(p, f"the record claims {n} samples per channel ({n_msgs} sample "
+                             "messages logged): more than half this machine's memory "
+                             "(damaged n_samples?)")
+
+
+def _samples(p: Path, name: str, got: dict[int, list[float]], n: int,
+             n_rec: int | None) -> np.ndarray:
+    """A channel's samples by index (NaN where missing), cut at n_samples; a sample logged
+    beyond n_samples is an error, not cut without a word."""
+    x = np.full(n, np.nan)
+    for i, vals in got.items():
+        x[i:i + len(vals)] = vals
+    if n_rec is not None and n_rec < n:
+        beyond = np.flatnonzero(~np.isnan(x[n_rec:]))
+        if beyond.size:
+            raise InputFileError(p, f"channel {name}: sample {n_rec + int(beyond[0])} is beyond "
+                                 f"the record (n_samples {n_rec})")
+        x = x[:n_rec]
+    return x
+
+
 def read_mcap(path: Path | str, *, lenient: bool = False) -> Recording:
     """The samples a dynval MCAP logged, as a Recording (channel order by channel number;
     gaps and missing samples are NaN, each counted in warnings). A message that is not a
@@ -340,6 +399,7 @@ def read_mcap(path: Path | str, *, lenient: bool = False) -> Recording:
     per: dict[int, dict[int, list[float]]] = {}
     names: dict[int, str] = {}
     chcfg_hz: float | None = None
+    twice: dict[int, int] = {}
     for m in iter_messages(p, topics={T_CONTROL}, prefix=T_SAMPLES, scan_out=sc):
         if m.topic == T_CONTROL:
             fs_cfg = m.data.get("fs_hz")
@@ -349,9 +409,10 @@ def read_mcap(path: Path | str, *, lenient: bool = False) -> Recording:
         if m.data.get("verdict") not in ("ok", "gap"):
             continue
         ch = _int_field(p, m, "channel", 0, MAX_CHANNELS)
-        names[ch] = m.topic.rsplit("/", 1)[1]
+        names[ch] = _sample_name(p, m, names.get(ch))
         idx = _int_field(p, m, "index", 0, MAX_SAMPLES)
-        per.setdefault(ch, {})[idx] = _values(p, m)
+        twice[ch] = twice.get(ch, 0) + (idx in per.setdefault(ch, {}))
+        per[ch][idx] = _values(p, m, lenient)
     warnings: list[str] = []
     for bad, what in ((not sc.complete, f"no footer (logger stopped abnormally); read up to "
                        f"byte {sc.good_bytes}"), (bool(sc.error), sc.error)):
@@ -376,17 +437,17 @@ def read_mcap(path: Path | str, *, lenient: bool = False) -> Recording:
                              f"{'' if n_rec is not None else str(n_msgs) + ' sample messages'})")
     if n_rec is not None and n < n_rec:  # the log ends early (a recovered, killed logger)
         n = n_rec
+    _check_channels(p, names, n, n_msgs)
     chans = []
     for ch in sorted(per):
-        x = np.full(n, np.nan)
-        for i, vals in per[ch].items():
-            x[i:i + len(vals)] = vals
-        miss = int(np.isnan(x).sum())
-        if miss:
-            warnings.append(f"{p}: channel {names[ch]}: {miss} missing samples (NaN)")
-        chans.append(Channel(names[ch], x, units.get(names[ch], ""),
+        x = _samples(p, names[ch], per[ch], n, n_rec)
+        miss, dup = int(np.isnan(x).sum()), twice.get(ch, 0)
+        for what in ([f"{miss} missing samples (NaN)"] if miss else []) + (
+                [f"{dup} samples logged twice (the later kept)"] if dup else []):
+            warnings.append(f"{p}: channel {names[ch]}: {what}")
+            log.warning(warnings[-1])
+        unit = units.get(names[ch], "")
+        chans.append(Channel(names[ch], x, unit and checked_unit(p, names[ch], unit, warnings),
                              roles.get(names[ch], "output")))
-    for c in chans:
-        c.data = c.data[:n if n_rec is None else n_rec]
     return Recording(name=str(meta.get("test", p.stem)), fs_hz=fs, channels=chans, source=p,
                      sha256=file_sha256(p), warnings=warnings)

@@ -14,6 +14,7 @@ import numpy as np
 from dynval.errors import InputFileError
 
 MAX_RATE_HZ = 1e9  # no DAQ samples faster: a larger rate (a time step near 0) is a damaged file
+MIN_RATE_HZ = 2.0 ** -32  # the core's longest sample period (DV_TEMPORAL_MAX_DT_S), 136 years
 _UNIT_SUFFIX = re.compile(r"^(?P<name>.+?)_(?P<unit>mps2|m_s2|N|m|mm|s|V|g|ms2|um|ue|lbf|in)$")
 _UNITS = {"mps2": "m/s^2", "m_s2": "m/s^2", "ms2": "m/s^2", "N": "N", "m": "m", "mm": "mm",
           "s": "s", "V": "V", "g": "g", "um": "um", "ue": "microstrain", "lbf": "lbf", "in": "in"}
