@@ -56,6 +56,50 @@ def test_a_dead_or_constant_channel_has_its_undefined_features_null(
     assert capsys.readouterr().out.splitlines()[2].split()[-2:] == ["n/a", "n/a"]
 
 
+def test_residual_of_a_channel_measured_as_zero_is_null_not_nan(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
+) -> None:
+    """A model output measured as zero throughout (a sensor not wired): its RMSE is the
+    prediction's RMS, its NRMSE undefined: null in the JSON (NaN was written, which strict
+    JSON readers refuse) and n/a in the table, with a warning naming the file and channel."""
+    model = write(tmp_path, json.dumps({
+        "format": "dynval-model/1", "masses_kg": [1.0], "stiffness_n_per_m": [1e4],
+        "damping": {"type": "modal", "zeta": [0.02]},
+        "input": {"kind": "force", "dof": 1, "channel": "force_N"},
+        "outputs": {"acc1_mps2": {"kind": "acc", "dof": 1}}}), "m.json")
+    p = write(tmp_path, "time_s,force_N,acc1_mps2\n" + "".join(
+        f"{i / 100:.2f},{(i % 7) - 3},0\n" for i in range(200)))
+    assert main(["residual", "--json", str(model), str(p)]) == 0
+
+    def refuse(name: str) -> None:
+        raise ValueError(name)
+
+    ch = json.loads(capsys.readouterr().out, parse_constant=refuse)["tests"][0]["channels"]
+    v = ch["acc1_mps2"]
+    assert v["nrmse"] is None and v["rms_measured"] == 0.0 and v["rmse"] > 0
+    assert any(f"{p}: channel acc1_mps2 is measured as zero throughout" in r.getMessage()
+               for r in caplog.records if r.levelname == "WARNING")
+    assert main(["residual", str(model), str(p)]) == 0
+    assert capsys.readouterr().out.splitlines()[-1].split()[3] == "n/a"
+
+
+def test_residual_refusing_a_lenient_records_missing_input_names_the_file(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """A missing input sample kept by --lenient: the band-limited interpolation cannot run,
+    and the one-line error names the file (it named none)."""
+    model = write(tmp_path, json.dumps({
+        "format": "dynval-model/1", "masses_kg": [1.0], "stiffness_n_per_m": [1e4],
+        "damping": {"type": "modal", "zeta": [0.02]},
+        "input": {"kind": "force", "dof": 1, "channel": "force_N"},
+        "outputs": {"acc1_mps2": {"kind": "acc", "dof": 1}}}), "m.json")
+    p = write(tmp_path, "time_s,force_N,acc1_mps2\n" + "".join(
+        f"{i / 100:.2f},{'nan' if i == 50 else (i % 7) - 3},{i % 3}\n" for i in range(200)))
+    assert main(["residual", "--lenient", str(model), str(p)]) == 2
+    (err,) = [r.getMessage() for r in caplog.records if r.levelname == "ERROR"]
+    assert err.startswith(f"{p}: the input has 1 non-finite samples")
+    assert "--oversample 1" in err and "\n" not in err
+
+
 @pytest.mark.parametrize("text, where, what", [
     ("", ":1", "empty file"),
     ("time_s,force_N\n0,1\n0.01,abc\n0.02,3\n", ":3 (column force_N)", "not a number"),

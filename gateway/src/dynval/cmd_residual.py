@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
+import math
 import sys
 from pathlib import Path
 from typing import Any
 
 from dynval.cli_common import add_test_options, read_tests
 from dynval.io import Recording
+
+log = logging.getLogger(__name__)
 
 
 def add_parser(sub: Any) -> None:
@@ -36,8 +40,25 @@ def compute(model_path: Path, recs: list[Recording],
         units = labels.channel_labels(r["channels"], m, [rec])
         for c, v in r["channels"].items():  # rmse and rms_measured are in the channel's unit
             v["unit"] = units[c].unit
+            _undefined(r["file"], c, v)
         res.append(r)
     return {"model": str(model_path), "tests": res}
+
+
+def _undefined(file: str, c: str, v: dict[str, Any]) -> None:
+    """A figure the channel leaves undefined (NRMSE of a channel measured as zero throughout,
+    any of a channel with no finite sample) is null, not NaN (not JSON), and a warning."""
+    bad = [k for k in ("rmse", "nrmse", "rms_measured") if not math.isfinite(v[k])]
+    if not bad:
+        return
+    why = "no finite sample" if v["n_used"] == 0 else "measured as zero throughout"
+    log.warning("%s: channel %s is %s: its %s left undefined (null)", file, c, why,
+                ", ".join(bad))
+    v.update(dict.fromkeys(bad))
+
+
+def _num(x: float | None, spec: str) -> str:
+    return "n/a" if x is None else format(x, spec)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -54,6 +75,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"  {'channel':<{width}} {'unit':<6} {'rmse':>12} {'nrmse_%':>9} "
               f"{'rms_meas':>12} {'samples':>9}")
         for c, v in t["channels"].items():
-            print(f"  {c:<{width}} {v['unit']:<6} {v['rmse']:>12.5g} {100 * v['nrmse']:>9.3f} "
-                  f"{v['rms_measured']:>12.5g} {v['n_used']:>9}")
+            nrmse = None if v["nrmse"] is None else 100 * v["nrmse"]
+            print(f"  {c:<{width}} {v['unit']:<6} {_num(v['rmse'], '>12.5g')} "
+                  f"{_num(nrmse, '>9.3f'):>9} {_num(v['rms_measured'], '>12.5g'):>12} "
+                  f"{v['n_used']:>9}")
     return 0

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -69,7 +70,20 @@ def simulate_recording(m: Model, rec: Recording, *,
                        oversample: int | None = None) -> dict[str, np.ndarray]:
     """The model's prediction for a recorded test's measured input."""
     _check_fs(m, rec)
-    return simulate(m, rec.channel(input_channel(m, rec)).data, rec.fs_hz, oversample=oversample)
+    u = rec.channel(input_channel(m, rec)).data
+    try:
+        return simulate(m, u, rec.fs_hz, oversample=oversample)
+    except ConfigError as exc:
+        raise ConfigError(f"{rec.source or rec.name}: {exc}") from None
+
+
+def _named(rec: Recording, blocks: Iterator[tuple[int, np.ndarray]]
+           ) -> Iterator[tuple[int, np.ndarray]]:
+    """The simulation's blocks; its refusal of this record's input named by the file."""
+    try:
+        yield from blocks
+    except ConfigError as exc:
+        raise ConfigError(f"{rec.source or rec.name}: {exc}") from None
 
 
 # samples per partial sum of squares: the sums of whole chunks are added exactly (math.fsum),
@@ -102,7 +116,8 @@ def residual(m: Model, rec: Recording, *, oversample: int | None = None, keep: b
     sums: dict[str, list[list[float]]] = {c: [[], []] for c in common}  # e^2, y^2 per chunk
     used = dict.fromkeys(common, 0)
     u = rec.channel(input_channel(m, rec)).data
-    for a, yp in simulate_blocks(m, u, rec.fs_hz, oversample=oversample, block=block):
+    for a, yp in _named(rec, simulate_blocks(m, u, rec.fs_hz, oversample=oversample,
+                                             block=block)):
         b = a + yp.shape[0]
         if pred is not None:
             for c, arr in pred.items():

@@ -454,7 +454,7 @@ def _check_input(a: np.ndarray, r: int) -> None:
         if bad:
             raise ConfigError(f"the input has {bad} non-finite samples: band-limited "
                               "interpolation needs a complete record (use oversample=1 to let "
-                              "the core hold)")
+                              "the core hold; --oversample 1 on the command line)")
 
 
 def _prepare_input(u: Any, r: int) -> np.ndarray:
