@@ -2,6 +2,14 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
+
+
+def short_repr(v: Any, limit: int = 40) -> str:
+    """A value as an error message quotes it: its repr, cut to ``limit`` characters (a
+    file's 'number' can be a megabyte of text)."""
+    r = repr(v)
+    return r if len(r) <= limit else f"{r[:limit - 3]}..."
 
 
 class DynvalError(Exception):

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from dynval.errors import InputFileError
+from dynval.errors import InputFileError, short_repr
 from dynval.io.jsonfile import read_json
 from dynval.io.recording import MAX_RATE_HZ, Channel, Recording, file_sha256
 
@@ -36,11 +36,6 @@ def looks_like_brfd(path: Path) -> bool:
     except OSError:
         return False
     return head.startswith(b"{") and b'"data"' in head
-
-
-def _short(v: Any) -> str:
-    r = repr(v)
-    return r if len(r) <= 40 else f"{r[:37]}..."
 
 
 def _unit(meta: dict[str, Any], key: str) -> str:
@@ -90,11 +85,11 @@ def read_brfd(path: Path | str, *, lenient: bool = False) -> Recording:
                                  f"values, expected {ncol}", i + 1)
         for j, v in enumerate(r):
             if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise InputFileError(p, f"not a number: {_short(v)}", i + 1, names[j])
+                raise InputFileError(p, f"not a number: {short_repr(v)}", i + 1, names[j])
             try:
                 v = float(v)
             except OverflowError:
-                raise InputFileError(p, f"number beyond the float range: {_short(v)}", i + 1,
+                raise InputFileError(p, f"number beyond the float range: {short_repr(v)}", i + 1,
                                      names[j]) from None
             if not math.isfinite(v):
                 if not lenient or j == 0:

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from dynval import _core
-from dynval.errors import ConfigError
+from dynval.errors import ConfigError, short_repr
 from dynval.model import daq
 from dynval.model import elements as el
 from dynval.model.schema import (
@@ -54,20 +54,20 @@ class Ctx:
 
     def num(self, v: Any, where: str) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise self.err(where, f"expected a number, got {_short(v)}")
+            raise self.err(where, f"expected a number, got {short_repr(v)}")
         try:
             x = float(v)
         except OverflowError:
             x = math.inf
         if not math.isfinite(x):
-            raise self.err(where, f"must be finite, got {_short(v)}")
+            raise self.err(where, f"must be finite, got {short_repr(v)}")
         return x
 
     def int_(self, v: Any, where: str) -> int:
         if isinstance(v, bool) or not isinstance(v, int):
             if isinstance(v, float) and v.is_integer():
                 return int(v)
-            raise self.err(where, f"expected an integer, got {_short(v)}")
+            raise self.err(where, f"expected an integer, got {short_repr(v)}")
         return int(v)
 
     def nums(self, v: Any, where: str) -> tuple[float, ...]:
@@ -77,7 +77,7 @@ class Ctx:
 
     def choice(self, v: Any, where: str, options: Sequence[str]) -> str:
         if not isinstance(v, str) or v not in options:
-            raise self.err(where, f"{_short(v)} is not one of {', '.join(options)}"
+            raise self.err(where, f"{short_repr(v)} is not one of {', '.join(options)}"
                            f"{did_you_mean(v, options)}")
         return v
 
@@ -97,13 +97,6 @@ def did_you_mean(word: Any, options: Sequence[str]) -> str:
     """'; did you mean 'x'?' for the closest of options (difflib), or ''."""
     close = difflib.get_close_matches(str(word), list(options), n=1, cutoff=0.6)
     return f"; did you mean '{close[0]}'?" if close else ""
-
-
-def _short(v: Any, limit: int = 40) -> str:
-    r = repr(v)
-    return r if len(r) <= limit else f"{r[:limit - 3]}..."
-
-
 
 
 @functools.cache
