@@ -56,17 +56,20 @@ def test_a_dead_or_constant_channel_has_its_undefined_features_null(
     assert capsys.readouterr().out.splitlines()[2].split()[-2:] == ["n/a", "n/a"]
 
 
+# a one-DOF model driven by force_N, measured by acc1_mps2
+ONE_DOF = {"format": "dynval-model/1", "masses_kg": [1.0], "stiffness_n_per_m": [1e4],
+           "damping": {"type": "modal", "zeta": [0.02]},
+           "input": {"kind": "force", "dof": 1, "channel": "force_N"},
+           "outputs": {"acc1_mps2": {"kind": "acc", "dof": 1}}}
+
+
 def test_residual_of_a_channel_measured_as_zero_is_null_not_nan(
         tmp_path: Path, capsys: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
 ) -> None:
     """A model output measured as zero throughout (a sensor not wired): its RMSE is the
     prediction's RMS, its NRMSE undefined: null in the JSON (NaN was written, which strict
     JSON readers refuse) and n/a in the table, with a warning naming the file and channel."""
-    model = write(tmp_path, json.dumps({
-        "format": "dynval-model/1", "masses_kg": [1.0], "stiffness_n_per_m": [1e4],
-        "damping": {"type": "modal", "zeta": [0.02]},
-        "input": {"kind": "force", "dof": 1, "channel": "force_N"},
-        "outputs": {"acc1_mps2": {"kind": "acc", "dof": 1}}}), "m.json")
+    model = write(tmp_path, json.dumps(ONE_DOF), "m.json")
     p = write(tmp_path, "time_s,force_N,acc1_mps2\n" + "".join(
         f"{i / 100:.2f},{(i % 7) - 3},0\n" for i in range(200)))
     assert main(["residual", "--json", str(model), str(p)]) == 0
@@ -87,11 +90,7 @@ def test_residual_refusing_a_lenient_records_missing_input_names_the_file(
         tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     """A missing input sample kept by --lenient: the band-limited interpolation cannot run,
     and the one-line error names the file (it named none)."""
-    model = write(tmp_path, json.dumps({
-        "format": "dynval-model/1", "masses_kg": [1.0], "stiffness_n_per_m": [1e4],
-        "damping": {"type": "modal", "zeta": [0.02]},
-        "input": {"kind": "force", "dof": 1, "channel": "force_N"},
-        "outputs": {"acc1_mps2": {"kind": "acc", "dof": 1}}}), "m.json")
+    model = write(tmp_path, json.dumps(ONE_DOF), "m.json")
     p = write(tmp_path, "time_s,force_N,acc1_mps2\n" + "".join(
         f"{i / 100:.2f},{'nan' if i == 50 else (i % 7) - 3},{i % 3}\n" for i in range(200)))
     assert main(["residual", "--lenient", str(model), str(p)]) == 2
@@ -308,11 +307,8 @@ def test_a_missing_core_is_one_line_and_exit_2(tmp_path: Path, cmd: str) -> None
 
     (tmp_path / "t.csv").write_text(GOOD)
     # a valid model, so that the command gets as far as needing the core
-    (tmp_path / "m.json").write_text(json.dumps({
-        "format": "dynval-model/1", "masses_kg": [1.0], "stiffness_n_per_m": [1000.0],
-        "damping": {"type": "modal", "zeta": [0.02]},
-        "input": {"kind": "force", "dof": 1, "channel": "force_N"},
-        "outputs": {"acc1_mps2": {"kind": "acc", "dof": 1}}, "fs_hz": 100.0}))
+    (tmp_path / "m.json").write_text(json.dumps(
+        {**ONE_DOF, "stiffness_n_per_m": [1000.0], "fs_hz": 100.0}))
     argv = [cmd, *(a if a not in ("t.csv", "m.json") else str(tmp_path / a)
                    for a in MINIMAL_ARGS[cmd])]
     if cmd == "log":

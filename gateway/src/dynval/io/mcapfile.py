@@ -306,7 +306,7 @@ def _meta_json(p: Path, meta: dict[str, str], key: str) -> dict[str, str]:
     if not isinstance(d, dict) or not all(isinstance(v, str) for v in d.values()):
         raise InputFileError(p, f"the 'dynval' metadata's '{key}' is not a JSON object of "
                              "strings")
-    bad = [k for k, v in d.items() if key == "roles" and v not in ("input", "output")]
+    bad = [k for k, v in d.items() if v not in ("input", "output")] if key == "roles" else []
     if bad:  # any other role would make the channel neither the model's input nor an output
         raise InputFileError(p, f"the 'dynval' metadata's roles: {d[bad[0]][:40]!r} for "
                              f"{bad[0][:40]} is not input or output")

@@ -2,6 +2,7 @@
 RMSE and NRMSE."""
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 from collections.abc import Iterator
@@ -70,18 +71,16 @@ def simulate_recording(m: Model, rec: Recording, *,
                        oversample: int | None = None) -> dict[str, np.ndarray]:
     """The model's prediction for a recorded test's measured input."""
     _check_fs(m, rec)
-    u = rec.channel(input_channel(m, rec)).data
-    try:
-        return simulate(m, u, rec.fs_hz, oversample=oversample)
-    except ConfigError as exc:
-        raise ConfigError(f"{rec.source or rec.name}: {exc}") from None
+    with _named(rec):
+        return simulate(m, rec.channel(input_channel(m, rec)).data, rec.fs_hz,
+                        oversample=oversample)
 
 
-def _named(rec: Recording, blocks: Iterator[tuple[int, np.ndarray]]
-           ) -> Iterator[tuple[int, np.ndarray]]:
-    """The simulation's blocks; its refusal of this record's input named by the file."""
+@contextlib.contextmanager
+def _named(rec: Recording) -> Iterator[None]:
+    """The simulation's refusal of this record's input (ConfigError) named by its file."""
     try:
-        yield from blocks
+        yield
     except ConfigError as exc:
         raise ConfigError(f"{rec.source or rec.name}: {exc}") from None
 
@@ -116,22 +115,22 @@ def residual(m: Model, rec: Recording, *, oversample: int | None = None, keep: b
     sums: dict[str, list[list[float]]] = {c: [[], []] for c in common}  # e^2, y^2 per chunk
     used = dict.fromkeys(common, 0)
     u = rec.channel(input_channel(m, rec)).data
-    for a, yp in _named(rec, simulate_blocks(m, u, rec.fs_hz, oversample=oversample,
-                                             block=block)):
-        b = a + yp.shape[0]
-        if pred is not None:
-            for c, arr in pred.items():
-                arr[a:b] = yp[:, col[c]]
-        for c in common:
-            y = np.asarray(rec.channel(c).data[a:b], dtype=np.float64)
-            e = y - yp[:, col[c]]
-            if resid is not None:
-                resid[c][a:b] = e
-            ok = np.isfinite(e)
-            used[c] += int(ok.sum())
-            with np.errstate(over="ignore"):  # an overflowed square is refused below
-                sums[c][0] += _chunk_sums(np.where(ok, e, 0.0))
-                sums[c][1] += _chunk_sums(np.where(ok, y, 0.0))
+    with _named(rec):
+        for a, yp in simulate_blocks(m, u, rec.fs_hz, oversample=oversample, block=block):
+            b = a + yp.shape[0]
+            if pred is not None:
+                for c, arr in pred.items():
+                    arr[a:b] = yp[:, col[c]]
+            for c in common:
+                y = np.asarray(rec.channel(c).data[a:b], dtype=np.float64)
+                e = y - yp[:, col[c]]
+                if resid is not None:
+                    resid[c][a:b] = e
+                ok = np.isfinite(e)
+                used[c] += int(ok.sum())
+                with np.errstate(over="ignore"):  # an overflowed square is refused below
+                    sums[c][0] += _chunk_sums(np.where(ok, e, 0.0))
+                    sums[c][1] += _chunk_sums(np.where(ok, y, 0.0))
     chans: dict[str, ChannelResidual] = {}
     for c in common:
         k = used[c]
