@@ -272,6 +272,14 @@ LEFT_OUT: dict[str, tuple[str, Callable[[Path], None], str]] = {
     "mat_complex": (".mat", lambda p: mat(p, acc2_mps2=ACC + 1j * ACC), "acc2_mps2 (complex)"),
     "mat_empty": (".mat", lambda p: mat(p, acc2_mps2=np.zeros(0)), "acc2_mps2 (no samples)"),
     "mat_sparse": (".mat", _sparse, "acc2_mps2 (a sparse matrix)"),
+    # a channel cut to one sample (or a gain) was read as metadata without a word
+    "h5_one_value": (".h5", _h5_put("acc2_mps2", np.array([0.5])), "acc2_mps2 (one value)"),
+    "mat_one_value": (".mat", lambda p: mat(p, acc2_mps2=np.array([0.5])),
+                      "acc2_mps2 (one value)"),
+    "uff_not_a_time_response": (".uff", lambda p: uff(p, [
+        {"id1": "force", "data": FORCE}, {"id1": "acc1", "data": ACC},
+        {"id1": "frf", "data": ACC, "func_type": 4}]),
+        "dataset 58 #3 (function type 4, not a time response)"),
     "mdf_text_values": (".mf4", _mdf_text, "state (text)"),
 }
 
@@ -280,8 +288,9 @@ LEFT_OUT: dict[str, tuple[str, Callable[[Path], None], str]] = {
 def test_arrays_not_read_as_channels_are_a_counted_warning(
         case: str, tmp_path: Path, caplog: pytest.LogCaptureFixture,
         capsys: pytest.CaptureFixture[str]) -> None:
-    """A complex, empty, text or sparse array, a broken link, another group's datasets: left
-    out of the recording without a word (a channel lost to a type the reader passes over)."""
+    """A complex, empty, text, sparse or one-value array, a broken link, another group's
+    datasets, a UFF dataset that is no time response: left out of the recording without a
+    word (a channel lost to a type the reader passes over)."""
     suffix, write, what = LEFT_OUT[case]
     p = tmp_path / f"{case}{suffix}"
     write(p)

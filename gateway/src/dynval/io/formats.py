@@ -82,6 +82,7 @@ def read_uff(path: Path | str, *, lenient: bool = False) -> Recording:
     units: dict[str, str] = {}
     roles: dict[str, str] = {}
     notes: list[str] = []
+    skipped: list[str] = []
     ref: tuple[float, float, int] | None = None
     for k, d in enumerate(dsets):
         try:
@@ -90,9 +91,8 @@ def read_uff(path: Path | str, *, lenient: bool = False) -> Recording:
         except (KeyError, TypeError, ValueError) as exc:
             raise InputFileError(p, f"dataset 58 #{k + 1} is incomplete ({one_line(exc)})") \
                 from None
-        if func != 1:
-            log.info("%s: dataset 58 #%d is function type %d, not a time response: skipped",
-                     p, k + 1, func)
+        if func != 1:  # (a spectrum or FRF beside the time histories)
+            skipped.append(f"dataset 58 #{k + 1} (function type {func}, not a time response)")
             continue
         if np.iscomplexobj(data):
             raise InputFileError(p, f"dataset 58 #{k + 1}: complex ordinates in a time response")
@@ -123,7 +123,7 @@ def read_uff(path: Path | str, *, lenient: bool = False) -> Recording:
     rec = recording_from_arrays(p, p.stem, cols, units=units, roles=roles, fs_hz=1.0 / ref[1],
                                 t0_s=ref[0], lenient=lenient)
     rec.warnings[:0] = notes
-    return rec
+    return _notes(p, rec, skipped, None)
 
 
 def _renamed(p: Path, name: str, new: str, where: str) -> str:
@@ -347,9 +347,12 @@ def _h5_split(h5py: Any, g: Any) -> tuple[dict[str, Any], list[str]]:
         v = g.get(k)
         if v is None:
             left.append(f"{k} (a broken link)")
-        elif not isinstance(v, h5py.Dataset) or v.shape is None or v.size == 1 or not v.shape \
+        elif not isinstance(v, h5py.Dataset) or v.shape is None \
                 or _attr_text(v.attrs.get("MATLAB_class", "")) == "char":  # v7.3 text: uint16
             continue
+        elif v.size == 1 or not v.shape:  # a rate, a gain: or a channel cut to one sample
+            if k not in RATE_NAMES and v.dtype.kind in "biuf":
+                left.append(f"{k} (one value)")
         elif v.attrs.get("MATLAB_empty", 0):  # a v7.3 empty variable: its dimensions stored
             left.append(f"{k} (no samples)")
         elif v.dtype.kind in "biuf" and v.size > 1:
@@ -424,7 +427,7 @@ def read_mat(path: Path | str, *, lenient: bool = False) -> Recording:
     vecs = {k: v for k, v in d.items() if not k.startswith("__") and isinstance(v, np.ndarray)
             and v.dtype.kind in "biuf" and v.ndim >= 1 and v.size > 1}
     left = [f"{k} ({_mat_kind(v)})" for k, v in d.items() if k not in vecs and
-            not k.startswith("__") and k != "units" and _mat_kind(v)]
+            not k.startswith("__") and k not in ("units", *RATE_NAMES) and _mat_kind(v)]
     rate = next((d[k] for k in RATE_NAMES if k in d and np.size(d[k]) == 1), None)
     if not vecs:
         raise InputFileError(p, "no numeric vectors in the MATLAB file")
@@ -437,11 +440,17 @@ def read_mat(path: Path | str, *, lenient: bool = False) -> Recording:
 
 
 def _mat_kind(v: Any) -> str:
-    """Why a MATLAB variable is not a channel ('' for a scalar or a string: no channel)."""
+    """Why a MATLAB variable is not a channel ('' for a string: no channel). One number (a
+    gain, or a channel cut to one sample: loadmat gives it as a scalar) is named, as every
+    variable not read; a rate variable is left out by the caller."""
+    if isinstance(v, int | float | complex | np.number):
+        return "one value"
     if isinstance(v, np.ndarray):
         if v.size == 0:
             return "no samples"
-        return "" if v.size == 1 else ("a cell array" if v.dtype.kind == "O" else _kind(v.dtype))
+        if v.size == 1:  # a rate, a gain: or a channel cut to one sample
+            return "one value" if v.dtype.kind in "biuf" else ""
+        return "a cell array" if v.dtype.kind == "O" else _kind(v.dtype)
     if hasattr(v, "_fieldnames"):
         return "a struct"
     return "a sparse matrix" if hasattr(v, "tocsr") else ""
