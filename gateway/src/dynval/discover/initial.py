@@ -11,7 +11,9 @@ linear model's prediction is the one from rest plus that free motion; a model wi
 is simulated from x0 (the core's dv_obs_set_state), and x0 is refined through the model
 over the first samples (refined): the linear part's x0 misses what the elements do to the
 transient (a friction element holds its DOF where it stopped). Once per model under apply;
-every candidate is fitted and judged at its own initial states (starts_under).
+every candidate is fitted and judged at its own initial states (starts_under), and an
+accepted element's parameters are fitted again with the states estimated under each model
+tried (fit.at_own_starts).
 """
 from __future__ import annotations
 
@@ -212,11 +214,11 @@ def starts_under(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
 
 
 def apply(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
-          scales: dict[str, float], settle: int) -> list[str]:
+          scales: dict[str, float], settle: int, quiet: bool = False) -> list[str]:
     """Estimate each record's initial state under m and set it on the test and its views
     (they share the record's arrays); under a model with elements the linear part's estimate
     is refined through them (refined). Returns a note per record that does not
-    start at rest."""
+    start at rest (logged unless ``quiet``: a fit that estimates them at every model)."""
     notes = []
     done: dict[int, Start | None] = {}
     for t in tests:
@@ -230,7 +232,8 @@ def apply(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
                 notes.append(f"{t.name.split(' [')[0]}: does not start at rest; its initial "
                              f"state is estimated (it explains {100 * s.reduction:.0f} % of "
                              f"the residual over the first {settle / t.fs_hz:.2g} s)")
-                log.info(notes[-1])
+                if not quiet:
+                    log.info(notes[-1])
         s = done[key]
         t.start = None if s is None else s.outputs
         t.start_x0 = None if s is None else s.x0
