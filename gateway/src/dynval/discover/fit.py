@@ -501,7 +501,7 @@ def at_own_starts(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
     6.7e5 N/m for 5e-5 and 8.8e5, fitting error 0.0254 where the truth's is 0.0223; fitted
     here 5.7e-5 and 7.8e5, 0.0214. None when no record's state is estimated, no name is
     positive or the fit lowers the error by less than OWN_STARTS_GAIN. The tests keep the
-    states of the model last tried: the caller estimates them for the model it keeps."""
+    states they had (initial.kept)."""
     pm = m.parameters()
     names = [n for n in names if pm.get(n, 0.0) > 0]
     if not names or not m.elements or all(t.start_x0 is None for t in tests):
@@ -509,6 +509,8 @@ def at_own_starts(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
 
     def model(z: np.ndarray) -> mdl.Model:
         return m.with_params({n: float(np.exp(v)) for n, v in zip(names, z, strict=True)})
+
+    size = len(chans) * sum(t.n for t in tests)  # residual_vector's length
 
     def fun(z: np.ndarray) -> np.ndarray:
         mm = model(z)
@@ -520,11 +522,10 @@ def at_own_starts(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
         return np.full(size, _PENALTY) if r is None else r
 
     z0 = np.log([pm[n] for n in names])
-    size = 1
-    f0 = fun(z0)
-    size = f0.size
-    sol = least_squares(fun, z0, diff_step=DIFF_STEP, x_scale=1.0,
-                        max_nfev=OWN_STARTS_ITERATIONS * (len(names) + 1))
+    with initial.kept(tests):
+        f0 = fun(z0)
+        sol = least_squares(fun, z0, diff_step=DIFF_STEP, x_scale=1.0,
+                            max_nfev=OWN_STARTS_ITERATIONS * (len(names) + 1))
     before, after = float(f0 @ f0), float(sol.fun @ sol.fun)
     return (model(sol.x), after, before) if after < (1 - OWN_STARTS_GAIN) * before else None
 

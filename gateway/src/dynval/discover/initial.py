@@ -195,7 +195,6 @@ def starts_under(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
     if not todo:
         yield
         return
-    before = {id(t.u): (t.start, t.start_x0, t.start_elements) for t in tests}
     new: dict[int, tuple[dict[str, np.ndarray], np.ndarray, tuple[Any, ...]]] = {}
     for k, t in todo.items():
         own = _own_start(m, t, chans, scales)
@@ -203,14 +202,23 @@ def starts_under(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
             x0 = (refined(m, t, chans, scales, t.start_window, own[0])
                   if h and t.start_window > 0 else own[0])
             new[k] = (own[1], x0, h)
-    try:
+    with kept(tests):
         for t in tests:
             if id(t.u) in new:
                 t.start, t.start_x0, t.start_elements = new[id(t.u)]
         yield
+
+
+@contextmanager
+def kept(tests: Sequence[TestData]) -> Iterator[None]:
+    """Within the block the tests' initial states may be set anew (a candidate's, each
+    model's a fit tries); after it each test has the ones it had."""
+    before = [(t, t.start, t.start_x0, t.start_elements, t.start_window) for t in tests]
+    try:
+        yield
     finally:
-        for t in tests:
-            t.start, t.start_x0, t.start_elements = before[id(t.u)]
+        for t, start, x0, elements, window in before:
+            t.start, t.start_x0, t.start_elements, t.start_window = start, x0, elements, window
 
 
 def apply(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],

@@ -289,10 +289,9 @@ def _at_own_starts(s: Session, cur: mdl.Model, names: Sequence[str],
                    effects: list[dict[str, Any]]) -> mdl.Model:
     """cur with the accepted element's parameters ``names`` fitted again at the initial
     states each model tried puts the records in (ft.at_own_starts: records that do not start
-    at rest), kept when the held-out error drops too; the tests' states set for the model
-    returned."""
+    at rest), kept when the held-out error drops too; the tests' states (cur's on the way
+    in) set for the model returned."""
     got = ft.at_own_starts(cur, names, s.fit_t, s.chans, s.scales, s.settle)
-    initial.apply(cur, s.evals, s.chans, s.scales, s.settle, quiet=True)
     if got is None:
         return cur
     new, after, before = got
