@@ -16,7 +16,7 @@ from dynval.discover import effects as fx
 from dynval.discover import fit as ft
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
-from dynval.discover.judge import Judge
+from dynval.discover.judge import FIT_GAIN_SHARE, Judge
 from dynval.discover.session import Options
 
 least_squares: Any = ft.least_squares
@@ -116,7 +116,32 @@ def test_the_judge_asks_each_fit_to_beat_its_reference_fitting_error(
     monkeypatch.setattr(ft, "fit", spy)
     info = judge.candidate(tr.Evidence(c, 0.5, 1.0, {}))
     assert info is not None and seen
-    assert seen == [pytest.approx(ref_table.total([tests[0].name]), rel=1e-12)] * len(seen)
+    # with the share of it an effect must take (FIT_GAIN_SHARE x min_gain) taken off
+    bar = (1 - FIT_GAIN_SHARE * Options().min_gain) * ref_table.total([tests[0].name])
+    assert seen == [pytest.approx(bar, rel=1e-12)] * len(seen)
+
+
+def test_a_held_out_gain_without_a_fitting_gain_is_refused(
+        case: tuple[mdl.Model, list[rs.TestData], list[str], dict[str, float], float]) -> None:
+    """A fit that gains min_gain on the held-out tests but under FIT_GAIN_SHARE x min_gain on
+    their fitting twins is refused: its fit was stopped there (the same verdict whether the
+    stop came or not); with the fitting gain reached, the same fit is accepted."""
+    m, tests, chans, scales, _ = case
+    fit_n, held_n = tests[0].name, tests[1].name
+    judge = Judge(m, rs.ErrorTable({}, {fit_n: 1.0, held_n: 1.0}), tests[:1], tests[1:], chans,
+                  scales, Options(), (20.0, 200.0))
+    c = _crawlers(m)[0]
+    gain = FIT_GAIN_SHARE * Options().min_gain
+
+    def verdict(nsse_fit: float) -> dict[str, Any]:
+        res = ft.FitResult(c, ["a"], ["-"], [1.0], [0.0], m, nsse_fit, 1, True)
+        return judge._verdict(res, rs.ErrorTable({}, {fit_n: nsse_fit, held_n: 0.8}),
+                              judge.cur_table, 0)
+
+    short, enough = verdict(1.0 - 0.9 * gain), verdict(1.0 - 1.1 * gain)
+    assert short["held_gain"] == enough["held_gain"] == pytest.approx(0.2)
+    assert short["delta_bic"] < 0 and short["fit_gain"] == pytest.approx(0.9 * gain)
+    assert not short["accepted"] and enough["accepted"]
 
 
 def test_a_prediction_that_diverges_but_stays_finite_is_a_refused_point(
@@ -148,7 +173,7 @@ def test_a_fit_stopped_on_xtol_goes_on_from_there_with_the_evaluations_left(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """fit._solve: an xtol stop (a collapsed trust region) is restarted once from its end
     point with the evaluations left, the lower SSE kept and the evaluations summed; any other
-    stop, or too few evaluations left, is returned as it is."""
+    stop, too few evaluations left, or no step taken, is returned as it is."""
     from scipy.optimize import OptimizeResult
 
     calls: list[tuple[list[float], int]] = []
@@ -156,8 +181,9 @@ def test_a_fit_stopped_on_xtol_goes_on_from_there_with_the_evaluations_left(
 
     def fake(fun: Any, z: Any, **kw: Any) -> OptimizeResult:
         calls.append(([float(v) for v in z], int(kw["max_nfev"])))
-        status, nfev, cost = script.pop(0)
-        return OptimizeResult(x=np.asarray(z) + 0.1, status=status, nfev=nfev, cost=cost)
+        status, nfev, cost, *moved = script.pop(0)
+        return OptimizeResult(x=np.asarray(z) + (moved[0] if moved else 0.1), status=status,
+                              nfev=nfev, cost=cost)
 
     monkeypatch.setattr(ft, "least_squares", fake)
     ident = (lambda z: z, lambda z: np.eye(z.size))
@@ -174,3 +200,8 @@ def test_a_fit_stopped_on_xtol_goes_on_from_there_with_the_evaluations_left(
     calls.clear()
     script[:] = [(ft._XTOL_STOP, 40 - ft.MIN_RESTART_NFEV + 1, 3.0)]  # too few left
     assert ft._solve(*ident, np.array([0.5]), 40, None).nfev == 38 and len(calls) == 1
+    calls.clear()
+    # collapsed without a step taken: a restart from the same point (same Jacobian, same
+    # first radius) would repeat it evaluation for evaluation
+    script[:] = [(ft._XTOL_STOP, 12, 3.0, 0.0)]
+    assert ft._solve(*ident, np.array([0.5]), 40, None).nfev == 12 and len(calls) == 1

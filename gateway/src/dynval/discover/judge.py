@@ -496,7 +496,8 @@ class Judge:
         if not given:
             cand, starts, declared = self.joint_start(e, cand, starts, names)
         _, ref_table, ref_p = self.reference(names)
-        beat = ref_table.total(self.fit_names)  # a fit left above it is refused (_verdict)
+        # a fit left above it is refused (_verdict): stopped once it cannot get there
+        beat = (1 - FIT_GAIN_SHARE * self.o.min_gain) * ref_table.total(self.fit_names)
         res = None
         if cand.shape.get(THROUGH_GAINS):  # the other starts were fitted in the first pass
             res = continuation.fit_candidate(self.cur, cand, starts[0], names, self.fit_t,
@@ -701,16 +702,24 @@ class Judge:
         again = replicated_gain(tab, ref_table, self.held_names)
         n_eff = sum(t.n for t in self.fit_t for c in self.chans) / res.n_eff_factor
         nsse_fit_before = ref_table.total(self.fit_names)
+        fit_gain = 1.0 - res.nsse_fit / nsse_fit_before if nsse_fit_before > 0 else 0.0
         dbic = (bic(res.nsse_fit, n_eff, len(res.values))
                 - bic(nsse_fit_before, n_eff, ref_p))
         ok = (gain >= self.o.min_gain and worst <= self.o.max_worse and dbic < 0
-              and again >= REPLICATED * self.o.min_gain)
-        return {"held_gain": gain, "held_worst_test_change": worst,
+              and again >= REPLICATED * self.o.min_gain
+              and fit_gain >= FIT_GAIN_SHARE * self.o.min_gain)
+        return {"held_gain": gain, "held_worst_test_change": worst, "fit_gain": fit_gain,
                 "held_gain_replicated": again, "delta_bic": dbic, "accepted": ok,
                 "nsse_fit_before": nsse_fit_before, "nsse_fit_after": res.nsse_fit,
                 "nsse_held_before": held_before, "nsse_held_after": held_after}
 
 
+# an effect must also take FIT_GAIN_SHARE x min_gain of the fitting tests' error (each held-out
+# test has a fitting twin): its fit is stopped once it cannot (fit.futility_stop). Of 348 fits
+# on 28 blind cases, every one that gained min_gain held out gained 0.105 or more on its
+# fitting tests, and 170 ended under 0.02 there (in a round that accepts nothing, most of
+# them crawl just above their reference's error: the 6-DOF sweep's third round)
+FIT_GAIN_SHARE = 0.5
 # an effect must gain on more than one held-out test: with the test it helps most left out
 # the others still gain REPLICATED x min_gain. A response on a knife edge (a contact near a
 # jump) moves with any small change: on a stepped sine seen at DOF 1 and 3, a 0.02 N force

@@ -58,6 +58,7 @@ def _evidence_list(rd: Any) -> list[dict[str, Any]]:
                         "held_out_gain": _f(info["held_gain"]),
                         "held_out_worst_test_change": _f(info["held_worst_test_change"]),
                         "held_out_gain_without_best_test": _f(info["held_gain_replicated"]),
+                        "fitting_gain": _f(info["fit_gain"]),
                         "delta_bic": _f(info["delta_bic"]), "accepted": info["accepted"],
                         "reference": info["reference"], "n_evaluations": res.nfev}
         out.append(d)
