@@ -137,20 +137,26 @@ def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str
     over a refused point's (_PENALTY^2, or not finite): a diverging prediction can stay
     finite, 1e300, and overflow every product the fit takes of it (an observer's at a model
     free from the ground)."""
-    parts = []
+    out = np.empty(sum(t.n for t in tests) * len(chans))  # filled in place: no copies
     total = 0.0
+    at = 0
     for t in tests:
         p = predict(m, t)
         if p is None:
             return None
         for c in chans:
-            r = t.counted(t.y[c] - p[c]) / (scales[c] * math.sqrt(t.n))
+            r = out[at:at + t.n]
+            at += t.n
+            if t.mask is None:
+                np.subtract(t.y[c], p[c], out=r)
+            else:
+                r[:] = t.counted(t.y[c] - p[c])
+            np.divide(r, scales[c] * math.sqrt(t.n), out=r)
             with np.errstate(over="ignore", invalid="ignore"):
                 total += float(r @ r)
             if not total <= _PENALTY ** 2:  # NaN and inf fail it too: the later tests unrun
                 return None
-            parts.append(r)
-    return np.concatenate(parts)
+    return out
 
 
 def n_eff_factor(r: np.ndarray, maxlag: int = 64) -> float:
@@ -475,7 +481,9 @@ def _solve(fun_at: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray
 
     sol = run(z0, max_nfev)
     left = max_nfev - int(sol.nfev)
-    if sol.status != _XTOL_STOP or left < MIN_RESTART_NFEV:
+    # a region that collapsed without one step taken would collapse again the same way: the
+    # same point, Jacobian (kept) and first radius (a reference fitted from its optimum)
+    if sol.status != _XTOL_STOP or left < MIN_RESTART_NFEV or np.array_equal(sol.x, z0):
         return sol
     again = run(sol.x, left)
     best = again if again.cost < sol.cost else sol
