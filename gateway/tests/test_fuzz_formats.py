@@ -328,6 +328,13 @@ def _h5_slow_time(p: Path) -> None:
         f["time_s"], f["force_N"], f["acc1_mps2"] = np.arange(N) * 1e10, FORCE, ACC
 
 
+def _mat_rate(fs: Any) -> Callable[[Path], None]:
+    def write(p: Path) -> None:
+        from scipy.io import savemat
+        savemat(p, {"fs": fs, "force_N": FORCE, "acc1_mps2": ACC})  # no time vector
+    return write
+
+
 RATES: dict[str, tuple[str, Callable[[Path], None], str]] = {
     "h5_bool": (".h5", _h5_rate(True), "the sampling rate is not one number (True)"),
     "h5_two_values": (".h5", _h5_rate(np.array([FS, 320.0])), "is not one number ([640."),
@@ -336,6 +343,8 @@ RATES: dict[str, tuple[str, Callable[[Path], None], str]] = {
     "h5_time_steps_1e10_s": (".h5", _h5_slow_time, "time step 1e+10 s is not a usable sample "
                              "period at sample 0"),
     "mcap_tiny": (".mcap", lambda p: mcap(p, meta={"fs_hz": "1e-300"}), "no usable fs_hz"),
+    "mat_logical": (".mat", _mat_rate(np.array(True)),
+                    "rate variable: the sampling rate is not one number (True)"),
 }
 
 

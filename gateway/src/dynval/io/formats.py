@@ -417,6 +417,12 @@ def read_mat(path: Path | str, *, lenient: bool = False) -> Recording:
 
     def load() -> dict[str, Any]:
         d: dict[str, Any] = sio.loadmat(str(p), squeeze_me=True, struct_as_record=False)
+        # loadmat gives a logical as uint8 (true: 1), and a rate variable `fs = true` would
+        # read as 1 Hz: its class is in the file's directory (read again: only with a rate)
+        rates = [k for k in RATE_NAMES if k in d]
+        for name, _, cls in sio.whosmat(str(p)) if rates else ():
+            if cls == "logical" and name in rates:  # (squeezed, one value is a Python int)
+                d[name] = np.asarray(d[name]).astype(bool)
         return d
 
     d = guarded(p, "MATLAB", load)
