@@ -130,6 +130,11 @@ def at_bounds(params: Sequence[fx.Param], names: Sequence[str], values: Sequence
             if n in ranges and not AT_BOUND < _to_z(ranges[n], v) < 1.0 - AT_BOUND]
 
 
+def residual_size(tests: Sequence[TestData], chans: Sequence[str]) -> int:
+    """residual_vector's length: the samples that count, over every test and channel."""
+    return len(chans) * sum(t.n for t in tests)
+
+
 def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
                     scales: dict[str, float]) -> np.ndarray | None:
     """(y - prediction) / scale / sqrt(n) of every channel and test, concatenated: its sum of
@@ -137,7 +142,7 @@ def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str
     over a refused point's (_PENALTY^2, or not finite): a diverging prediction can stay
     finite, 1e300, and overflow every product the fit takes of it (an observer's at a model
     free from the ground)."""
-    out = np.empty(sum(t.n for t in tests) * len(chans))  # filled in place: no copies
+    out = np.empty(residual_size(tests, chans))  # filled in place: no copies
     total = 0.0
     at = 0
     for t in tests:
@@ -360,7 +365,7 @@ def problem(m: mdl.Model, cand: fx.Candidate, init: Sequence[float],
 
     z0 = to_z(init_all)
     z_others = [to_z([*o, *now]) for o in et.other_starts(m, cand, init)]
-    n_res = sum(t.n for t in tests for c in chans)
+    n_res = residual_size(tests, chans)
     npar = len(ps)
 
     def build(v: list[float]) -> mdl.Model:
@@ -518,7 +523,7 @@ def at_own_starts(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
     def model(z: np.ndarray) -> mdl.Model:
         return m.with_params({n: float(np.exp(v)) for n, v in zip(names, z, strict=True)})
 
-    size = len(chans) * sum(t.n for t in tests)  # residual_vector's length
+    size = residual_size(tests, chans)
 
     def fun(z: np.ndarray) -> np.ndarray:
         mm = model(z)

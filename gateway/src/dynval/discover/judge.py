@@ -700,7 +700,7 @@ class Judge:
         worst = max((tab.nsse[h] / ref_table.nsse[h] - 1.0 for h in self.held_names
                      if ref_table.nsse[h] > 0), default=0.0)
         again = replicated_gain(tab, ref_table, self.held_names)
-        n_eff = sum(t.n for t in self.fit_t for c in self.chans) / res.n_eff_factor
+        n_eff = ft.residual_size(self.fit_t, self.chans) / res.n_eff_factor
         nsse_fit_before = ref_table.total(self.fit_names)
         fit_gain = 1.0 - res.nsse_fit / nsse_fit_before if nsse_fit_before > 0 else 0.0
         dbic = (bic(res.nsse_fit, n_eff, len(res.values))

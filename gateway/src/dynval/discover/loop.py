@@ -225,7 +225,7 @@ def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
         initial.apply(cal.model, s.evals, s.chans, s.scales, s.settle)
     tab, res = s.table(cal.model)
     before, after = cur_table.total(s.held_names), tab.total(s.held_names)
-    n_eff = sum(t.n for t in s.fit_t for _ in s.chans) / cal.n_eff_factor
+    n_eff = ft.residual_size(s.fit_t, s.chans) / cal.n_eff_factor
     # the fitting error from the same table as the current one's, the starts estimated the
     # same way: the fit's own (free starts, their linear part's free motion under a model
     # with elements) is not comparable (blind two-effect case 0, a contact on a record cut
