@@ -118,10 +118,12 @@ def test_a_point_map_keeps_its_workers_and_returns_the_serial_vectors() -> None:
     pids = set(first[:, 2]) | set(again[:, 2])
     assert os.getpid() not in pids and 1 <= len(pids) <= 2  # the same forked workers
     with parallel.PointMap(_pid_vector, 1) as pm:  # one worker: here, the same numbers
-        here = pm(pts, 3)
+        here = np.asarray(pm(pts, 3))
     assert np.array_equal(here[:, :2], first[:, :2]) and set(here[:, 2]) == {os.getpid()}
-    with parallel.PointMap(_pid_vector, 2) as pm, pytest.raises(ValueError, match="shape"):
-        pm(pts, 4)  # a vector of another length than announced
+    for workers in (1, 2):
+        with parallel.PointMap(_pid_vector, workers) as pm, \
+                pytest.raises(ValueError, match="shape"):
+            pm(pts, 4)  # a vector of another length than announced
 
 
 def _curved(z: np.ndarray) -> np.ndarray:
