@@ -130,6 +130,10 @@ def stuck_unexplained(rd: Round, best: dict[str, Any] | None, max_worse: float
     return through_gains(rd, {cand_key(f["candidate"]) for f in gained[:UNEXPLAINED_REFITS]})
 
 
+# the expected seconds of a candidate fit not timed yet (judge_all's order): above any fit's
+UNFITTED_COST = 1e9
+
+
 def judge_all(s: Session, rd: Round, judge: Judge, evs: list[tr.Evidence],
                best: dict[str, Any] | None) -> dict[str, Any] | None:
     """Fit ``evs`` on every core (their references first: candidates share them), add them to
@@ -143,8 +147,11 @@ def judge_all(s: Session, rd: Round, judge: Judge, evs: list[tr.Evidence],
         t0 = time.perf_counter()
         return judge.candidate(e), time.perf_counter() - t0
 
-    # a candidate not fitted before counts as the longest
-    cost = [s.fit_seconds.get(cand_key(e.cand), math.inf) for e in evs]
+    # a candidate not fitted before counts as longer than any fitted one, and the longer the
+    # more parameters it fits (round 1 of the 6-DOF sweep: a contact's 7.7 s fit handed out
+    # first, a sensor gain's 0.1 s second, left one worker idle for the last 2.9 s)
+    cost = [s.fit_seconds.get(cand_key(e.cand), UNFITTED_COST + judge.free_count(e))
+            for e in evs]
     out = parallel.ordered_map(timed, evs, s.workers, cost)
     s.fit_seconds.update((cand_key(e.cand), t) for e, (_, t) in zip(evs, out, strict=True))
     new = [i for i, _ in out if i is not None]
@@ -457,6 +464,12 @@ class Judge:
         where m puts it (initial.starts_under)."""
         with initial.starts_under(m, [*self.fit_t, *self.held_t], self.chans, self.scales):
             return rs.error_table(m, tests, self.chans, self.scales)[0]
+
+    def free_count(self, e: tr.Evidence) -> int:
+        """The parameters a candidate's fit moves: its own and the declared ones it
+        re-adjusts."""
+        cand = with_shape(e)
+        return len(fx.by_type(cand.type).params(self.cur, cand)) + len(self.readjusted(cand))
 
     def readjusted(self, cand: fx.Candidate) -> tuple[str, ...]:
         local = fx.by_type(cand.type).readjust(self.cur, cand, self.band) \
