@@ -510,7 +510,7 @@ class Judge:
             cand, starts, declared = self.joint_start(e, cand, starts, names)
         _, ref_table, ref_p = self.reference(names)
         # a fit left above it is refused (_verdict): stopped once it cannot get there
-        beat = (1 - FIT_GAIN_SHARE * self.o.min_gain) * ref_table.total(self.fit_names)
+        beat = (1 - self.fit_gain_needed()) * ref_table.total(self.fit_names)
         res = None
         if cand.shape.get(THROUGH_GAINS):  # the other starts were fitted in the first pass
             res = continuation.fit_candidate(self.cur, cand, starts[0], names, self.fit_t,
@@ -702,6 +702,11 @@ class Judge:
         tab = self.table(cal.model, [*self.fit_t, *self.held_t])
         return tab
 
+    def fit_gain_needed(self) -> float:
+        """The share of the fitting tests' normalised SSE an effect must take (FIT_GAIN_SHARE
+        x min_gain): _verdict's rule, and the target of the fit's futility stop."""
+        return FIT_GAIN_SHARE * self.o.min_gain
+
     def _verdict(self, res: ft.FitResult, tab: rs.ErrorTable, ref_table: rs.ErrorTable,
                  ref_p: int) -> dict[str, Any]:
         """A fit against a reference: its held-out gain, worst held-out test change, gain on
@@ -720,7 +725,7 @@ class Judge:
                 - bic(nsse_fit_before, n_eff, ref_p))
         ok = (gain >= self.o.min_gain and worst <= self.o.max_worse and dbic < 0
               and again >= REPLICATED * self.o.min_gain
-              and fit_gain >= FIT_GAIN_SHARE * self.o.min_gain)
+              and fit_gain >= self.fit_gain_needed())
         return {"held_gain": gain, "held_worst_test_change": worst, "fit_gain": fit_gain,
                 "held_gain_replicated": again, "delta_bic": dbic, "accepted": ok,
                 "nsse_fit_before": nsse_fit_before, "nsse_fit_after": res.nsse_fit,
