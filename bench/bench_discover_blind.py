@@ -14,7 +14,7 @@ Writes bench/RESULTS.blind.md.
 ``--free``: every chain rides on rails or a weak position loop (a rigid-body or nearly rigid
 mode: it drifts open loop), driven by a force, half of them with an encoder at DOF 1.
 ``--sweep``: every test a shaker's swept sine (synth.Sweep) instead of band-limited noise.
-``--dofs N``: every chain N DOF (2, 6 or 7) instead of 3-5, the rest drawn as usual.
+``--dofs N``: every chain N DOF (1, 2, 6 or 7) instead of 3-5, the rest drawn as usual.
 ``--daq``: the declared model states the generator's anti-alias filter (8th-order Butterworth
 at 0.4 fs: simulation.daq_filter), and the ideal is simulated with it too. So is it where
 discover found a filter (the daq_filter effect: the generator's DAQ is the truth's measurement
@@ -64,7 +64,8 @@ def structure(rng: np.random.Generator, dofs: int = 0) -> tuple[mdl.Model, bool]
     else:
         inp = mdl.Input("force", int(rng.integers(1, n + 1)), "force_N")
         outs = list(range(1, n + 1)) if rng.random() < 0.5 else sorted(
-            int(j) for j in rng.choice(np.arange(1, n + 1), size=max(2, n - 1), replace=False))
+            int(j) for j in rng.choice(np.arange(1, n + 1), size=min(n, max(2, n - 1)),
+                                       replace=False))
     return mdl.Model(masses_kg=masses, stiffness_n_per_m=ks, damping=mdl.Damping("modal", zeta),
                      input=inp, outputs={f"acc{j}_mps2": mdl.Output("acc", j) for j in outs},
                      fs_hz=FS), table
@@ -342,9 +343,9 @@ def main() -> None:
                     help="chains on rails or a weak position loop (see the docstring)")
     ap.add_argument("--sweep", action="store_true",
                     help="every test a swept sine (5-15 Hz to 150-250 Hz, log or linear)")
-    ap.add_argument("--dofs", type=int, default=0, choices=(0, 2, 6, 7),
+    ap.add_argument("--dofs", type=int, default=0, choices=(0, 1, 2, 6, 7),
                     help="every chain this size (default: 3-5 DOF, drawn; 7 at most: an "
-                    "appendage adds one)")
+                    "appendage adds one; 1: a single-DOF oscillator)")
     ap.add_argument("--daq", action="store_true",
                     help="the declared model states the generator's anti-alias filter")
     ap.add_argument("--sensors", default="acc", choices=SENSORS,
