@@ -831,6 +831,8 @@ def mass_stiffness_twin(judge: Judge, best: dict[str, Any], min_gain: float
             or any(o.kind not in ("acc", "vel", "disp") for o in cur.outputs.values())):
         return []
     before, after = cur.parameters(), best["fit"].model.parameters()
+    if not min(before["k1"], after["k1"], before["m1"], after["m1"]) > 0:
+        return []  # (no spring to the ground: k/m says nothing of the mass)
     if other == "mass_change":  # m' k = m k': the same k/m with the declared stiffness
         swap = {"k1": before["k1"], "m1": before["m1"] * before["k1"] / after["k1"]}
     else:
