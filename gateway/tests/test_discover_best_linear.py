@@ -133,3 +133,30 @@ def test_best_linear_declared_model_gets_a_mass_or_a_mode(kind: str, dof: int,
                              interpolation=m0.interpolation, oversample=m0.oversample)
     ideal, _ = rs.error_table(tm, r.tests, r.chans, r.scales)
     assert r.after.total(r.held_names) < 1.3 * ideal.total(r.held_names)
+
+
+def test_a_story_loss_the_best_linear_model_moved_next_door_is_found() -> None:
+    """Blind 2-DOF seed 8: story 1 of a shake-table chain lost 9 %, and synth.best_linear,
+    which keeps k1, moved k2 and zeta2 to make up for it (-34 %, x 3), so a stiffness change
+    at story 1 alone gained 3.7 % and discover said "no effect" at 142 x the true model's
+    held-out error. A round that accepts nothing fits the story changes again with the next
+    stories re-adjusted: k1 and k2 back to the truth's, the truth's held-out error. On two
+    DOFs story 1 with k2 re-adjusted and story 2 with k1 re-adjusted are the same model:
+    either is named and the other given as a tie."""
+    ks, loss = (4.94e5, 4.94e5), 0.91
+    m = mdl.Model(masses_kg=(6.9, 3.3), stiffness_n_per_m=ks,
+                  damping=mdl.Damping("modal", (0.035, 0.022)),
+                  input=mdl.Input("ground_acc", 0, "table_mps2"),
+                  outputs={f"acc{j}_mps2": mdl.Output("acc", j) for j in (1, 2)}, fs_hz=640.0)
+    recs = gen.generate(m, gen.Truth(k_scale={1: loss}), n_tests=6, seed=8,
+                        levels_n_rms=(3.0, 1.8))
+    bl = gen.best_linear(m, recs)
+    assert bl.stiffness_n_per_m[1] < 0.9 * ks[1]  # what the declared model made of the loss
+    r = loop.discover(bl, recs)
+    (e,) = r.effects
+    named = {(a["type"], a["location"]["story"]) for a in [e, *e["alternatives"]]}
+    assert named == {("stiffness_change", 1), ("stiffness_change", 2)}
+    assert r.model.stiffness_n_per_m == pytest.approx((loss * ks[0], ks[1]), rel=0.01)
+    truth = m.with_params({"k1": loss * ks[0]})
+    ideal, _ = rs.error_table(truth, r.tests, r.chans, r.scales)
+    assert r.after.total(r.held_names) < 1.1 * ideal.total(r.held_names)

@@ -69,6 +69,34 @@ def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model
     return best
 
 
+def wider_of_round(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTable
+                   ) -> dict[str, Any] | None:
+    """A round that accepted nothing and would end the search on a residual the floor does
+    not explain: every candidate whose type re-adjusts more there (EffectType.readjust_wider)
+    fitted again with it, each against its own wider reference; the accepted fit with the
+    lowest held-out error."""
+    if not s.o.readjust:
+        return None
+    evs = [tr.Evidence(e.cand, e.r2, e.amp, {**e.shape, WIDER: 1.0}) for e in rd.evidence
+           if e.cand.available and _wider(cur, e.cand, s.band)]
+    if not evs:
+        return None
+    log.info("round %d: nothing accepted; %d candidate(s) fitted again with the declared "
+             "parameters next to them re-adjusted", rd.index, len(evs))
+    judge = Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band,
+                  s.workers)
+    best = judge_all(s, rd, judge, evs, None)
+    if best is not None:
+        best["alternatives"] = [*alternatives(best, rd.fits, s.o.min_gain),
+                                *mass_stiffness_twin(judge, best, s.o.min_gain)]
+    return best
+
+
+def _wider(m: mdl.Model, cand: fx.Candidate, band: tuple[float, float]) -> bool:
+    typ = fx.by_type(cand.type)
+    return set(typ.readjust_wider(m, cand, band)) != set(typ.readjust(m, cand, band))
+
+
 def simpler_to_fit(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
     """The winner's simpler types at its place (nested_in) not fitted yet this round, so that
     simplest_nested can prefer one on a near tie: a contact closing both ways from gap 0 is a
@@ -193,6 +221,7 @@ RIVAL = "rival of a linear change"
 # from gap 0, 2.3 x the true contact's held-out error; its third and fourth at the contact)
 STUCK_SCAN = 4
 STUCK_GATE = 0.5
+WIDER = "wider re-adjustment"  # shape key: fitted with EffectType.readjust_wider
 
 
 def siblings(rd: Round, best: dict[str, Any] | None) -> list[tr.Evidence]:
@@ -473,8 +502,9 @@ class Judge:
         return len(fx.by_type(cand.type).params(self.cur, cand)) + len(self.readjusted(cand))
 
     def readjusted(self, cand: fx.Candidate) -> tuple[str, ...]:
-        local = fx.by_type(cand.type).readjust(self.cur, cand, self.band) \
-            if self.o.readjust else ()
+        typ = fx.by_type(cand.type)
+        how = typ.readjust_wider if cand.shape.get(WIDER) else typ.readjust
+        local = how(self.cur, cand, self.band) if self.o.readjust else ()
         return tuple(dict.fromkeys([*self.o.uncertain, *local]))
 
     def reference(self, names: tuple[str, ...]) -> tuple[mdl.Model, rs.ErrorTable, int]:
@@ -801,13 +831,24 @@ def alternatives(best: dict[str, Any], fits: Sequence[dict[str, Any]], min_gain:
             if supported(f) and cand_key(f["candidate"]) != cand_key(win)
             and f["nsse_held_after"] <= (1 + 0.5 * min_gain) * err
             and not nested_in(f["candidate"], win) and not nested_in(win, f["candidate"])
-            and not (own and own in f.get("readjusted", ()))]
+            and not _carries(f, own, best)]
     tied.sort(key=lambda f: f["nsse_held_after"])
     best_of = {f["candidate"].label: f for f in reversed(tied)}  # a place's fits from two starts
     return [{"type": f["candidate"].type, "location": dict(f["candidate"].location),
              "label": f["candidate"].label,
              "held_out_rmse_ratio": math.sqrt(f["nsse_held_after"] / err) if err > 0 else 1.0}
             for f in tied if best_of[f["candidate"].label] is f]
+
+
+def _carries(f: dict[str, Any], own: str | None, best: dict[str, Any]) -> bool:
+    """Whether fit f re-adjusts the parameter the winning change changes while the winner does
+    not re-adjust f's: f then carries the winner's change. Each re-adjusting the other's is
+    the same model under two names (on two DOFs a story's change with the next story
+    re-adjusted, EffectType.readjust_wider), a tie."""
+    if not own or own not in f.get("readjusted", ()):
+        return False
+    theirs = fx.by_type(f["candidate"].type).changes(f["candidate"])
+    return not (theirs and theirs in best.get("readjusted", ()))
 
 
 # a single DOF driven by ground motion and read by motion sensors responds to k/m and c/m only

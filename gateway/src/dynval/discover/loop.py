@@ -48,6 +48,7 @@ from dynval.discover.judge import (
     best_placed_nonlinear,
     cand_key,
     effect_entry,
+    wider_of_round,
     with_shape,
 )
 from dynval.discover.session import (
@@ -741,6 +742,8 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
             break
         pool = _pool(s, rd, cur, cur_table, accepted)
         best = best_of_round(s, rd, pool, cur, cur_table, accepted)
+        if best is None and pool and not accepted and not gray:
+            best = wider_of_round(s, rd, cur, cur_table)
         timing[f"round_{rnd}"] = time.perf_counter() - t0
         if gray and best is None:
             rd.decision = (f"{at_floor}; the worst, {worst:.3g} x, was tested by fitting: "

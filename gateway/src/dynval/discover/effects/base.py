@@ -275,6 +275,13 @@ class EffectType:
         is often a best linear fit that absorbed part of the effect (see readjust_local)."""
         return ()
 
+    def readjust_wider(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
+                       ) -> tuple[str, ...]:
+        """What the candidate re-adjusts when a round with nothing accepted is fitted again
+        (judge.wider_to_fit): more than readjust where a best-linear declared model can have
+        moved parameters further off; readjust itself for most types."""
+        return self.readjust(m, cand, band_hz)
+
     def other_starts(self, m: mdl.Model, cand: Candidate, init: Sequence[float]
                      ) -> list[list[float]]:
         """Other starting values of the effect's parameters, each fitted too and the best fit
