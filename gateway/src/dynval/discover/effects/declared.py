@@ -44,7 +44,7 @@ class StiffnessChange(EffectType):
         # 9 %, the best-linear k2 -34 % and zeta2 x 3, so the change alone gained 3.5 % and
         # "no effect" was left at 142 x the ideal's error). Not in every round: re-adjusting
         # the next stories makes a stiffness change a local re-fit of the declared model, which
-        # took rounds from a nonlinear effect or an appendage (blind free 6, sweep 9, 2-DOF 9)
+        # took a round from a cubic spring (blind 2-DOF seed 9)
         p = m.parameters()
         s = cand.location["story"]
         nxt = [f"k{j}" for j in (s - 1, s + 1) if p.get(f"k{j}", 0.0) > 0]
