@@ -64,8 +64,7 @@ def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model
         log.info(msg)
         s.notes.append(msg)
     if best is not None:
-        best["alternatives"] = [*alternatives(best, rd.fits, s.o.min_gain),
-                                *mass_stiffness_twin(judge, best, s.o.min_gain)]
+        best["alternatives"] = tied_with(judge, best, rd.fits, s.o.min_gain)
     return best
 
 
@@ -87,8 +86,7 @@ def wider_of_round(s: Session, rd: Round, cur: mdl.Model, cur_table: rs.ErrorTab
                   s.workers)
     best = judge_all(s, rd, judge, evs, None)
     if best is not None:
-        best["alternatives"] = [*alternatives(best, rd.fits, s.o.min_gain),
-                                *mass_stiffness_twin(judge, best, s.o.min_gain)]
+        best["alternatives"] = tied_with(judge, best, rd.fits, s.o.min_gain)
     return best
 
 
@@ -838,6 +836,13 @@ def alternatives(best: dict[str, Any], fits: Sequence[dict[str, Any]], min_gain:
              "label": f["candidate"].label,
              "held_out_rmse_ratio": math.sqrt(f["nsse_held_after"] / err) if err > 0 else 1.0}
             for f in tied if best_of[f["candidate"].label] is f]
+
+
+def tied_with(judge: Judge, best: dict[str, Any], fits: Sequence[dict[str, Any]],
+              min_gain: float) -> list[dict[str, Any]]:
+    """The effects the tests do not tell from a round's winner: the round's tied fits
+    (alternatives) and, on one DOF, its mass/stiffness twin (mass_stiffness_twin)."""
+    return [*alternatives(best, fits, min_gain), *mass_stiffness_twin(judge, best, min_gain)]
 
 
 def _carries(f: dict[str, Any], own: str | None, best: dict[str, Any]) -> bool:

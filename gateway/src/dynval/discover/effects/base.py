@@ -278,7 +278,7 @@ class EffectType:
     def readjust_wider(self, m: mdl.Model, cand: Candidate, band_hz: tuple[float, float]
                        ) -> tuple[str, ...]:
         """What the candidate re-adjusts when a round with nothing accepted is fitted again
-        (judge.wider_to_fit): more than readjust where a best-linear declared model can have
+        (judge.wider_of_round): more than readjust where a best-linear declared model can have
         moved parameters further off; readjust itself for most types."""
         return self.readjust(m, cand, band_hz)
 

@@ -41,7 +41,7 @@ class StiffnessChange(EffectType):
                        ) -> tuple[str, ...]:
         # the stories next to it share a DOF with it: a best-linear declared model that could
         # not move this story's stiffness moved theirs instead (blind 2-DOF seed 8: story 1 lost
-        # 9 %, the best-linear k2 -34 % and zeta2 x 3, so the change alone gained 3.5 % and
+        # 9 %, the best-linear k2 -34 % and zeta2 x 3, so the change alone gained 3.7 % and
         # "no effect" was left at 142 x the ideal's error). Not in every round: re-adjusting
         # the next stories makes a stiffness change a local re-fit of the declared model, which
         # took a round from a cubic spring (blind 2-DOF seed 9)
