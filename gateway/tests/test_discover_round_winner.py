@@ -8,6 +8,7 @@ The fit records are stand-ins; the fits behind them are covered by the discover 
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -15,12 +16,22 @@ import pytest
 from dynval.discover import effects as fx
 from dynval.discover import judge, report
 
+DECLARED = {"k1": 3.57e5, "k2": 3.27e5, "k3": 3.89e5}
+
+
+def _model(**moved: float) -> SimpleNamespace:
+    """A stand-in model whose parameters are DECLARED moved by ``moved``."""
+    p = {n: v + moved.get(n, 0.0) for n, v in DECLARED.items()}
+    return SimpleNamespace(parameters=lambda: p)
+
 
 def _fit(kind: str, where: dict[str, Any], err: float, accepted: bool = True,
-         ref: float = 1.0, readjusted: tuple[str, ...] = ()) -> dict[str, Any]:
+         ref: float = 1.0, readjusted: tuple[str, ...] = (), **moved: float
+         ) -> dict[str, Any]:
     label = f"{kind} " + ",".join(f"{k} {v}" for k, v in where.items())
     return {"candidate": fx.Candidate(kind, where, label, True), "nsse_held_after": err,
-            "accepted": accepted, "nsse_held_before": ref, "readjusted": readjusted}
+            "accepted": accepted, "nsse_held_before": ref, "readjusted": readjusted,
+            "fit": SimpleNamespace(model=_model(**moved))}
 
 
 def test_ties_are_accepted_fits_within_half_the_minimum_gain() -> None:
@@ -88,6 +99,7 @@ class _Judge:
 
     def __init__(self, ok: bool = True, without: float | None = None) -> None:
         self.ok, self.without = ok, without
+        self.cur = _model()
 
     def confirm(self, info: dict[str, Any]) -> bool:
         return self.ok
@@ -132,8 +144,9 @@ def test_a_change_the_winner_cannot_do_without_takes_the_round() -> None:
     # reference 0.165 (the stiffnesses alone mimic part of the mass) is far from the change
     # alone, 2.88: no tie, but the mass change moved k2 as the change did (-14.9 %)
     win = _fit("mass_change", {"dof": 3}, 0.076, ref=0.165,
-               readjusted=("k1", "k2", "k3", "zeta1"))
-    change = _fit("stiffness_change", {"story": 2, "between": [1, 2]}, 2.88, ref=5.89)
+               readjusted=("k1", "k2", "k3", "zeta1"), k2=-4.878e4)
+    change = _fit("stiffness_change", {"story": 2, "between": [1, 2]}, 2.88, ref=5.89,
+                  k2=-6.136e4)
     fits = [win, change]
     assert _carried(win, fits, 5.89) is win  # not moved the same way (None)
     assert _carried(win, fits, 5.89, _Judge(without=0.5)) is change
@@ -144,6 +157,15 @@ def test_a_change_the_winner_cannot_do_without_takes_the_round() -> None:
     assert _carried(win, fits, 5.89, _Judge(ok=False, without=0.5)) is win
     # the re-adjustment alone gaining less than min_gain (a best-linear model): not asked
     assert _carried(win, fits, 0.165 / 0.91, _Judge(without=0.5)) is win
+    # the change alone moving k2 less than half as far as the winner did: the data do not ask
+    # for it without the winner, which moved k2 back from where a best-linear declared model
+    # put it to absorb it (blind free seed 6: an appendage, k2 -3559 N/m, the change alone
+    # -1435, 0.40 of it)
+    closer = _fit("stiffness_change", {"story": 2, "between": [1, 2]}, 2.88, ref=5.89,
+                  k2=-0.49 * 4.878e4)
+    assert _carried(win, [win, closer], 5.89, _Judge(without=0.5)) is win
+    closer["fit"] = SimpleNamespace(model=_model(k2=-0.51 * 4.878e4))
+    assert _carried(win, [win, closer], 5.89, _Judge(without=0.5)) is closer
 
 
 def test_a_change_at_the_winners_place_is_its_linear_part() -> None:
