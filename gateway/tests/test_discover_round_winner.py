@@ -104,8 +104,7 @@ class _Judge:
     def confirm(self, info: dict[str, Any]) -> bool:
         return self.ok
 
-    def without_moving(self, info: dict[str, Any], change: dict[str, Any], name: str
-                       ) -> float | None:
+    def without_moving(self, info: dict[str, Any], name: str) -> float | None:
         return self.without
 
 
@@ -148,7 +147,11 @@ def test_a_change_the_winner_cannot_do_without_takes_the_round() -> None:
     change = _fit("stiffness_change", {"story": 2, "between": [1, 2]}, 2.88, ref=5.89,
                   k2=-6.136e4)
     fits = [win, change]
-    assert _carried(win, fits, 5.89) is win  # not moved the same way (None)
+    assert _carried(win, fits, 5.89) is win  # the fit without moving k2 failed (None)
+    # the change alone moving k2 the other way: not asked for without the winner
+    other_way = _fit("stiffness_change", {"story": 2, "between": [1, 2]}, 2.88, ref=5.89,
+                     k2=6.136e4)
+    assert _carried(win, [win, other_way], 5.89, _Judge(without=0.5)) is win
     assert _carried(win, fits, 5.89, _Judge(without=0.5)) is change
     best, why = judge.change_in_the_readjustment(win, fits, 5.89, 0.10, _Judge(without=0.5))
     assert why == f"without moving k2 its held-out error is {math.sqrt(0.5 / 0.076):.2f} x (RMSE)"
