@@ -16,7 +16,7 @@ import pytest
 from dynval.discover import effects as fx
 from dynval.discover import judge, report
 
-DECLARED = {"k1": 3.57e5, "k2": 3.27e5, "k3": 3.89e5}
+DECLARED = {"k1": 3.57e5, "k2": 3.27e5, "k3": 3.89e5, "m1": 5.949}
 
 
 def _model(**moved: float) -> SimpleNamespace:
@@ -181,10 +181,30 @@ def test_a_change_at_the_winners_place_is_its_linear_part() -> None:
     assert _carried(win, [same, win], 1.0) is win
     below = _fit("stiffness_change", STORY1, 0.10, ref=1.0)
     assert _carried(win, [below, win], 1.0) is below
-    # a mass change at an appendage's DOF is its limit far above the band: the same place
+    # a mass change at an appendage's DOF ties its reference (it is the appendage's limit
+    # far above the band): the appendage keeps the round, as it does when its fit left m1
     app = _fit("appendage", {"dof": 1}, 0.0027, ref=0.0157, readjusted=("k1", "m1"))
-    mass = _fit("mass_change", {"dof": 1}, 0.0157, ref=0.0588)
+    mass = _fit("mass_change", {"dof": 1}, 0.0157, ref=0.0588, m1=0.6)
     assert _carried(app, [mass, app], 0.0588) is app
+    assert _carried(app, [mass, app], 0.0588, _Judge(without=0.0108)) is app
+
+
+def test_a_mass_the_winner_cannot_do_without_at_its_dof_takes_the_round() -> None:
+    # blind two-effect seed 2: an added mass of 0.419 kg and an appendage, both at DOF 1;
+    # the appendage's fit moved m1 +0.414 kg, and re-fitted with m1 left its held-out error
+    # went 0.0027 -> 0.0108: a mass is no part of an appendage or an element at its DOF
+    app = _fit("appendage", {"dof": 1}, 0.0027, ref=0.0157, readjusted=("k1", "m1"),
+               m1=0.414)
+    mass = _fit("mass_change", {"dof": 1}, 0.0157, ref=0.0588, m1=0.6)
+    assert _carried(app, [mass, app], 0.0588, _Judge(without=0.0108)) is mass
+    assert _carried(app, [mass, app], 0.0588, _Judge(without=0.0029)) is app  # under min_gain
+    contact = _fit("contact", {"between": [0, 1], "story": 1, "dof": 1}, 0.0027, ref=0.0157,
+                   readjusted=("k1", "m1"), m1=0.414)
+    assert _carried(contact, [mass, contact], 0.0588, _Judge(without=0.0108)) is mass
+    # the same for a story stiffness at the element's place: its own linear part
+    k1 = _fit("stiffness_change", STORY1, 0.0157, ref=0.0588, k1=3e4)
+    contact["fit"] = SimpleNamespace(model=_model(k1=2e4))
+    assert _carried(contact, [k1, contact], 0.0588, _Judge(without=0.0108)) is contact
 
 
 def test_a_linear_winner_is_kept() -> None:
