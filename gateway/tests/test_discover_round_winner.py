@@ -31,6 +31,7 @@ def _fit(kind: str, where: dict[str, Any], err: float, accepted: bool = True,
     label = f"{kind} " + ",".join(f"{k} {v}" for k, v in where.items())
     return {"candidate": fx.Candidate(kind, where, label, True), "nsse_held_after": err,
             "accepted": accepted, "nsse_held_before": ref, "readjusted": readjusted,
+            "held_gain": 1.0 - err / ref, "delta_bic": -1.0 if err < ref else 1.0,
             "fit": SimpleNamespace(model=_model(**moved))}
 
 
@@ -94,14 +95,17 @@ STORY1 = {"story": 1, "between": [0, 1]}
 
 
 class _Judge:
-    """A stand-in for judge.Judge: confirm() says ``ok``; without_moving() gives ``without``
-    (the winner's held-out error re-fitted without moving the change's parameter)."""
+    """A stand-in for judge.Judge: confirm() says ``ok`` (when not, the fit's gain is gone);
+    without_moving() gives ``without`` (the winner's held-out error re-fitted without moving
+    the change's parameter)."""
 
     def __init__(self, ok: bool = True, without: float | None = None) -> None:
         self.ok, self.without = ok, without
         self.cur = _model()
 
     def confirm(self, info: dict[str, Any]) -> bool:
+        if not self.ok:  # the warm reference leaves it no gain
+            info.update(accepted=False, held_gain=-0.01)
         return self.ok
 
     def without_moving(self, info: dict[str, Any], name: str) -> float | None:
@@ -201,6 +205,12 @@ def test_a_mass_the_winner_cannot_do_without_at_its_dof_takes_the_round() -> Non
     contact = _fit("contact", {"between": [0, 1], "story": 1, "dof": 1}, 0.0027, ref=0.0157,
                    readjusted=("k1", "m1"), m1=0.414)
     assert _carried(contact, [mass, contact], 0.0588, _Judge(without=0.0108)) is mass
+    # the mass alone refused (9.3 % beside the contact's residual: under min_gain) but with
+    # a held-out gain the BIC supports: still asked for; without a gain it is not
+    weak = {**mass, "accepted": False, "held_gain": 0.093}
+    assert _carried(contact, [weak, contact], 0.0588, _Judge(without=0.0108)) is weak
+    none = {**mass, "accepted": False, "held_gain": -0.01, "delta_bic": 5.0}
+    assert _carried(contact, [none, contact], 0.0588, _Judge(without=0.0108)) is contact
     # the same for a story stiffness at the element's place: its own linear part
     k1 = _fit("stiffness_change", STORY1, 0.0157, ref=0.0588, k1=3e4)
     contact["fit"] = SimpleNamespace(model=_model(k1=2e4))
