@@ -500,12 +500,11 @@ def _away(change: fx.Candidate, effect: fx.Candidate) -> bool:
 
 def _apart(change: fx.Candidate, effect: fx.Candidate) -> bool:
     """Whether a linear change can be an effect apart from ``effect``, not its own linear
-    part: away from its place, or a mass change at it (an element or an appendage has no
-    mass of its own at its DOF above the appendage's frequency; a story stiffness at an
-    element's place is the element's linear part: a hardening spring stiffens its story at
-    every level tested). Blind two-effect seed 2: an added mass of 0.419 kg at an
-    appendage's DOF was fitted as the appendage's re-adjustment of m1, +0.414 kg, and not
-    named."""
+    part: away from its place, or a mass change at it. A DOF's mass is no element's linear
+    part, nor an appendage's above the appendage's frequency; a story stiffness at an
+    element's place is the element's (a hardening spring stiffens its story at every level
+    tested). Blind two-effect seed 2: 0.419 kg added at an appendage's DOF was fitted as the
+    appendage's re-adjustment of m1, +0.414 kg, and not named."""
     return _away(change, effect) or (change.type == "mass_change"
                                      and effect.type != "mass_change")
 
