@@ -159,3 +159,31 @@ def test_one_sample_layout_reads_back_and_refuses_a_non_numeric_value(tmp_path):
     with pytest.raises(InputFileError, match="must be a number") as e:
         read_mcap(bad)
     assert str(bad) in str(e.value) and "sequence 1" in str(e.value)
+
+
+def test_a_protobuf_schema_that_does_not_load_is_one_line(tmp_path):
+    """A damaged descriptor (here a message name holding newlines, as a flipped byte of a real
+    log made it): the protobuf library's refusal quotes the damaged text over several lines;
+    the error stays one line naming the file and the channel."""
+    from google.protobuf import descriptor_pb2
+    from mcap.writer import Writer
+
+    from dynval.io.mcapfile import read_mcap
+
+    fd = descriptor_pb2.FileDescriptorProto(name="x.proto", package="dynval", syntax="proto3")
+    m = fd.message_type.add(name="Feature\nchannel (\nindex (")
+    m.field.add(name="value", number=1, type=descriptor_pb2.FieldDescriptorProto.TYPE_DOUBLE,
+                label=descriptor_pb2.FieldDescriptorProto.LABEL_OPTIONAL)
+    data = descriptor_pb2.FileDescriptorSet(file=[fd]).SerializeToString()
+    p = tmp_path / "bad_schema.mcap"
+    with open(p, "wb") as f:
+        w = Writer(f)
+        w.start()
+        w.add_metadata("dynval", {"fs_hz": "100", "n_samples": "1"})
+        sid = w.register_schema("dynval.Feature", "protobuf", data)
+        cid = w.register_channel("/dv/features", "protobuf", sid)
+        w.add_message(cid, log_time=0, publish_time=0, sequence=0, data=b"")
+        w.finish()
+    with pytest.raises(InputFileError, match="does not load") as e:
+        read_mcap(p)
+    assert "\n" not in str(e.value) and str(p) in str(e.value)

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from dynval.errors import InputFileError
-from dynval.io.arrays import checked_unit
+from dynval.io.arrays import checked_unit, one_line
 from dynval.io.jsonfile import parse_json
 from dynval.io.recording import MAX_RATE_HZ, MIN_RATE_HZ, Channel, Recording, file_sha256
 from dynval.topics import CHANNEL_NAMES_KEY, T_CONTROL, T_SAMPLES
@@ -169,7 +169,7 @@ def iter_records(path: Path | str, *, scan_out: Scan | None = None) -> Iterator[
                 log.warning("%s: %s; read stops there", p, s.error)
                 break
             except errors as exc:
-                s.error = f"damaged record after message {n}: {type(exc).__name__}: {exc}"
+                s.error = f"damaged record after message {n}: {one_line(exc)}"
                 log.warning("%s: %s; read stops there", p, s.error)
                 break
             if isinstance(r, McapMessage):
@@ -222,7 +222,7 @@ def _decoder(p: Path, ch: Any, schema: Any) -> Any:
         dec = ProtobufDecoder(schema.name, bytes(schema.data))
     except Exception as exc:  # noqa: BLE001 - the protobuf library's many refusals
         raise InputFileError(p, f"channel {ch.topic}: its protobuf schema {schema.name!r} "
-                             f"does not load: {exc}") from None
+                             f"does not load: {one_line(exc)}") from None
     names = _channel_names(p, ch)
     named = schema.name in ("dynval.Feature", "dynval.Residual")
 
@@ -231,7 +231,7 @@ def _decoder(p: Path, ch: Any, schema: Any) -> Any:
             d = dec(data)
         except (DecodeError, ValueError) as exc:
             raise InputFileError(p, f"message {k} on {ch.topic}: not a {schema.name} "
-                                 f"({exc})", None, f"record {k}") from None
+                                 f"({one_line(exc)})", None, f"record {k}") from None
         if named:
             c = d.get("channel", -1)
             d["name"] = names[c] if isinstance(c, int) and 0 <= c < len(names) else f"ch{c}"
