@@ -27,6 +27,10 @@ static void nodes_x_free(const dv_obs_t *o, size_t ns, bool cubic, const dv_real
                                xl);
         return;
     }
+    if (cubic && !modal && o->kern != DV_OBS_KERN_C) {
+        dv_priv_obs_xfree_cubic_avx2(rx, m->rxu, nf, ns, sv, xl);
+        return;
+    }
     if (modal) { /* the portable kernel on the modal rows (a test's comparison) */
         for (size_t f = 0; f < nf; f++) {
             dv_real_t(*rb)[DV_OBS_MODAL_BLOCK] = o->modal_form->rx[f / DV_OBS_MODAL_BLOCK];

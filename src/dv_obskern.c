@@ -280,6 +280,53 @@ DV_TGT_AVX2 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, 
     }
 }
 
+/* The cubic hold's force-free X of four nodes from f0 (those < nf): the input window's share
+ * ((c0 w0 + c1 w1) + c2 w2) + c3 w3, node f's coefficients at rxu[4 f ..], then the state's
+ * columns one by one, rx[j nf + f] x[j]; each product rounded and then added (no FMA): the
+ * portable loops of nodes_x_free(), bit for bit. */
+DV_TGT_AVX2 static inline __attribute__((always_inline)) __m256d
+xcubic4(const double *rx, const double *rxu, size_t f0, size_t nf, size_t ns, const double *sv)
+{
+    const long long left = (long long)(nf - f0);
+    const __m256i all = _mm256_set1_epi64x(-1), none = _mm256_setzero_si256();
+    /* the window's coefficients of nodes f0..f0+3 (rows), transposed to one vector per input */
+    const __m256d r0 = _mm256_maskload_pd(rxu + 4u * f0, left > 0 ? all : none);
+    const __m256d r1 = _mm256_maskload_pd(rxu + 4u * f0 + 4u, left > 1 ? all : none);
+    const __m256d r2 = _mm256_maskload_pd(rxu + 4u * f0 + 8u, left > 2 ? all : none);
+    const __m256d r3 = _mm256_maskload_pd(rxu + 4u * f0 + 12u, left > 3 ? all : none);
+    const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
+    const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
+    const __m256d c0 = _mm256_permute2f128_pd(t0, t2, 0x20);
+    const __m256d c1 = _mm256_permute2f128_pd(t1, t3, 0x20);
+    const __m256d c2 = _mm256_permute2f128_pd(t0, t2, 0x31);
+    const __m256d c3 = _mm256_permute2f128_pd(t1, t3, 0x31);
+    const double *win = sv + ns;
+    __m256d a = _mm256_mul_pd(c0, _mm256_broadcast_sd(win));
+    a = _mm256_add_pd(a, _mm256_mul_pd(c1, _mm256_broadcast_sd(win + 1u)));
+    a = _mm256_add_pd(a, _mm256_mul_pd(c2, _mm256_broadcast_sd(win + 2u)));
+    a = _mm256_add_pd(a, _mm256_mul_pd(c3, _mm256_broadcast_sd(win + 3u)));
+    const __m256i m = lanes_below(left);
+    for (size_t j = 0; j < ns; j++) {
+        const __m256d col = _mm256_maskload_pd(rx + j * nf + f0, m);
+        a = _mm256_add_pd(a, _mm256_mul_pd(col, _mm256_broadcast_sd(sv + j)));
+    }
+    return a;
+}
+
+/* Four nodes at a time, the last four's lanes beyond nf not stored. */
+DV_TGT_AVX2 void dv_priv_obs_xfree_cubic_avx2(const double *rx, const double *rxu, size_t nf,
+                                              size_t ns, const double *sv, double *xl)
+{
+    size_t f0 = 0;
+    for (; f0 + 4u <= nf; f0 += 4u) {
+        _mm256_storeu_pd(xl + f0, xcubic4(rx, rxu, f0, nf, ns, sv));
+    }
+    if (f0 < nf) {
+        _mm256_maskstore_pd(xl + f0, lanes_below((long long)(nf - f0)),
+                            xcubic4(rx, rxu, f0, nf, ns, sv));
+    }
+}
+
 /* The modal prediction: C T q as sum_k pred[k] (q permuted by lane ^ k) (struct dv_obs_modal),
  * the low half holding the state columns 0-3, the high half 4-7, plus the input window's terms
  * (fyu: the output rows' u[k-1] column, u[k]'s after it). */

@@ -38,6 +38,13 @@ bool dv_priv_obs_kern_avx2(size_t ns, size_t no, size_t nin, size_t iy, size_t n
 void dv_priv_obs_xfree_avx2(const double *rx, size_t nf, size_t ns, size_t bs, size_t cs,
                             const double *sv, double *xl);
 
+/* The same X with the cubic hold (nodes_x_free()): xl = R [x; window], the window sv[ns ..
+ * ns + 4), node f of state column j at rx[j nf + f] and its window coefficients at rxu[4 f ..
+ * 4 f + 4) (the model's rows), product then sum in the portable loops' order: their results,
+ * bit for bit. */
+void dv_priv_obs_xfree_cubic_avx2(const double *rx, const double *rxu, size_t nf, size_t ns,
+                                  const double *sv, double *xl);
+
 /* The same step in modal coordinates (o->modal, past the first sample): q+ = Lam q + inputs,
  * with Lam's 2 x 2 blocks and the prediction's C T rows from o->modal_form; y NULL:
  * open loop, as dv_obs_step(). A non-finite u or y goes to dv_priv_obs_step_slow(). Returns

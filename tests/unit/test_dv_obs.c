@@ -274,6 +274,51 @@ static void test_obs_vector_kernel_any_size_matches_portable(void **state)
     }
 }
 
+// The cubic hold's element step with the vector kernels (the sub-nodes' force-free X in AVX2,
+// four nodes at a time, then the step with AVX2 + FMA) against the portable ones: chains of 3,
+// 5 and 7 DOF, one contact (9 nodes: two blocks of four and one node) or two (18), engaging,
+// open loop. The same arithmetic up to rounding (the step's FMA and summation order). On a CPU
+// without AVX2 both runs take the portable kernels.
+static void test_obs_cubic_hold_vector_kernels_match_portable(void **state)
+{
+    (void)state;
+    load_force();
+    static dv_real_t y1[NS * 8], y2[NS * 8], ylin[NS * 8];
+    static const int sizes[][2] = {{3, 3}, {5, 2}, {7, 6}};
+    for (size_t c = 0; c < sizeof sizes / sizeof sizes[0]; c++) {
+        const int n = sizes[c][0], no = sizes[c][1];
+        const size_t len = (size_t)no * NS;
+        for (uint16_t ne = 0; ne <= 2; ne++) {
+            dv_model_desc_t d;
+            dv_model_t m;
+            dv_obs_t o;
+            chain_desc(&d, n, no, ne > 0, 1);
+            d.n_elem = ne;
+            d.input_hold = DV_HOLD_CUBIC;
+            assert_int_equal(dv_model_init(&m, &d, DT, mbuf, NBUF), DV_OK);
+            assert_int_equal(dv_obs_init(&o, &m, NULL, obuf, NBUF), DV_OK);
+            assert_int_equal(o.path, DV_OBS_PATH_GENERAL);
+            const unsigned simd = (unsigned)o.kern;
+            assert_int_equal(dv_obs_simulate(&o, force_r, NS, ne ? y1 : ylin), DV_OK);
+            if (ne == 0) {
+                continue;
+            }
+            o.kern = DV_OBS_KERN_C;
+            assert_int_equal(dv_obs_simulate(&o, force_r, NS, y2), DV_OK);
+            double e = 0, dl = 0, r = rms(y2, len);
+            for (size_t i = 0; i < len; i++) {
+                assert_true(isfinite(y1[i]) && isfinite(y2[i]));
+                e = fmax(e, fabs((double)y1[i] - y2[i]));
+                dl = fmax(dl, fabs((double)y2[i] - ylin[i]));
+            }
+            fprintf(stderr, "cubic hold, kernel %u vs portable, %d DOF, %u contact(s): max |dy| / "
+                    "rms y = %.3g (contacts' share %.3g)\n", simd, n, (unsigned)ne, e / r, dl / r);
+            assert_true(dl > 0.1 * r); // the contacts engage
+            assert_true(e <= (sizeof(dv_real_t) == 8 ? 1e-9 : 1e-4) * r);
+        }
+    }
+}
+
 // Two elements (the general multi-element contact path) against one (the single-element path):
 // the bumper split into two halves of stiffness kb/2 on the same storeys gives, node by node,
 // the same X and the same total force, so the responses agree to rounding. A third element
@@ -1058,6 +1103,7 @@ int main(void)
         cmocka_unit_test(test_obs_kalman_gain_matches_scipy_dare),
         cmocka_unit_test(test_obs_free_chain_gain_holds_or_refused),
         cmocka_unit_test(test_obs_vector_kernel_any_size_matches_portable),
+        cmocka_unit_test(test_obs_cubic_hold_vector_kernels_match_portable),
         cmocka_unit_test(test_obs_perfect_model_residual_is_zero),
         cmocka_unit_test(test_obs_gain_tracks_perturbed_model),
         cmocka_unit_test(test_obs_vector_kernels_match_portable),
