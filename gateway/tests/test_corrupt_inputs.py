@@ -623,6 +623,22 @@ def test_damaged_zstd_chunk_is_an_error(seeds: dict[str, Path], tmp_path: Path,
             assert "read error: damaged" in out.stdout
 
 
+def test_an_input_error_quoting_several_lines_is_logged_on_one(
+        monkeypatch: pytest.MonkeyPatch, seeds: dict[str, Path],
+        caplog: pytest.LogCaptureFixture, capsys: pytest.CaptureFixture[str]) -> None:
+    import dynval.cmd_features as cf
+    from dynval.errors import InputFileError
+
+    def refuse(*_: object, **__: object) -> None:  # a library's refusal quoted as it was
+        raise InputFileError(seeds["csv"], "the reader said:\n  bad name\n\tat 'x'", line=3)
+
+    monkeypatch.setattr(cf, "compute", refuse)
+    out = run_cli(["features", str(seeds["csv"])], caplog, capsys)
+    assert out.rc == 2 and len(out.errors) == 1
+    msg = out.errors[0].getMessage()
+    assert msg == f"{seeds['csv']}:3: the reader said: bad name at 'x'"
+
+
 def test_internal_error_is_one_line_and_debug_shows_it(
         monkeypatch: pytest.MonkeyPatch, seeds: dict[str, Path],
         caplog: pytest.LogCaptureFixture, capsys: pytest.CaptureFixture[str]) -> None:

@@ -88,7 +88,8 @@ def _run_reporting(args: argparse.Namespace) -> int:
     except DynvalError as exc:
         if tracebacks:
             log.exception("dynval failed")
-        log.error("%s", exc)
+        # one line whatever a library's text quoted in it holds (a damaged file's names)
+        log.error("%s", _one_line(str(exc), limit=None))
         return EXIT_INPUT
     except KeyboardInterrupt:
         log.error("interrupted")
@@ -109,9 +110,10 @@ def _run_reporting(args: argparse.Namespace) -> int:
         return EXIT_INTERNAL
 
 
-def _one_line(text: str, limit: int = 200) -> str:
+def _one_line(text: str, limit: int | None = 200) -> str:
+    """text on one line (its whitespace runs, newlines too, as one space), cut to limit."""
     t = " ".join(text.split())
-    return t if len(t) <= limit else t[: limit - 3] + "..."
+    return t if limit is None or len(t) <= limit else t[: limit - 3] + "..."
 
 
 def _silence_stdout() -> None:
