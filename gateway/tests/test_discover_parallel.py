@@ -5,6 +5,8 @@ from __future__ import annotations
 import logging
 import multiprocessing as mp
 import os
+import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -124,6 +126,35 @@ def test_a_point_map_keeps_its_workers_and_returns_the_serial_vectors() -> None:
         with parallel.PointMap(_pid_vector, workers) as pm, \
                 pytest.raises(ValueError, match="shape"):
             pm(pts, 4)  # a vector of another length than announced
+
+
+def _threads_once_alone(x: int) -> tuple[int, int, bool]:
+    """Task 0: the threads it may use while task 1 is unfinished. Task 1: waits for task 0 to
+    finish, then maps six slow points: (its spare threads, the threads that ran them, whether
+    the vectors are the serial ones)."""
+    if x == 0:
+        return parallel.spare_threads(2), 0, True
+    deadline = time.monotonic() + 30.0
+    while parallel.spare_threads(2) < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    ran: set[int] = set()
+
+    def slow_square(z: np.ndarray) -> np.ndarray:
+        ran.add(threading.get_ident())
+        time.sleep(0.05)  # the other thread takes the next point meanwhile
+        return np.array([z[0] ** 2, -z[0]])
+
+    with parallel.PointMap(slow_square, 2) as pm:
+        v = np.asarray(pm([np.array([float(i)]) for i in range(6)], 2))
+    same = np.array_equal(v, [[i * i, -i] for i in range(6)])
+    return parallel.spare_threads(2), len(ran), same
+
+
+def test_a_point_map_in_a_task_takes_the_cores_its_map_has_no_work_for() -> None:
+    (busy, _, _), (alone, threads, same) = parallel.ordered_map(_threads_once_alone, [0, 1], 2)
+    assert busy == 1  # both tasks unfinished: each keeps to its own core
+    assert alone == 2 and threads == 2 and same
+    assert parallel.spare_threads(2) == 1  # outside a task
 
 
 def _curved(z: np.ndarray) -> np.ndarray:

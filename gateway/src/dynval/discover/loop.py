@@ -203,21 +203,36 @@ def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
         # declared model that is not best-linear the re-adjustment rarely moves the error
         # (6-DOF case: -0.1 %, 10 s)
         screen = ft.first_order_gain(cur, names, fit_t, s.chans, s.scales, s.workers)
-        fits = [] if screen < READJUST_GAIN else [
-            ft.fit(cur, fx.NONE.candidates(cur)[0], [], fit_t, s.chans, s.scales,
-                   s.o.max_nfev, names, workers=s.workers)]
     except ConfigError as exc:
         log.info("re-adjusting the declared parameters failed: %s", exc)
         return None
-    if not fits:
+    if screen < READJUST_GAIN:
         log.info("re-adjusting the declared parameters jointly: one Gauss-Newton step "
                  "would lower the fitting error by %.2g %%", 100 * screen)
     # through the observer's gains until one re-adjustment is kept: that one moved the modes
     # where the data put them (blind sweep case 15: 118 s for a later round's, not kept)
-    far = None if s.readjust_kept else continuation.fit(cur, names, fit_t, s.chans, s.scales,
-                                                        s.o.max_nfev, s.workers)
-    if far is not None:
-        fits.append(far)
+    through_gains = ([False] if screen >= READJUST_GAIN else []) + ([] if s.readjust_kept
+                                                                    else [True])
+
+    def readjusted(through: bool) -> ft.FitResult | str | None:  # str: open loop's refusal
+        if through:
+            return continuation.fit(cur, names, fit_t, s.chans, s.scales, s.o.max_nfev,
+                                    s.workers)
+        try:
+            return ft.fit(cur, fx.NONE.candidates(cur)[0], [], fit_t, s.chans, s.scales,
+                          s.o.max_nfev, names, workers=s.workers)
+        except ConfigError as exc:
+            return str(exc)
+
+    # side by side (the same fits as one after the other; the one left alone takes the
+    # idle core for its Jacobians: parallel.spare_threads)
+    done = parallel.ordered_map(readjusted, through_gains, s.workers)
+    refused = next((d for d in done if isinstance(d, str)), None)
+    if refused is not None:
+        log.info("re-adjusting the declared parameters failed: %s", refused)
+        return None
+    fits = [d for d in done if isinstance(d, ft.FitResult)]
+    far = next((d for t, d in zip(through_gains, done, strict=True) if t), None)
     if not fits:
         return None
     cal = min(fits, key=lambda f: f.nsse_fit)

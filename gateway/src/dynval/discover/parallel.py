@@ -9,7 +9,9 @@ task runs the same code on the same inputs in another process. Where fork is not
 
 PointMap is the same for the many small maps of one fit (a Jacobian's columns, one map per
 iteration): its workers are forked once per fit, and the vectors come back through memory
-shared with them instead of pickled."""
+shared with them instead of pickled. Inside a task of a map whose last tasks leave cores idle
+(a round's longest fit running alone), it runs its points on threads instead (the core
+simulates without the GIL)."""
 from __future__ import annotations
 
 import concurrent.futures as cf
@@ -30,6 +32,10 @@ R = TypeVar("R")
 # the work of the pool being run; set before the fork, read by the workers
 _WORK: tuple[Callable[[Any], Any], Sequence[Any]] | None = None
 _IN_WORKER = False  # set in a forked worker: a map inside a task runs serially (2 cores, not 4)
+# the running map's tasks not finished yet and its cores (set before the fork, shared with the
+# workers): a task's PointMap takes the cores its map no longer has work for (spare_threads)
+_LEFT: Any = None
+_CORES = 0
 
 
 WORKERS_ENV = "DYNVAL_WORKERS"
@@ -56,7 +62,20 @@ def _run(i: int) -> Any:
     assert _WORK is not None, "a worker without work (not forked from ordered_map)"
     _IN_WORKER = True
     fn, items = _WORK
-    return fn(items[i])
+    try:
+        return fn(items[i])
+    finally:
+        with _LEFT.get_lock():
+            _LEFT.value -= 1
+
+
+def spare_threads(workers: int) -> int:
+    """Threads a map inside a task of ordered_map may use, up to ``workers``: its own and the
+    cores its map has no task left for (a round of five fits, the last one alone for 9 s of
+    the 6-DOF sweep's 23); 1 outside such a task."""
+    if not _IN_WORKER or _LEFT is None:
+        return 1
+    return max(1, min(workers, 1 + _CORES - int(_LEFT.value)))
 
 
 def _forked_here(workers: int) -> bool:
@@ -71,19 +90,20 @@ def ordered_map(fn: Callable[[T], R], items: Sequence[T], workers: int,
     serially (the outer map already uses the cores). ``cost``: the tasks' expected durations;
     the workers take the longest first (a pool waits on its last task: a round of five fits
     of 2-13 s), the results still in the items' order."""
-    global _WORK
+    global _WORK, _LEFT, _CORES
     n = min(workers, len(items))
     if not _forked_here(n):
         return [fn(x) for x in items]
     order = (sorted(range(len(items)), key=lambda i: -cost[i]) if cost is not None
              else list(range(len(items))))
     _WORK = (fn, items)
+    _LEFT, _CORES = mp.get_context("fork").Value("i", len(items)), workers
     try:
         with cf.ProcessPoolExecutor(max_workers=n, mp_context=mp.get_context("fork")) as ex:
             done = dict(zip(order, ex.map(_run, order), strict=True))
         return [done[i] for i in range(len(items))]
     finally:
-        _WORK = None
+        _WORK, _LEFT = None, None
 
 
 # the work of each open PointMap, by its id; read by its workers, forked while it is set
@@ -110,8 +130,9 @@ class PointMap:
     forked at the first call and kept until close (a fit's Jacobians: a pool forked per
     Jacobian cost 100 ms against 150 ms of a 6-DOF fit's 17 columns), each writing its
     vectors into memory shared with this process (rows of one array). The same numbers as
-    the serial loop, which runs where ordered_map would (one worker, inside a task, no fork)
-    and gives fn's own arrays, uncopied (stacked, a 6-DOF fit's 16 Jacobian columns of
+    the serial loop, which runs where ordered_map would (one worker, inside a task, no fork;
+    inside a task on spare_threads threads, fn being thread-safe) and gives fn's own arrays,
+    uncopied (stacked, a 6-DOF fit's 16 Jacobian columns of
     245 760 values were copied once more: 3.7 s of the 6-DOF sweep's 122 in one process)."""
 
     def __init__(self, fn: Callable[[np.ndarray], np.ndarray], workers: int) -> None:
@@ -121,7 +142,12 @@ class PointMap:
 
     def __call__(self, points: Sequence[np.ndarray], size: int) -> list[np.ndarray] | np.ndarray:
         if not _forked_here(min(self.workers, len(points))):
-            out = [np.asarray(self.fn(p), dtype=np.float64) for p in points]
+            threads = min(spare_threads(self.workers), len(points))
+            if threads > 1:
+                with cf.ThreadPoolExecutor(threads) as ex:
+                    out = list(ex.map(self._vector, points))
+            else:
+                out = [self._vector(p) for p in points]
             for v in out:
                 _check_shape(v, (size,))
             return out
@@ -137,6 +163,9 @@ class PointMap:
         for f in done:
             f.result()  # a worker's exception raised here
         return self._out[:len(points)]
+
+    def _vector(self, point: np.ndarray) -> np.ndarray:
+        return np.asarray(self.fn(point), dtype=np.float64)
 
     def close(self) -> None:
         """Stop the workers (the last result stays readable)."""

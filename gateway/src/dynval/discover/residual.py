@@ -10,6 +10,7 @@ import dataclasses
 import importlib
 import logging
 import math
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -62,6 +63,7 @@ class Observer:
 # prepared inputs a test keeps (TestData.input_for): the declared and the observer's, and the
 # last few of a fit that moves the DAQ filter's cutoff (each of them a record's worth)
 PREPARED_KEPT = 4
+_PREPARED_LOCK = threading.Lock()
 
 
 @dataclass
@@ -115,16 +117,17 @@ class TestData:
         table acceleration without its sensor's noise under the excitation band
         (noise.simulated_input), and without m's DAQ filter when it declares one."""
         key = (mdl.oversample_factor(m), daq.applied(m))
-        prepared = self._prepared.pop(key, None)  # put back last: the least recently used
-        if prepared is None:                      # is first, and goes when there are more
-            u = self._simulated.get(m.input.kind)
-            if u is None:
-                u = self._simulated[m.input.kind] = noise.simulated_input(
-                    m.input.kind, self.u, self.fs_hz)
-            prepared = mdl.prepare_input(m, u, fs_hz=self.fs_hz)
-            if len(self._prepared) >= PREPARED_KEPT:
-                del self._prepared[next(iter(self._prepared))]
-        self._prepared[key] = prepared
+        with _PREPARED_LOCK:  # a fit's Jacobian may simulate on threads (parallel.PointMap)
+            prepared = self._prepared.pop(key, None)  # put back last: the least recently used
+            if prepared is None:                      # is first, and goes when there are more
+                u = self._simulated.get(m.input.kind)
+                if u is None:
+                    u = self._simulated[m.input.kind] = noise.simulated_input(
+                        m.input.kind, self.u, self.fs_hz)
+                prepared = mdl.prepare_input(m, u, fs_hz=self.fs_hz)
+                if len(self._prepared) >= PREPARED_KEPT:
+                    del self._prepared[next(iter(self._prepared))]
+            self._prepared[key] = prepared
         return prepared
 
     def observer_input(self, m: mdl.Model) -> mdl.PreparedInput:
