@@ -2,6 +2,7 @@
 serial loop's, bit for bit, in the same order, and a worker's exception reaches the caller."""
 from __future__ import annotations
 
+import dataclasses
 import logging
 import multiprocessing as mp
 import os
@@ -20,6 +21,7 @@ from dynval import model as mdl
 from dynval import synth as gen
 from dynval.discover import fit as ft
 from dynval.discover import loop, parallel, report
+from dynval.discover import residual as rs
 from dynval.errors import ConfigError
 
 
@@ -133,9 +135,9 @@ def _threads_once_alone(x: int) -> tuple[int, int, bool]:
     finish, then maps six slow points: (its spare threads, the threads that ran them, whether
     the vectors are the serial ones)."""
     if x == 0:
-        return parallel.spare_threads(2), 0, True
+        return parallel.idle_threads(), 0, True
     deadline = time.monotonic() + 30.0
-    while parallel.spare_threads(2) < 2 and time.monotonic() < deadline:
+    while parallel.idle_threads() < 2 and time.monotonic() < deadline:
         time.sleep(0.01)
     ran: set[int] = set()
 
@@ -147,14 +149,50 @@ def _threads_once_alone(x: int) -> tuple[int, int, bool]:
     with parallel.PointMap(slow_square, 2) as pm:
         v = np.asarray(pm([np.array([float(i)]) for i in range(6)], 2))
     same = np.array_equal(v, [[i * i, -i] for i in range(6)])
-    return parallel.spare_threads(2), len(ran), same
+    return parallel.idle_threads(), len(ran), same
 
 
 def test_a_point_map_in_a_task_takes_the_cores_its_map_has_no_work_for() -> None:
-    (busy, _, _), (alone, threads, same) = parallel.ordered_map(_threads_once_alone, [0, 1], 2)
+    with parallel.budget(2):  # a discover run's two workers
+        (busy, _, _), (alone, threads, same) = parallel.ordered_map(_threads_once_alone,
+                                                                    [0, 1], 2)
+        assert parallel.idle_threads() == 2  # here, outside the map: the budget
     assert busy == 1  # both tasks unfinished: each keeps to its own core
     assert alone == 2 and threads == 2 and same
-    assert parallel.spare_threads(2) == 1  # outside a task
+    assert parallel.idle_threads() == 1  # outside a discover run
+
+
+def test_a_residual_over_tests_on_threads_is_the_serial_one(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    m = dataclasses.replace(carriage(), elements=(mdl.Friction(0, 1, 1.5, 1e-3),))
+    recs = gen.generate(carriage(), gen.Truth(elements=m.elements), n_tests=3, n_samples=2048,
+                        seed=4)
+    tests = rs.prepare(m, recs)
+    tests[1] = rs.segment_split(tests[1:2])[0][0]  # a view counting half its samples
+    chans = rs.common_channels(m, tests)
+    scales = rs.channel_scales(tests, chans)
+    threads: set[int] = set()
+    real = ft.predict
+
+    def predict(mm: mdl.Model, t: rs.TestData) -> dict[str, np.ndarray] | None:
+        threads.add(threading.get_ident())
+        return real(mm, t)
+
+    monkeypatch.setattr(ft, "predict", predict)
+    monkeypatch.setattr(rs, "predict", predict)
+    out = {}
+    for workers in (1, 2):
+        threads.clear()
+        with parallel.budget(workers):
+            out[workers] = (ft.residual_vector(m, tests, chans, scales),
+                            rs.error_table(m, tests, chans, scales))
+        here = threading.get_ident() in threads
+        assert here == (workers == 1) and len(threads) <= workers  # else a pool's threads
+    (r1, (tab1, res1)), (r2, (tab2, res2)) = out[1], out[2]
+    assert r1 is not None and r2 is not None and np.array_equal(r1, r2)
+    assert tab1 == tab2 and all(np.array_equal(res1[t][c], res2[t][c])
+                                for t in res1 for c in chans)
+    assert ft.residual_size(tests, chans) == r1.size < 3 * 2048 * len(chans)
 
 
 def _curved(z: np.ndarray) -> np.ndarray:

@@ -143,22 +143,32 @@ def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str
     finite, 1e300, and overflow every product the fit takes of it (an observer's at a model
     free from the ground)."""
     out = np.empty(residual_size(tests, chans))  # filled in place: no copies
-    total = 0.0
-    at = 0
-    for t in tests:
+    first = np.cumsum([0, *(len(chans) * t.n for t in tests)])
+
+    def fill(i: int) -> list[float] | None:
+        """Test i's part of out, and its channels' sums of squares (None: no prediction)."""
+        t = tests[i]
         p = predict(m, t)
         if p is None:
             return None
-        for c in chans:
-            r = out[at:at + t.n]
-            at += t.n
+        sums = []
+        for k, c in enumerate(chans):
+            r = out[first[i] + k * t.n:first[i] + (k + 1) * t.n]
             if t.mask is None:
                 np.subtract(t.y[c], p[c], out=r)
             else:
                 r[:] = t.counted(t.y[c] - p[c])
             np.divide(r, scales[c] * math.sqrt(t.n), out=r)
             with np.errstate(over="ignore", invalid="ignore"):
-                total += float(r @ r)
+                sums.append(float(r @ r))
+        return sums
+
+    total = 0.0  # summed in the tests' and channels' order, on any number of threads
+    for sums in parallel.thread_map(fill, range(len(tests))):
+        if sums is None:
+            return None
+        for ss in sums:
+            total += ss
             if not total <= _PENALTY ** 2:  # NaN and inf fail it too: the later tests unrun
                 return None
     return out

@@ -225,7 +225,7 @@ def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
             return str(exc)
 
     # side by side (the same fits as one after the other; the one left alone takes the
-    # idle core for its Jacobians: parallel.spare_threads)
+    # idle core for its Jacobians: parallel.idle_threads)
     done = parallel.ordered_map(readjusted, through_gains, s.workers)
     refused = next((d for d in done if isinstance(d, str)), None)
     if refused is not None:
@@ -633,8 +633,10 @@ def discover(m: mdl.Model, recs: Sequence[Recording], opts: Options | None = Non
     # one BLAS thread: the loop's products are tall and thin (samples x a few bases), where a
     # threaded BLAS mostly waits on its own threads (measured: evidence scoring 1.2 s with one
     # thread, 15 s with two on this 2-core host under load)
-    with _threadpoolctl.threadpool_limits(limits=1, user_api="blas"):
-        return _discover(m, recs, opts or Options(), on_progress)
+    o = opts or Options()
+    with _threadpoolctl.threadpool_limits(limits=1, user_api="blas"), \
+            parallel.budget(o.workers or parallel.available_workers()):
+        return _discover(m, recs, o, on_progress)
 
 
 def simulation_for_fits(m: mdl.Model, o: Options) -> tuple[mdl.Model, str]:

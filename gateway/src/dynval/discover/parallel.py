@@ -10,15 +10,18 @@ task runs the same code on the same inputs in another process. Where fork is not
 PointMap is the same for the many small maps of one fit (a Jacobian's columns, one map per
 iteration): its workers are forked once per fit, and the vectors come back through memory
 shared with them instead of pickled. Inside a task of a map whose last tasks leave cores idle
-(a round's longest fit running alone), it runs its points on threads instead (the core
-simulates without the GIL)."""
+(a round's longest fit running alone), it runs its points on threads instead (thread_map: the
+core simulates without the GIL), as does a fit's residual over its tests wherever cores are
+idle (a trial point between two Jacobians)."""
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import mmap
 import multiprocessing as mp
 import os
-from collections.abc import Callable, Sequence
+import threading
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from types import TracebackType
 from typing import Any, TypeVar
 
@@ -33,9 +36,11 @@ R = TypeVar("R")
 _WORK: tuple[Callable[[Any], Any], Sequence[Any]] | None = None
 _IN_WORKER = False  # set in a forked worker: a map inside a task runs serially (2 cores, not 4)
 # the running map's tasks not finished yet and its cores (set before the fork, shared with the
-# workers): a task's PointMap takes the cores its map no longer has work for (spare_threads)
+# workers): a task's PointMap takes the cores its map no longer has work for (idle_threads)
 _LEFT: Any = None
 _CORES = 0
+_BUDGET = 1  # the cores the running discover may use (budget()); 1 outside one
+_NESTED = threading.local()  # .on: a thread of thread_map or PointMap (its own work is serial)
 
 
 WORKERS_ENV = "DYNVAL_WORKERS"
@@ -69,13 +74,49 @@ def _run(i: int) -> Any:
             _LEFT.value -= 1
 
 
-def spare_threads(workers: int) -> int:
-    """Threads a map inside a task of ordered_map may use, up to ``workers``: its own and the
-    cores its map has no task left for (a round of five fits, the last one alone for 9 s of
-    the 6-DOF sweep's 23); 1 outside such a task."""
-    if not _IN_WORKER or _LEFT is None:
+@contextlib.contextmanager
+def budget(workers: int) -> Iterator[None]:
+    """The cores thread_map may use in the block (a discover run's workers)."""
+    global _BUDGET
+    before, _BUDGET = _BUDGET, max(1, workers)
+    try:
+        yield
+    finally:
+        _BUDGET = before
+
+
+def idle_threads() -> int:
+    """Threads a map of small independent computations may use now: 1 on a thread of another
+    map; inside a task of ordered_map its own and the cores its map has no task left for (a
+    round of five fits, the last one alone for 9 s of the 6-DOF sweep's 23; 1 in a forked
+    PointMap worker); else the budget (this process is the only one working: a fit's trial
+    point between two Jacobians)."""
+    if getattr(_NESTED, "on", False):
         return 1
-    return max(1, min(workers, 1 + _CORES - int(_LEFT.value)))
+    if not _IN_WORKER:
+        return _BUDGET
+    if _LEFT is None:
+        return 1
+    return max(1, min(_BUDGET, 1 + _CORES - int(_LEFT.value)))
+
+
+def _nested(fn: Callable[[T], R]) -> Callable[[T], R]:
+    def run(x: T) -> R:
+        _NESTED.on = True
+        return fn(x)
+    return run
+
+
+def thread_map(fn: Callable[[T], R], items: Sequence[T], most: int | None = None
+               ) -> Iterable[R]:
+    """fn over items, in order, on idle_threads() threads, at most ``most`` (fn thread-safe
+    and mostly outside the GIL: the core's simulations); with one, lazily here (a caller may
+    stop early)."""
+    n = min(idle_threads(), len(items), most or len(items))
+    if n <= 1:
+        return map(fn, items)
+    with cf.ThreadPoolExecutor(n) as ex:
+        return list(ex.map(_nested(fn), items))
 
 
 def _forked_here(workers: int) -> bool:
@@ -131,9 +172,9 @@ class PointMap:
     Jacobian cost 100 ms against 150 ms of a 6-DOF fit's 17 columns), each writing its
     vectors into memory shared with this process (rows of one array). The same numbers as
     the serial loop, which runs where ordered_map would (one worker, inside a task, no fork;
-    inside a task on spare_threads threads, fn being thread-safe) and gives fn's own arrays,
-    uncopied (stacked, a 6-DOF fit's 16 Jacobian columns of
-    245 760 values were copied once more: 3.7 s of the 6-DOF sweep's 122 in one process)."""
+    there on the threads thread_map finds idle, fn being thread-safe) and gives fn's own
+    arrays, uncopied (stacked, a 6-DOF fit's 16 Jacobian columns of 245 760 values were
+    copied once more: 3.7 s of the 6-DOF sweep's 122 in one process)."""
 
     def __init__(self, fn: Callable[[np.ndarray], np.ndarray], workers: int) -> None:
         self.fn, self.workers = fn, workers
@@ -142,12 +183,7 @@ class PointMap:
 
     def __call__(self, points: Sequence[np.ndarray], size: int) -> list[np.ndarray] | np.ndarray:
         if not _forked_here(min(self.workers, len(points))):
-            threads = min(spare_threads(self.workers), len(points))
-            if threads > 1:
-                with cf.ThreadPoolExecutor(threads) as ex:
-                    out = list(ex.map(self._vector, points))
-            else:
-                out = [self._vector(p) for p in points]
+            out = list(thread_map(self._vector, points, self.workers))
             for v in out:
                 _check_shape(v, (size,))
             return out

@@ -19,7 +19,7 @@ import numpy as np
 
 from dynval import features as feat
 from dynval import model as mdl
-from dynval.discover import noise
+from dynval.discover import noise, parallel
 from dynval.errors import ConfigError
 from dynval.io.recording import Recording
 from dynval.model import daq
@@ -343,8 +343,8 @@ def error_table(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
     rmse: dict[str, dict[str, float]] = {}
     nsse: dict[str, float] = {}
     res_all: dict[str, dict[str, np.ndarray]] = {}
-    for t in tests:
-        r = residuals(m, t, chans)
+    every = parallel.thread_map(lambda t: residuals(m, t, chans), tests)
+    for t, r in zip(tests, every, strict=True):
         if r is None:
             rmse[t.name] = {c: math.inf for c in chans}
             nsse[t.name] = math.inf
