@@ -92,7 +92,11 @@ def test_discover_gives_the_same_report_on_one_and_on_two_processes() -> None:
     docs = []
     for workers in (1, 2):
         doc = report.to_json(loop.discover(carriage(), recs, loop.Options(workers=workers)))
-        doc.pop("timing_s", None)
+        t = doc.pop("timing_s")  # seconds by phase, adding up to the whole run
+        parts = [k for k in t if k != "total"]
+        assert parts[0] == "setup" and parts[1] == "round_1" and parts[-1] == "final"
+        assert "after_round_1" in parts and sum(t[k] for k in parts) == pytest.approx(
+            t["total"], rel=0.01, abs=0.01)
         docs.append(doc)
     assert docs[0]["effects"] and docs[0]["effects"][0]["type"] == "friction"
     assert docs[0] == docs[1]

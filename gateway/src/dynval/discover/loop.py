@@ -738,7 +738,10 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
             cur_table, _ = s.table(cur)
     accepted: set[str] = set()
     steps: list[Step] = []
-    timing: dict[str, float] = {}
+    # seconds by phase: before the rounds, each round's trace and fits, what follows an
+    # accepted one (the scatter, the starts, the joint re-adjustment), the end (backward
+    # elimination, the final tables), and the whole run
+    timing: dict[str, float] = {"setup": time.perf_counter() - t_start}
     start = cur
     for rnd in range(1, o.max_effects + 2):
         t0 = time.perf_counter()
@@ -794,6 +797,9 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
         noise = {c: f.rms for c, f in floors.items()}
         accepted.add(cand_key(res_b.cand))
         rd.decision = f"accepted {res_b.cand.label}"
+        timing[f"after_round_{rnd}"] = time.perf_counter() - t0 - timing[f"round_{rnd}"]
+    t_end = time.perf_counter()
+    timing.setdefault(f"round_{rnd}", t_end - t0)  # the round that stopped: its trace
     cur, cur_table = backward(s, steps, cur, cur_table, effects, prediction)
     _changes_as_final(start, cur, effects)
     after, res_after = s.table(cur)
@@ -801,6 +807,7 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
     unexp = (ux.characterise(s.evals, res_after, s.chans, noise, s.modes_hz)
              if any(r > o.significance_ratio for r in left.values()) else {})
     mah = _mahal(m, cur, s.tests, s.chans, s.band, noise)
+    timing["final"] = time.perf_counter() - t_end
     timing["total"] = time.perf_counter() - t_start
     return DiscoverResult(m, cur, s.evals, s.fit_names, s.held_names, s.chans, s.scales, noise,
                           before, after, res_before, res_after, rounds, effects, mah, s.band,
