@@ -10,6 +10,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -184,14 +185,18 @@ def test_a_residual_over_tests_on_threads_is_the_serial_one(
 
     monkeypatch.setattr(ft, "predict", predict)
     monkeypatch.setattr(rs, "predict", predict)
-    out = {}
+    out: dict[int, tuple[Any, ...]] = {}
     for workers in (1, 2):
-        threads.clear()
+        got = []
         with parallel.budget(workers):
-            out[workers] = (ft.residual_vector(m, tests, chans, scales),
-                            rs.error_table(m, tests, chans, scales))
-        here = threading.get_ident() in threads
-        assert here == (workers == 1) and len(threads) <= workers  # else a pool's threads
+            for run in (lambda: ft.residual_vector(m, tests, chans, scales),
+                        lambda: rs.error_table(m, tests, chans, scales)):
+                threads.clear()
+                got.append(run())
+                # this thread alone, or up to two of a pool's (its own, each call)
+                assert (threading.get_ident() in threads) == (workers == 1)
+                assert 1 <= len(threads) <= workers
+        out[workers] = tuple(got)
     (r1, (tab1, res1)), (r2, (tab2, res2)) = out[1], out[2]
     assert r1 is not None and r2 is not None and np.array_equal(r1, r2)
     assert tab1 == tab2 and all(np.array_equal(res1[t][c], res2[t][c])
