@@ -204,6 +204,24 @@ def test_a_residual_over_tests_on_threads_is_the_serial_one(
     assert ft.residual_size(tests, chans) == r1.size < 3 * 2048 * len(chans)
 
 
+def test_each_test_prepares_its_input_under_its_own_lock() -> None:
+    """A test preparing its input does not hold up another's (a fit of the DAQ filter's
+    cutoff prepares an input per test and cutoff, on threads); a copy or a pickled test has
+    a lock of its own and gives the same input."""
+    import pickle
+
+    m = carriage()
+    tests = rs.prepare(m, gen.generate(m, gen.Truth(), n_tests=2, n_samples=1024, seed=2))
+    done = threading.Event()
+    with tests[0]._lock:  # as if test 0 were preparing on another thread
+        threading.Thread(target=lambda: (tests[1].input_for(m), done.set())).start()
+        assert done.wait(30.0)
+    for copy in (dataclasses.replace(tests[0]), pickle.loads(pickle.dumps(tests[0]))):
+        assert copy._lock is not tests[0]._lock
+        a, b = copy.input_for(m), tests[0].input_for(m)
+        assert a.r == b.r and np.array_equal(a.fine, b.fine)
+
+
 def _curved(z: np.ndarray) -> np.ndarray:
     return np.array([np.sin(3 * z[0]) * z[1], np.exp(z[1]) - z[0] ** 2, z[0] * z[1] * z[2]])
 

@@ -169,7 +169,7 @@ def residual_vector(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str
             return None
         for ss in sums:
             total += ss
-            if not total <= _PENALTY ** 2:  # NaN and inf fail it too: the later tests unrun
+            if not total <= _PENALTY ** 2:  # NaN and inf fail it too; serially, later tests unrun
                 return None
     return out
 

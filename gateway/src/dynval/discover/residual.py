@@ -63,7 +63,6 @@ class Observer:
 # prepared inputs a test keeps (TestData.input_for): the declared and the observer's, and the
 # last few of a fit that moves the DAQ filter's cutoff (each of them a record's worth)
 PREPARED_KEPT = 4
-_PREPARED_LOCK = threading.Lock()
 
 
 @dataclass
@@ -111,13 +110,24 @@ class TestData:
     # cutoff (6-DOF sweep: 1155 of them, 13 s)
     _simulated: dict[str, np.ndarray] = field(default_factory=dict, init=False, repr=False,
                                               compare=False)
+    # guards the two caches: a fit's Jacobian may simulate on threads (parallel.PointMap);
+    # one per test, so the tests of a residual prepare their inputs side by side
+    _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False,
+                                  compare=False)
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {k: v for k, v in self.__dict__.items() if k != "_lock"}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
 
     def input_for(self, m: mdl.Model) -> mdl.PreparedInput:
         """The input as m's simulations take it (mdl.simulate), interpolated once: a force or
         table acceleration without its sensor's noise under the excitation band
         (noise.simulated_input), and without m's DAQ filter when it declares one."""
         key = (mdl.oversample_factor(m), daq.applied(m))
-        with _PREPARED_LOCK:  # a fit's Jacobian may simulate on threads (parallel.PointMap)
+        with self._lock:
             prepared = self._prepared.pop(key, None)  # put back last: the least recently used
             if prepared is None:                      # is first, and goes when there are more
                 u = self._simulated.get(m.input.kind)
