@@ -800,7 +800,15 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
         timing[f"after_round_{rnd}"] = time.perf_counter() - t0 - timing[f"round_{rnd}"]
     t_end = time.perf_counter()
     timing.setdefault(f"round_{rnd}", t_end - t0)  # the round that stopped: its trace
+    n_steps = len(steps)
     cur, cur_table = backward(s, steps, cur, cur_table, effects, prediction)
+    if len(steps) < n_steps:  # an effect left out: the others' fits were local, re-adjust
+        s.effect_params = {n: (st.entry, own) for st in steps
+                           for n, own in _added_params(st.before, st.info["fit"]).items()}
+        kept = _readjust_declared(s, cur, cur_table)
+        if kept is not None:
+            cur, cur_table, _ = kept
+            _follow_effect_params(s, cur, effects)
     _changes_as_final(start, cur, effects)
     after, res_after = s.table(cur)
     left = after.over_noise(s.fit_names + s.held_names, s.chans, noise)
