@@ -394,3 +394,42 @@ def test_the_running_median_is_the_median_of_each_five_bins(n: int) -> None:
     p = np.random.default_rng(n).random(n)
     expected = [np.median(p[max(0, i - 2):i + 3]) for i in range(n)]
     assert np.array_equal(nz._median5(p), expected)
+
+
+def _band_noise(rng: np.random.Generator, n: int, fs: float, lo: float, hi: float
+                ) -> np.ndarray:
+    spec = np.fft.rfft(rng.standard_normal(n))
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    spec[(f < lo) | (f > hi)] = 0.0
+    return np.fft.irfft(spec, n)
+
+
+def test_mains_hum_outside_the_input_band_is_taken_out_of_the_input() -> None:
+    """A force measured with 50 Hz pick-up (2 % of its RMS, 0.03 Hz off) and a 100 Hz one,
+    its excitation at 90-160 Hz: the 50 Hz sine is taken out to 1 % of its amplitude and
+    the rest is untouched beyond that; the 100 Hz line lies in the band and stays."""
+    fs, n = 640.0, 16384
+    rng = np.random.default_rng(3)
+    force = _band_noise(rng, n, fs, 90.0, 160.0)
+    force /= np.std(force)
+    t = np.arange(n) / fs
+    hum = 0.02 * np.sqrt(2) * np.sin(2 * np.pi * 50.03 * t + 0.7)
+    tone100 = 0.02 * np.sqrt(2) * np.sin(2 * np.pi * 100.0 * t)
+    sensor = 1e-3 * rng.standard_normal(n)
+    u = force + hum + tone100 + sensor
+    clean = nz.without_mains(u, fs)
+    left = clean - (force + tone100 + sensor)
+    assert np.std(left) < 0.01 * np.std(hum)
+    assert np.std(clean - u + hum) < 0.01 * np.std(hum)
+
+
+def test_an_input_with_no_line_outside_its_band_is_kept() -> None:
+    """Band-limited noise over 5-250 Hz with 50 Hz hum inside it, and a pure 50 Hz stepped
+    sine (its band is the line): the input is returned as it is."""
+    fs, n = 640.0, 8192
+    rng = np.random.default_rng(4)
+    t = np.arange(n) / fs
+    wide = _band_noise(rng, n, fs, 5.0, 250.0) + 0.02 * np.sin(2 * np.pi * 50.0 * t)
+    assert nz.without_mains(wide, fs) is wide
+    stepped = np.sin(2 * np.pi * 50.0 * t) + 1e-3 * rng.standard_normal(n)
+    assert nz.without_mains(stepped, fs) is stepped
