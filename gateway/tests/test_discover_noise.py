@@ -433,3 +433,24 @@ def test_an_input_with_no_line_outside_its_band_is_kept() -> None:
     assert nz.without_mains(wide, fs) is wide
     stepped = np.sin(2 * np.pi * 50.0 * t) + 1e-3 * rng.standard_normal(n)
     assert nz.without_mains(stepped, fs) is stepped
+
+
+def test_the_report_says_the_inputs_hum_was_taken_out() -> None:
+    """discover's notes name the hum line and the tests it was taken out of."""
+    from types import SimpleNamespace
+
+    from dynval import model as mdl
+    from dynval.discover import session
+
+    fs, n = 640.0, 8192
+    rng = np.random.default_rng(5)
+    t = np.arange(n) / fs
+    quiet = _band_noise(rng, n, fs, 90.0, 160.0)
+    hummed = quiet + 0.02 * np.std(quiet) * np.sin(2 * np.pi * 50.0 * t)
+    tests = [SimpleNamespace(name=f"t{i}", u=u, fs_hz=fs) for i, u in enumerate((hummed, quiet))]
+    m = mdl.Model(masses_kg=(1.0,), stiffness_n_per_m=(1e5,),
+                  damping=mdl.Damping("modal", (0.02,)), input=mdl.Input("force", 1, "f"),
+                  outputs={"a1": mdl.Output("acc", 1)}, fs_hz=fs)
+    notes = session.sub_band_note(m, tests)  # type: ignore[arg-type]
+    assert any("mains hum at 50 Hz (1 of 2 tests)" in x for x in notes)
+    assert not any("mains" in x for x in session.sub_band_note(m, tests[1:]))  # type: ignore[arg-type]

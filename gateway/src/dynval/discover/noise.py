@@ -562,15 +562,23 @@ def without_mains(u: np.ndarray, fs_hz: float) -> np.ndarray:
     simulations shake every mode near the line that the structure never felt: blind sweep
     400 (a cheap DAQ's 50 Hz on the force sensor, a sweep cut from a run at 87-162 Hz) put
     an absorber tuned to 50.06 Hz at the driven DOF to cancel it. u when there is none."""
+    out = u
+    for line in input_mains_lines(u, fs_hz):
+        out = out - _fitted_sine(out, fs_hz, line)
+    return out
+
+
+def input_mains_lines(u: np.ndarray, fs_hz: float) -> list[float]:
+    """The mains harmonics (Hz) without_mains takes out of u."""
     if u.size < 1024 or not np.all(np.isfinite(u)):
-        return u
+        return []
     f, p = signal.welch(u, fs=fs_hz, nperseg=min(1024, u.size))
     if not p.sum() > 0:
-        return u
+        return []
     c = np.cumsum(p) / p.sum()
     f_lo, f_hi = float(f[np.searchsorted(c, 0.01)]), float(f[np.searchsorted(c, 0.99)])
     df = float(f[1] - f[0])
-    out = u
+    lines = []
     for f0 in MAINS_HZ:
         for h in range(1, 6):
             k = int(round(h * f0 / df))
@@ -579,8 +587,8 @@ def without_mains(u: np.ndarray, fs_hz: float) -> np.ndarray:
             side = np.r_[k - 12:k - 2, k + 3:k + 13]
             if (p[k] > LINE_RATIO * float(np.median(p[side]))
                     and tone_contrast(u, fs_hz, h * f0) >= TONE_CONTRAST):
-                out = out - _fitted_sine(out, fs_hz, h * f0)
-    return out
+                lines.append(h * f0)
+    return lines
 
 
 def _fitted_sine(u: np.ndarray, fs_hz: float, f0: float) -> np.ndarray:

@@ -317,15 +317,23 @@ def dead_channels(m: mdl.Model, tests: Sequence[rs.TestData]) -> list[str]:
 
 
 def sub_band_note(m: mdl.Model, tests: Sequence[rs.TestData]) -> list[str]:
-    """A note saying where the simulations' input leaves out its sensor's noise (the tests'
-    input_for: noise.without_sub_band_noise)."""
+    """Notes saying what of its sensor's noise the simulations' input leaves out (the tests'
+    input_for: noise.without_mains, noise.without_sub_band_noise)."""
     if m.input.kind not in nz.SUB_BAND_KINDS:
         return []
-    corners = [c for t in tests if (c := nz.sub_band_corner(t.u, t.fs_hz)) is not None]
+    hum = {t.name: nz.input_mains_lines(t.u, t.fs_hz) for t in tests}
+    hummed = [t for t, lines in hum.items() if lines]
+    notes = [f"the measured input's mains hum at "
+             f"{', '.join(f'{x:g}' for x in sorted({x for v in hum.values() for x in v}))} Hz "
+             f"({len(hummed)} of {len(tests)} tests), outside the excitation band, is its "
+             "sensor's pick-up: taken out of the input the simulations are driven with"
+             ] if hummed else []
+    corners = [c for t in tests if (c := nz.sub_band_corner(nz.without_mains(t.u, t.fs_hz),
+                                                             t.fs_hz)) is not None]
     if not corners:
-        return []
+        return notes
     lo, hi = f"{min(corners):.3g}", f"{max(corners):.3g}"
-    return [f"the measured input under {lo if lo == hi else f'{lo}-{hi}'} Hz "
+    return notes + [f"the measured input under {lo if lo == hi else f'{lo}-{hi}'} Hz "
             f"({len(corners)} of {len(tests)} tests) is its sensor's noise (its spectrum within "
             f"{nz.SUB_BAND_FLOOR:g} x of its floor under the excitation band): the simulations "
             "are driven without it, and without its mean where that is no larger than "
