@@ -330,6 +330,21 @@ def _at_own_starts(s: Session, cur: mdl.Model, names: Sequence[str],
     return new
 
 
+def _readjust_after_backward(s: Session, steps: list[Step], cur: mdl.Model,
+                             cur_table: rs.ErrorTable, effects: list[dict[str, Any]]
+                             ) -> tuple[mdl.Model, rs.ErrorTable]:
+    """After backward elimination left an effect out: the remaining effects' parameters
+    mapped to their entries again, and the declared parameters re-adjusted jointly with them
+    (their re-fits were local)."""
+    s.effect_params = {n: (st.entry, own) for st in steps
+                       for n, own in _added_params(st.before, st.info["fit"]).items()}
+    kept = _readjust_declared(s, cur, cur_table)
+    if kept is None:
+        return cur, cur_table
+    _follow_effect_params(s, kept[0], effects)
+    return kept[0], kept[1]
+
+
 def _follow_effect_params(s: Session, m: mdl.Model, effects: list[dict[str, Any]]) -> None:
     """After the joint re-adjustment moved an effect's own parameters, its entry reports the
     model's values (the uncertainties stay those of the effect's fit)."""
@@ -802,13 +817,8 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
     timing.setdefault(f"round_{rnd}", t_end - t0)  # the round that stopped: its trace
     n_steps = len(steps)
     cur, cur_table = backward(s, steps, cur, cur_table, effects, prediction)
-    if len(steps) < n_steps:  # an effect left out: the others' fits were local, re-adjust
-        s.effect_params = {n: (st.entry, own) for st in steps
-                           for n, own in _added_params(st.before, st.info["fit"]).items()}
-        kept = _readjust_declared(s, cur, cur_table)
-        if kept is not None:
-            cur, cur_table, _ = kept
-            _follow_effect_params(s, cur, effects)
+    if len(steps) < n_steps:
+        cur, cur_table = _readjust_after_backward(s, steps, cur, cur_table, effects)
     _changes_as_final(start, cur, effects)
     after, res_after = s.table(cur)
     left = after.over_noise(s.fit_names + s.held_names, s.chans, noise)

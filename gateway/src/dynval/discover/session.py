@@ -333,7 +333,8 @@ def sub_band_note(m: mdl.Model, tests: Sequence[rs.TestData]) -> list[str]:
     if not corners:
         return notes
     lo, hi = f"{min(corners):.3g}", f"{max(corners):.3g}"
-    return notes + [f"the measured input under {lo if lo == hi else f'{lo}-{hi}'} Hz "
+    return [*notes,
+            f"the measured input under {lo if lo == hi else f'{lo}-{hi}'} Hz "
             f"({len(corners)} of {len(tests)} tests) is its sensor's noise (its spectrum within "
             f"{nz.SUB_BAND_FLOOR:g} x of its floor under the excitation band): the simulations "
             "are driven without it, and without its mean where that is no larger than "
