@@ -4,6 +4,7 @@ reads several times too low."""
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -421,6 +422,42 @@ def test_mains_hum_outside_the_input_band_is_taken_out_of_the_input() -> None:
     left = clean - (force + tone100 + sensor)
     assert np.std(left) < 0.01 * np.std(hum)
     assert np.std(clean - u + hum) < 0.01 * np.std(hum)
+
+
+@pytest.mark.parametrize("units", [1e-300, 1e-150, 1e150, 1e300])
+def test_mains_hum_comes_out_the_same_in_any_units(units: float) -> None:
+    """The same hummed force in units 1e-300 to 1e300 times larger: the hum is found and
+    taken out to the same relative level (1 %), with no overflow or underflow warning."""
+    fs, n = 640.0, 16384
+    rng = np.random.default_rng(5)
+    force = _band_noise(rng, n, fs, 90.0, 160.0)
+    force /= np.std(force)
+    hum = 0.02 * np.sqrt(2) * np.sin(2 * np.pi * 50.0 * np.arange(n) / fs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        clean = nz.without_mains((force + hum) * units, fs)
+    assert np.all(np.isfinite(clean))
+    assert np.std(clean / units - force) < 0.01 * np.std(hum)
+
+
+@pytest.mark.parametrize("bad", ["nan", "inf", "zero", "short"])
+def test_an_input_hum_cannot_be_judged_on_is_returned_as_it_is(bad: str) -> None:
+    """A force with a NaN or an inf sample, all zeros, or shorter than a spectrum segment:
+    returned unchanged (the same array), no warning, no exception."""
+    fs = 640.0
+    t = np.arange(8192) / fs
+    u = 0.1 * np.sin(2 * np.pi * 50.0 * t) + np.sin(2 * np.pi * 120.0 * t)
+    if bad == "nan":
+        u[100] = np.nan
+    elif bad == "inf":
+        u[100] = -np.inf
+    elif bad == "zero":
+        u[:] = 0.0
+    else:
+        u = u[:1000]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert nz.without_mains(u, fs) is u
 
 
 def test_an_input_with_no_line_outside_its_band_is_kept() -> None:

@@ -561,17 +561,25 @@ def without_mains(u: np.ndarray, fs_hz: float) -> np.ndarray:
     and its sine (least squares, over the whole record) is taken out. Driven by it, the
     simulations shake every mode near the line that the structure never felt: blind sweep
     400 (a cheap DAQ's 50 Hz on the force sensor, a sweep cut from a run at 87-162 Hz) put
-    an absorber tuned to 50.06 Hz at the driven DOF to cancel it. u when there is none."""
-    out = u
-    for line in input_mains_lines(u, fs_hz):
+    an absorber tuned to 50.06 Hz at the driven DOF to cancel it. u when there is none or
+    when u is not all finite. Worked on u over its largest magnitude: the spectra neither
+    overflow nor underflow whatever the channel's units."""
+    lines = input_mains_lines(u, fs_hz)
+    if not lines:
+        return u
+    scale = float(np.max(np.abs(u)))
+    out = u / scale
+    for line in lines:
         out = out - _fitted_sine(out, fs_hz, line)
-    return out
+    return out * scale
 
 
 def input_mains_lines(u: np.ndarray, fs_hz: float) -> list[float]:
-    """The mains harmonics (Hz) without_mains takes out of u."""
-    if u.size < 1024 or not np.all(np.isfinite(u)):
+    """The mains harmonics (Hz) without_mains takes out of u (none when u is short or not
+    all finite)."""
+    if u.size < 1024 or not np.all(np.isfinite(u)) or not np.any(u):
         return []
+    u = u / float(np.max(np.abs(u)))  # no overflow or underflow whatever the units
     f, p = signal.welch(u, fs=fs_hz, nperseg=min(1024, u.size))
     if not p.sum() > 0:
         return []
