@@ -344,36 +344,59 @@ def input_noise_response(tests: Sequence[Test], res: Sequence[Mapping[str, np.nd
     return out
 
 
-SUB_BAND_FLOOR = 3.0  # below its band, an input within this factor of its lowest level is noise
+SUB_BAND_SNR = 2.0  # under its band, an input within this x the noise's level is more noise
 SUB_BAND_MEAN = 3.0  # ... and its mean is the sensor's when within this x the noise's RMS there
 SUB_BAND_KINDS = ("force", "ground_acc")  # a prescribed displacement's slow part is real motion
 
 
-def sub_band_corner(u: np.ndarray, fs_hz: float) -> float | None:
-    """The frequency below which a band-limited input is its sensor's noise: under the band
-    holding 98 % of its power, the highest frequency where its smoothed PSD is within
-    SUB_BAND_FLOOR of its lowest level there (a white sensor's flat floor, or the bottom of a
-    1/f sensor's rise towards DC), provided that level lies INPUT_QUIET below the loudest, and
-    at most half the band's lower edge.
-    None when the input is not band-limited at its low end (real content down to DC, an
-    impulse) or the record is too short to tell."""
+@dataclass(frozen=True)
+class SubBandCut:
+    """Where a band-limited input's sensor noise under its band is cut (sub_band_cut): all
+    of it up to ``corner_hz``, none above ``corner_hz + ramp_hz`` (a linear ramp between,
+    one bin of the spectrum the corner was read on)."""
+
+    corner_hz: float
+    ramp_hz: float
+
+
+def sub_band_cut(u: np.ndarray, fs_hz: float) -> SubBandCut | None:
+    """Where a band-limited input is its sensor's noise under its band (the band holding
+    98 % of its power). Read per frequency at the input's loudest moment (the highest of
+    its Hann segments' spectra: a sweep's start skirts frequencies under its band for one
+    segment, a steady input is as loud in all), smoothed over 5 bins: the noise's level is
+    the lowest that has reached from DC up (a 1/f sensor's falls towards the band, a white
+    one's is flat; where the force rises out of it, the noise stays at its last level), and
+    the corner the highest frequency under the band within SUB_BAND_SNR of it (more noise
+    than force). Blind sweeps cut from a run, their band starting above the lowest modes:
+    the true model driven by the cleaned input left 56-92 x its output noise with the
+    former 4th-order high-pass capped an octave under the band, 0.08-0.98 x with this;
+    band-limited random inputs within -10 %/+18 % of it. None when the input is not
+    band-limited at its low end (real content down to DC, an impulse; its quietest level
+    not INPUT_QUIET below its loudest) or the record is too short to tell."""
     if u.size < 1024:
         return None
-    f, p = signal.welch(u, fs=fs_hz, nperseg=min(u.size, max(1024, u.size // 8)))
+    seg = min(u.size, max(1024, u.size // 8))
+    f, _, sg = signal.spectrogram(u, fs=fs_hz, window="hann", nperseg=seg, noverlap=seg // 2)
+    p = sg.mean(axis=1)  # Welch's PSD
     if not p.sum() > 0:  # a constant input (a static load): no band
         return None
     c = np.cumsum(p) / p.sum()
-    f_lo = float(f[np.searchsorted(c, 0.01)])
-    below = np.flatnonzero((f > 0) & (f < f_lo))
-    if below.size < 3:
+    below = (f > 0) & (f < float(f[np.searchsorted(c, 0.01)]))
+    if np.count_nonzero(below) < 3:
         return None
-    smooth = _median5(p)
-    floor = float(np.min(smooth[below]))
-    if not floor < INPUT_QUIET * float(np.max(smooth)):
+    if not float(np.min(_median5(p)[below])) < INPUT_QUIET * float(np.max(_median5(p))):
         return None
-    # an octave under the band at most: the high-pass keeps 99.8 % of the band's lowest
-    # frequency (a sine's leakage can reach the floor a few bins from the tone)
-    return min(float(f[below[smooth[below] <= SUB_BAND_FLOOR * floor].max()]), 0.5 * f_lo)
+    loudest = _median5(sg.max(axis=1))
+    level = np.minimum.accumulate(np.where(f > 0, loudest, np.inf))
+    noisy = np.flatnonzero(below & (loudest <= SUB_BAND_SNR * level))
+    return SubBandCut(float(f[noisy.max()]), float(f[1] - f[0]))
+
+
+def sub_band_corner(u: np.ndarray, fs_hz: float) -> float | None:
+    """The frequency under which a band-limited input is its sensor's noise, taken out
+    (sub_band_cut); None where it has none."""
+    cut = sub_band_cut(u, fs_hz)
+    return None if cut is None else cut.corner_hz
 
 
 def _median5(p: np.ndarray) -> np.ndarray:
@@ -385,33 +408,33 @@ def _median5(p: np.ndarray) -> np.ndarray:
     return out
 
 
-def _high_pass(x: np.ndarray, fs_hz: float, fc: float) -> np.ndarray:
-    """x without its mean, through a zero-phase 4th-order Butterworth high-pass at fc
-    (frequency domain, zero-padded to twice the length)."""
+def _filtered(x: np.ndarray, fs_hz: float, cut: SubBandCut) -> np.ndarray:
+    """x without its mean nor its content under cut (zero phase, in the frequency domain,
+    zero-padded to twice the length)."""
     n = x.size
     nf = next_fast_len(2 * n, real=True)
     f = np.fft.rfftfreq(nf, 1.0 / fs_hz)
-    h = 1.0 / np.sqrt(1.0 + (fc / np.maximum(f, 1e-12)) ** 8)
+    h = np.clip((f - cut.corner_hz) / cut.ramp_hz, 0.0, 1.0)
     return np.asarray(np.fft.irfft(np.fft.rfft(x - np.mean(x), nf) * h, nf)[:n])
 
 
 def without_sub_band_noise(u: np.ndarray, fs_hz: float) -> np.ndarray:
-    """The input with its sensor's noise under the band taken out (sub_band_corner: a
-    zero-phase 4th-order Butterworth high-pass there); u itself when there is none. The mean
-    goes with it when it is no larger than SUB_BAND_MEAN x the RMS of what lay under the band
-    (a 1/f sensor's slow wander leaves a mean of that size; a real static force, larger, is
-    kept). The measured input drives every prediction: on a weakly restrained structure (a
-    position loop, a soft suspension) a cheap force sensor's 1/f noise under the band drives
-    the low mode, and its mean deflects it, far more than anything in the band, and a wrong
-    model that stiffens it wins."""
-    fc = sub_band_corner(u, fs_hz)
-    return u if fc is None else _above(u, fs_hz, fc)
+    """The input with its sensor's noise under the band taken out (sub_band_cut); u itself
+    when there is none. The mean goes with it when it is no larger than SUB_BAND_MEAN x the
+    RMS of what was taken out (a 1/f sensor's slow wander leaves a mean of that size; a real
+    static force, larger, is kept). The measured input drives every prediction: on a weakly
+    restrained structure (a position loop, a soft suspension) a cheap force sensor's 1/f
+    noise under the band drives the low mode, and its mean deflects it, far more than
+    anything in the band, and a wrong model that stiffens it wins."""
+    cut = sub_band_cut(u, fs_hz)
+    return u if cut is None else _kept(u, fs_hz, cut)
 
 
-def _above(u: np.ndarray, fs_hz: float, fc: float) -> np.ndarray:
-    """u above fc (without_sub_band_noise), its mean kept where it is a real static force."""
+def _kept(u: np.ndarray, fs_hz: float, cut: SubBandCut) -> np.ndarray:
+    """u above cut (without_sub_band_noise), its mean kept where it is a real static
+    force."""
     mean = float(np.mean(u))
-    kept = _high_pass(u, fs_hz, fc)
+    kept = _filtered(u, fs_hz, cut)
     slow = float(np.std(u - mean - kept))
     return np.asarray(kept + (mean if abs(mean) > SUB_BAND_MEAN * slow else 0.0))
 
@@ -481,9 +504,9 @@ def _as_simulated(kind: str, u: np.ndarray, fs_hz: float, noises: tuple[np.ndarr
     if kind not in SUB_BAND_KINDS:
         return u, noises
     u = without_mains(u, fs_hz)
-    fc = sub_band_corner(u, fs_hz)
-    if fc is not None:
-        u, noises = _above(u, fs_hz, fc), tuple(_high_pass(e, fs_hz, fc) for e in noises)
+    sub = sub_band_cut(u, fs_hz)
+    if sub is not None:
+        u, noises = _kept(u, fs_hz, sub), tuple(_filtered(e, fs_hz, sub) for e in noises)
     gain = idle_gain(u, fs_hz)
     return _gated(u, fs_hz, gain), tuple(_gated(e, fs_hz, gain) for e in noises)
 

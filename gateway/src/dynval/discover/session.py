@@ -336,8 +336,8 @@ def sub_band_note(m: mdl.Model, tests: Sequence[rs.TestData]) -> list[str]:
     return [*notes,
             f"the measured input under {lo if lo == hi else f'{lo}-{hi}'} Hz "
             f"({len(corners)} of {len(tests)} tests) is its sensor's noise (its spectrum within "
-            f"{nz.SUB_BAND_FLOOR:g} x of its floor under the excitation band): the simulations "
-            "are driven without it, and without its mean where that is no larger than "
+            f"{nz.SUB_BAND_SNR:g} x of the noise's level under the excitation band): the "
+            "simulations are driven without it, and without its mean where that is no larger than "
             f"{nz.SUB_BAND_MEAN:g} x that noise's RMS"]
 
 
