@@ -384,7 +384,8 @@ def sub_band_cut(u: np.ndarray, fs_hz: float) -> SubBandCut | None:
     below = (f > 0) & (f < float(f[np.searchsorted(c, 0.01)]))
     if np.count_nonzero(below) < 3:
         return None
-    if not float(np.min(_median5(p)[below])) < INPUT_QUIET * float(np.max(_median5(p))):
+    smooth = _median5(p)
+    if not float(np.min(smooth[below])) < INPUT_QUIET * float(np.max(smooth)):
         return None
     loudest = _median5(sg.max(axis=1))
     level = np.minimum.accumulate(np.where(f > 0, loudest, np.inf))
