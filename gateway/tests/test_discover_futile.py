@@ -83,7 +83,9 @@ def test_spurious_candidates_stop_early_with_the_same_refused_result(
         assert stop.nsse_fit == pytest.approx(full.nsse_fit, rel=1e-2)
         assert stop.nfev <= full.nfev
         full_n, stop_n = full_n + full.nfev, stop_n + stop.nfev
-    assert stop_n < 0.6 * full_n  # measured: 76 -> 38 (with the pace per iteration: 44)
+    # measured: 64 -> 43 (76 -> 44 before the input's sub-band cut moved to the band edge,
+    # 59f0e2e: the fits' paths changed with the input)
+    assert stop_n < 0.75 * full_n
 
 
 def test_a_target_the_fit_gets_under_leaves_it_as_it_was(
