@@ -578,6 +578,19 @@ MAINS_HZ = (50.0, 60.0)
 LINE_RATIO = 10.0  # a mains line stands this far above the residual's local spectrum
 
 
+def _mains_bins(f: np.ndarray) -> list[tuple[float, int, np.ndarray]]:
+    """Each harmonic of MAINS_HZ (up to the 5th) a Welch grid f can judge: its frequency,
+    its bin, and its neighbours' bins (12 either side, the line's own 5 left out)."""
+    df = float(f[1] - f[0])
+    out = []
+    for f0 in MAINS_HZ:
+        for h in range(1, 6):
+            k = int(round(h * f0 / df))
+            if k >= 12 and k + 12 < f.size:
+                out.append((h * f0, k, np.r_[k - 12:k - 2, k + 3:k + 13]))
+    return out
+
+
 def mains_hum(res: Sequence[np.ndarray], inputs: Sequence[np.ndarray], fs_hz: float
               ) -> tuple[float, list[float]]:
     """Power (variance) of mains-hum lines in the residuals: narrow peaks at the harmonics of
@@ -587,19 +600,13 @@ def mains_hum(res: Sequence[np.ndarray], inputs: Sequence[np.ndarray], fs_hz: fl
     for r, u in zip(res, inputs, strict=True):
         f, p = signal.welch(r, fs=fs_hz, nperseg=min(1024, r.size))
         _, pu = signal.welch(u, fs=fs_hz, nperseg=min(1024, r.size))
-        df = float(f[1] - f[0])
         total = 0.0
-        for f0 in MAINS_HZ:
-            for h in range(1, 6):
-                k = int(round(h * f0 / df))
-                if k < 12 or k + 12 >= f.size:
-                    continue
-                side = np.r_[k - 12:k - 2, k + 3:k + 13]
-                base, base_u = float(np.median(p[side])), float(np.median(pu[side]))
-                if (p[k] > LINE_RATIO * base and pu[k] < 3 * base_u
-                        and tone_contrast(r, fs_hz, h * f0) >= TONE_CONTRAST):
-                    total += float(np.sum(p[k - 2:k + 3]) - 5 * base) * df
-                    lines.add(h * f0)
+        for line, k, side in _mains_bins(f):
+            base, base_u = float(np.median(p[side])), float(np.median(pu[side]))
+            if (p[k] > LINE_RATIO * base and pu[k] < 3 * base_u
+                    and tone_contrast(r, fs_hz, line) >= TONE_CONTRAST):
+                total += float(np.sum(p[k - 2:k + 3]) - 5 * base) * float(f[1] - f[0])
+                lines.add(line)
         power.append(total)
     return (float(np.median(power)) if power else 0.0), sorted(lines)
 
@@ -640,18 +647,9 @@ def input_mains_lines(u: np.ndarray, fs_hz: float) -> list[float]:
         return []
     c = np.cumsum(p) / p.sum()
     f_lo, f_hi = float(f[np.searchsorted(c, 0.01)]), float(f[np.searchsorted(c, 0.99)])
-    df = float(f[1] - f[0])
-    lines = []
-    for f0 in MAINS_HZ:
-        for h in range(1, 6):
-            k = int(round(h * f0 / df))
-            if f_lo <= h * f0 <= f_hi or k < 12 or k + 12 >= f.size:
-                continue
-            side = np.r_[k - 12:k - 2, k + 3:k + 13]
-            if (p[k] > LINE_RATIO * float(np.median(p[side]))
-                    and tone_contrast(u, fs_hz, h * f0) >= TONE_CONTRAST):
-                lines.append(h * f0)
-    return lines
+    return [line for line, k, side in _mains_bins(f)
+            if not f_lo <= line <= f_hi and p[k] > LINE_RATIO * float(np.median(p[side]))
+            and tone_contrast(u, fs_hz, line) >= TONE_CONTRAST]
 
 
 def _fitted_sine(u: np.ndarray, fs_hz: float, f0: float) -> np.ndarray:
