@@ -391,6 +391,26 @@ def test_a_sweeps_input_noise_between_its_passes_is_taken_out(method: str) -> No
                                atol=1e-9)
 
 
+def test_a_record_is_carried_on_past_its_end_unless_silent_or_growing() -> None:
+    """A steady tone is carried on past the record's end as it goes (1e-9 over the first
+    half, before the fade); an end that is silent, or a prediction that grows past
+    EDGE_GROWTH x the end (a tone growing 24 x over the extension), gives the plain zero
+    padding; no warning either way."""
+    t = np.arange(N) / FS
+    e = 1024
+    after = (N + np.arange(e // 2)) / FS
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tone = np.sin(2 * np.pi * 37.3 * t + 0.4)
+        carried = nz._carried_on(tone, e)
+        assert np.max(np.abs(carried[:e // 2] - np.sin(2 * np.pi * 37.3 * after + 0.4))) < 1e-9
+        silent = tone.copy()
+        silent[-3 * e:] = 0.0
+        assert not np.any(nz._carried_on(silent, e))
+        growing = np.exp(2.0 * t) * np.sin(2 * np.pi * 20.0 * t)
+        assert not np.any(nz._carried_on(growing, e))
+
+
 def _mode_response(x: np.ndarray, f_hz: float, zeta: float = 0.02) -> np.ndarray:
     """x through a single mode at f_hz (bilinear twin of 1 / (1 + 2 zeta s/w + s^2/w^2))."""
     w = 2 * np.pi * f_hz
