@@ -9,6 +9,7 @@ import math
 from typing import Any
 
 import pytest
+from lanl4dof import declared
 
 from dynval.discover import effects as fx
 from dynval.discover import judge, session
@@ -87,8 +88,12 @@ def test_rivals_are_each_types_best_placed_and_its_candidate_at_the_change() -> 
           _ev("contact", [0, 1], 0.5), _ev("friction", [0, 1], 0.4),
           _ev("cubic_stiffness", [1, 2], 0.3), _ev("contact", [1, 2], 0.2)]
     firsts = judge.best_placed_nonlinear(ev)
-    assert {t: e.cand.location["between"] for t, e in firsts.items()} == {
-        "contact": [2, 3], "friction": [1, 2], "cubic_stiffness": [1, 2]}  # unavailable skipped
+    assert [(e.cand.type, e.cand.location["between"]) for e in firsts] == [
+        ("contact", [2, 3]), ("friction", [1, 2]), ("cubic_stiffness", [1, 2])]  # unavailable
+    two = judge.best_placed_nonlinear(ev, 2)  # skipped; the weak view's few places of each
+    assert [(e.cand.type, e.cand.location["between"]) for e in two] == [
+        ("contact", [2, 3]), ("friction", [1, 2]), ("contact", [0, 1]), ("friction", [0, 1]),
+        ("cubic_stiffness", [1, 2])]
     rd = session.Round(1, {}, {}, ev, [], None, "", noise=dict(NOISE))
     best = {"candidate": fx.Candidate("stiffness_change", {"between": [0, 1]}, "k1", True)}
     got = [(e.cand.type, e.cand.location["between"])
@@ -101,16 +106,22 @@ def test_rivals_are_each_types_best_placed_and_its_candidate_at_the_change() -> 
 def test_weak_evidence_candidates_are_fitted_only_above_the_floor(
         monkeypatch: pytest.MonkeyPatch) -> None:
     s = _session(monkeypatch)
+    # the place of each type is screened by simulation (test_discover_weak_places): here the
+    # view's first of each type stands in
+    monkeypatch.setattr(judge, "screened_places",
+                        lambda s, rd, cur, now: list({e.cand.type: e
+                                                      for e in reversed(rd.weak)}.values()))
     rd = _round()
     rd.weak = [_ev("contact", [0, 1], 0.05), _ev("friction", [0, 1], 0.04)]
+    cur = declared()  # not read by the stand-in
     at_floor = _best("cubic_stiffness", {"a1": (1.0, 1.05), "a2": (1.0, 1.0)})  # 1.025 x
-    assert judge.weak_to_fit(s, rd, at_floor) == []
+    assert judge.weak_to_fit(s, rd, cur, 1.0, at_floor) == []
     above = _best("cubic_stiffness", {"a1": (1.0, 1.3), "a2": (1.0, 1.0)})  # 1.16 x
-    assert judge.weak_to_fit(s, rd, above) == rd.weak
+    assert sorted(judge.weak_to_fit(s, rd, cur, 1.0, above), key=id) == sorted(rd.weak, key=id)
     assert "leaves the held-out tests above the floor" in s.notes[-1]
-    assert judge.weak_to_fit(s, rd, None) == rd.weak
+    assert len(judge.weak_to_fit(s, rd, cur, 1.0, None)) == 2
     assert "nothing it ranked first was accepted" in s.notes[-1]
-    assert judge.weak_to_fit(s, _round(), None) == []  # no weak evidence this round
+    assert judge.weak_to_fit(s, _round(), cur, 1.0, None) == []  # no weak evidence this round
 
 
 def test_an_accepted_stiffness_change_has_the_elements_at_its_story_fitted_whatever_wins(

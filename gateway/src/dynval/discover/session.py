@@ -57,8 +57,8 @@ class Round:
     view: tr.ForceView | None = None
     second: list[tr.Evidence] = field(default_factory=list)  # the output view's top picks
     noise: dict[str, float] = field(default_factory=dict)  # the floor judged against, per channel
-    # weak evidence: each nonlinear type's best-placed candidate, fitted when the first
-    # batch leaves the held-out residual above the floor (judge.best_of_round)
+    # weak evidence: each nonlinear type's best-placed candidates, one of each type fitted
+    # when the first batch leaves the held-out residual above the floor (judge.weak_to_fit)
     weak: list[tr.Evidence] = field(default_factory=list)
 
 
