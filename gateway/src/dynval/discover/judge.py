@@ -254,9 +254,9 @@ def weak_to_fit(s: Session, rd: Round, cur: mdl.Model, nsse_now: float,
                 best: dict[str, Any] | None) -> list[tr.Evidence]:
     """Of the candidates kept aside when the evidence view saw little of the residual
     (Round.weak), one per nonlinear type (screened_places; ``nsse_now``: the current model's
-    normalised SSE on the fitting tests), unless
-    the first batch's best already leaves the held-out residual within RIVALS_FLOOR_RATIO of
-    the noise floor; a note says why they are fitted."""
+    normalised SSE on the fitting tests), unless the first batch's best already leaves the
+    held-out residual within RIVALS_FLOOR_RATIO of the noise floor; a note says why they are
+    fitted."""
     if not rd.weak or left_over_floor(s, rd, best) <= RIVALS_FLOOR_RATIO:
         return []
     picked = screened_places(s, rd, cur, nsse_now)
@@ -289,18 +289,18 @@ def screened_places(s: Session, rd: Round, cur: mdl.Model, nsse_now: float
     story, 0.00041 against 0.00046 of the residual; screened 1.35 against 6.04, 6.20 without
     it), while a place that screens no better than the model without it is told apart only by
     the fit's re-adjustment (a contact hidden in a best-linear model's stiffness)."""
-    above_noise = 1.0 - next((e.r2 for e in rd.evidence if e.cand.type == "none"), 1.0)
+    above_noise = rd.above_noise()
 
     def best(e: tr.Evidence) -> tuple[float, tr.Evidence]:
-        m = energy_matched(e, above_noise)
+        amp = energy_matched(e, above_noise).amp
         scored = []
         for k in SCREEN_STRENGTHS:
-            cand = with_shape(tr.Evidence(e.cand, e.r2, m.amp * k, e.shape))
-            starts = fx.by_type(cand.type).starts(cur, cand, m.amp * k)
+            ek = tr.Evidence(e.cand, e.r2, amp * k, e.shape, e.joint)
+            cand = with_shape(ek)
+            starts = fx.by_type(cand.type).starts(cur, cand, ek.amp)
             sc = ft.screen_scored(cur, cand, starts, s.fit_t, s.chans, s.scales)
             if sc:
-                scored.append((sc[0][0], tr.Evidence(e.cand, e.r2, m.amp * k, e.shape,
-                                                     e.joint)))
+                scored.append((sc[0][0], ek))
         return min(scored, key=lambda p: p[0], default=(math.inf, e))
 
     firsts = {e.cand.type: e for e in reversed(rd.weak)}

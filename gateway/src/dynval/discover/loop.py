@@ -632,7 +632,7 @@ def _weak_evidence_fallback(rd: Round, pool: list[tr.Evidence], chosen: list[tr.
     screened by simulation anyway (_screen_linear); the held-out test judges.
     Used before any effect is accepted (in later rounds it cost a 5-DOF case 3.5 x its time
     and found nothing more on the blind cases)."""
-    above_noise = 1.0 - next((e.r2 for e in rd.evidence if e.cand.type == "none"), 1.0)
+    above_noise = rd.above_noise()
     if top >= WEAK_EVIDENCE * above_noise:
         return []
     extra = [e for e in best_placed_nonlinear(pool, WEAK_PLACES) if e not in chosen]

@@ -61,6 +61,11 @@ class Round:
     # when the first batch leaves the held-out residual above the floor (judge.weak_to_fit)
     weak: list[tr.Evidence] = field(default_factory=list)
 
+    def above_noise(self) -> float:
+        """The residual's share the noise floor does not explain (1 - the "no effect"
+        evidence's share)."""
+        return 1.0 - next((e.r2 for e in self.evidence if e.cand.type == "none"), 1.0)
+
 
 @dataclass
 class DiscoverResult:
