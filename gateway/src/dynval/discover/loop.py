@@ -302,12 +302,13 @@ def _added_params(before: mdl.Model, res: ft.FitResult) -> dict[str, str]:
 
 
 def _at_own_starts(s: Session, cur: mdl.Model, names: Sequence[str],
-                   effects: list[dict[str, Any]]) -> mdl.Model:
-    """cur with the accepted element's parameters ``names`` fitted again at the initial
-    states each model tried puts the records in (ft.at_own_starts: records that do not start
-    at rest), kept when the held-out error drops too; the tests' states (cur's on the way
-    in) set for the model returned."""
-    got = ft.at_own_starts(cur, names, s.fit_t, s.chans, s.scales, s.settle)
+                   readjusted: Sequence[str], effects: list[dict[str, Any]]) -> mdl.Model:
+    """cur with the accepted element's parameters ``names`` and the declared ones its fit
+    re-adjusted fitted again at the initial states each model tried puts the records in
+    (ft.at_own_starts: records that do not start at rest), kept when the held-out error drops
+    too; the tests' states (cur's on the way in) set for the model returned."""
+    got = ft.at_own_starts(cur, names, s.fit_t, s.chans, s.scales, s.settle, readjusted,
+                           s.workers)
     if got is None:
         return cur
     new, after, before = got
@@ -315,18 +316,23 @@ def _at_own_starts(s: Session, cur: mdl.Model, names: Sequence[str],
     initial.apply(new, s.evals, s.chans, s.scales, s.settle, quiet=True)
     held_new = s.table(new)[0].total(s.held_names)
     pm, pn = cur.parameters(), new.parameters()
-    moved = ", ".join(f"{n} {pm[n]:.4g} -> {pn[n]:.4g}" for n in names if pn[n] != pm[n])
+    moved = ", ".join(f"{n} {pm[n]:.4g} -> {pn[n]:.4g}" for n in [*names, *readjusted]
+                      if pn[n] != pm[n])
     if not held_new < held_cur:
         log.info("the element's parameters at each model's own initial states (%s): held-out "
                  "%.4g -> %.4g: not kept", moved, held_cur, held_new)
         initial.apply(cur, s.evals, s.chans, s.scales, s.settle, quiet=True)
         return cur
-    s.notes.append(f"the records that do not start at rest: the element's parameters fitted "
+    s.notes.append(f"the records that do not start at rest: the element's parameters (and the "
+                   f"declared ones its fit re-adjusted) fitted "
                    f"again with their initial states estimated under each model tried "
                    f"(fitting error {100 * (after / before - 1):+.1f} %, held-out "
                    f"{100 * (held_new / held_cur - 1):+.1f} %): {moved}")
     log.info(s.notes[-1])
     _follow_effect_params(s, new, effects)
+    for n, d in effects[-1]["readjusted"].items():  # the accepted element's entry
+        d["value"] = float(pn[n])
+        d["change_rel"] = (d["value"] - d["before"]) / d["before"] if d["before"] else math.nan
     return new
 
 
@@ -805,7 +811,8 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
         cur = res_b.model
         if prediction == "open loop":  # the new model's initial states
             initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
-            cur = _at_own_starts(s, cur, [n for n in added if n.startswith("e")], effects)
+            cur = _at_own_starts(s, cur, [n for n in added if n.startswith("e")],
+                                 best["readjusted"], effects)
         cur_table, res_cur = s.table(cur)
         s.readjusted.update(best["readjusted"])
         # before the next round: a best-linear model's spread over far parameters would
