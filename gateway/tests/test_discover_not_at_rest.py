@@ -316,7 +316,8 @@ def test_the_declared_parameters_an_element_readjusted_fitted_again_with_it(
     fitting_error(wrong)
     alone = ft.at_own_starts(wrong, names, s.fit_t, s.chans, s.scales, s.settle)
     assert alone is None or alone[1] > 3 * fit_true, (alone and alone[1], fit_true)
-    got = ft.at_own_starts(wrong, names, s.fit_t, s.chans, s.scales, s.settle, decl)
+    got = ft.at_own_starts(wrong, names, s.fit_t, s.chans, s.scales, s.settle,
+                           ft.uncertain_params(wrong, decl))
     assert got is not None
     assert got[1] < 1.01 * fit_true, (got[1], fit_true)
     p = got[0].parameters()

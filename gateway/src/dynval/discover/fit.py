@@ -515,7 +515,7 @@ OWN_STARTS_GAIN = 0.01
 
 def at_own_starts(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
                   chans: Sequence[str], scales: dict[str, float], settle: int,
-                  readjusted: Sequence[str] = (), workers: int = 1
+                  readjusted: Sequence[fx.Param] = (), workers: int = 1
                   ) -> tuple[mdl.Model, float, float] | None:
     """m's positive parameters ``names`` (an accepted element's own) fitted again on
     ``tests`` with each record's initial state estimated under every model tried
@@ -525,20 +525,27 @@ def at_own_starts(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
     states too: blind case 309 (cut from a run), a contact's delta and kb 2.8e-5 m and
     6.7e5 N/m for 5e-5 and 8.8e5, fitting error 0.0254 where the truth's is 0.0223; fitted
     here 5.7e-5 and 7.8e5, 0.0214. The declared parameters the element's fit re-adjusted
-    (``readjusted``) are fitted again with them: they traded with the element at the old
-    states (blind sweep case 8, a friction joint that never slides: its dashpot fitted at
-    2 x the truth's beside a re-adjusted mass and modal damping, 3.1 x the ideal held-out
-    error; with them, 0.95 x). The Jacobian's columns run on up to ``workers`` processes.
+    (``readjusted``, in the ranges that fit had: uncertain_params) are fitted again with
+    them: they traded with the element at the old states (blind sweep case 8, a friction
+    joint that never slides: its dashpot fitted at 2 x the truth's beside a re-adjusted mass
+    and modal damping, 3.1 x the ideal held-out error; with them, 0.95 x; unbounded, the
+    BRFD damper's k1 went to 1/70 and its beta to 70 x). The Jacobian's columns run on up
+    to ``workers`` processes.
     None when no record's state is estimated, no name is positive or the fit lowers the
     error by less than OWN_STARTS_GAIN. The tests keep the states they had
     (initial.kept)."""
     pm = m.parameters()
     own = [n for n in names if pm.get(n, 0.0) > 0]
-    names = [*own, *(n for n in readjusted if pm.get(n, 0.0) > 0 and n not in own)]
+    ranges = [p for p in readjusted if p.log and pm.get(p.name, 0.0) > 0 and p.name not in own]
+    names = [*own, *(p.name for p in ranges)]
     if not own or not m.elements or all(t.start_x0 is None for t in tests):
         return None
 
     p0 = np.array([pm[n] for n in names])
+    lower = [-np.inf] * len(own) + [min(1.0 + math.log(p.lower / pm[p.name]), 1.0)
+                                    for p in ranges]
+    upper = [np.inf] * len(own) + [max(1.0 + math.log(p.upper / pm[p.name]), 1.0)
+                                   for p in ranges]
 
     def model(z: np.ndarray) -> mdl.Model:
         # z = 1 + log(p / p0): forward_jacobian's steps, 1e-3 x z, are 0.1 % of p near p0
@@ -560,7 +567,7 @@ def at_own_starts(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
     with initial.kept(tests), forward_jacobian(fun, workers) as (fun_at, jac):
         f0 = fun_at(z0)
         # max_nfev counts the steps, not the Jacobians' evaluations
-        sol = least_squares(fun_at, z0, jac=jac, x_scale=1.0,
+        sol = least_squares(fun_at, z0, jac=jac, bounds=(lower, upper), x_scale=1.0,
                             max_nfev=OWN_STARTS_ITERATIONS * (len(own) + 1))
     before, after = float(f0 @ f0), float(sol.fun @ sol.fun)
     log.info("at each model's own initial states: %s, %d steps, fitting error %.4g -> %.4g",

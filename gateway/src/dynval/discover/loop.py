@@ -301,17 +301,18 @@ def _added_params(before: mdl.Model, res: ft.FitResult) -> dict[str, str]:
     return out
 
 
-def _at_own_starts(s: Session, cur: mdl.Model, names: Sequence[str],
+def _at_own_starts(s: Session, before: mdl.Model, cur: mdl.Model, names: Sequence[str],
                    readjusted: Sequence[str], effects: list[dict[str, Any]]) -> mdl.Model:
     """cur with the accepted element's parameters ``names`` and the declared ones its fit
-    re-adjusted fitted again at the initial states each model tried puts the records in
+    re-adjusted (in the ranges that fit had from ``before``, the model it was added to)
+    fitted again at the initial states each model tried puts the records in
     (ft.at_own_starts: records that do not start at rest), kept when the held-out error drops
     too; the tests' states (cur's on the way in) set for the model returned."""
-    got = ft.at_own_starts(cur, names, s.fit_t, s.chans, s.scales, s.settle, readjusted,
-                           s.workers)
+    got = ft.at_own_starts(cur, names, s.fit_t, s.chans, s.scales, s.settle,
+                           ft.uncertain_params(before, readjusted), s.workers)
     if got is None:
         return cur
-    new, after, before = got
+    new, after, nsse_cur = got
     held_cur = s.table(cur)[0].total(s.held_names)
     initial.apply(new, s.evals, s.chans, s.scales, s.settle, quiet=True)
     held_new = s.table(new)[0].total(s.held_names)
@@ -324,9 +325,9 @@ def _at_own_starts(s: Session, cur: mdl.Model, names: Sequence[str],
         initial.apply(cur, s.evals, s.chans, s.scales, s.settle, quiet=True)
         return cur
     s.notes.append(f"the records that do not start at rest: the element's parameters (and the "
-                   f"declared ones its fit re-adjusted) fitted "
-                   f"again with their initial states estimated under each model tried "
-                   f"(fitting error {100 * (after / before - 1):+.1f} %, held-out "
+                   f"declared ones its fit re-adjusted) fitted again with their initial states "
+                   f"estimated under each model tried "
+                   f"(fitting error {100 * (after / nsse_cur - 1):+.1f} %, held-out "
                    f"{100 * (held_new / held_cur - 1):+.1f} %): {moved}")
     log.info(s.notes[-1])
     _follow_effect_params(s, new, effects)
@@ -811,8 +812,9 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
         cur = res_b.model
         if prediction == "open loop":  # the new model's initial states
             initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
-            cur = _at_own_starts(s, cur, [n for n in added if n.startswith("e")],
-                                 best["readjusted"], effects)
+            cur = _at_own_starts(s, steps[-1].before, cur,
+                                 [n for n in added if n.startswith("e")], best["readjusted"],
+                                 effects)
         cur_table, res_cur = s.table(cur)
         s.readjusted.update(best["readjusted"])
         # before the next round: a best-linear model's spread over far parameters would
