@@ -993,6 +993,11 @@ def mass_stiffness_twin(judge: Judge, best: dict[str, Any], min_gain: float
              "held_out_rmse_ratio": math.sqrt(err / won) if won > 0 else 1.0}]
 
 
+def change_rel(value: float, before: float) -> float:
+    """A re-adjusted declared parameter's relative change (NaN from zero)."""
+    return (value - before) / before if before else math.nan
+
+
 def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
                   spread: Sequence[float]) -> dict[str, Any]:
     """The accepted effect's JSON entry: its parameters, each declared parameter that was
@@ -1015,7 +1020,7 @@ def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
         if name is not None:
             was = float(declared[name])
             readjusted[name] = {"before": was, "value": v, **unc,
-                                "change_rel": (v - was) / was if was else math.nan}
+                                "change_rel": change_rel(v, was)}
         else:
             params[n] = {"value": v, **unc}
     return {"type": res.cand.type, "location": dict(res.cand.location),

@@ -47,6 +47,7 @@ from dynval.discover.judge import (
     best_of_round,
     best_placed_nonlinear,
     cand_key,
+    change_rel,
     effect_entry,
     wider_of_round,
     with_shape,
@@ -333,7 +334,7 @@ def _at_own_starts(s: Session, before: mdl.Model, cur: mdl.Model, names: Sequenc
     _follow_effect_params(s, new, effects)
     for n, d in effects[-1]["readjusted"].items():  # the accepted element's entry
         d["value"] = float(pn[n])
-        d["change_rel"] = (d["value"] - d["before"]) / d["before"] if d["before"] else math.nan
+        d["change_rel"] = change_rel(d["value"], d["before"])
     return new
 
 
