@@ -105,6 +105,11 @@ def test_best_linear_spread_over_far_parameters_is_re_adjusted_jointly_at_the_en
     ideal, _ = rs.error_table(truth, r.tests, r.chans, r.scales)
     assert r.after.total(r.held_names) < 1.1 * ideal.total(r.held_names)
     assert any("re-adjusted jointly" in n for n in r.notes)
+    # each re-adjusted declared parameter reported is the model the user gets
+    final = r.model.parameters()
+    readj = [(n, d) for e in r.effects for n, d in e["readjusted"].items()]
+    assert readj and all(d["value"] == final[n] for n, d in readj)
+    assert any("value_in_its_round" in d for _, d in readj)
 
 
 @pytest.mark.parametrize(("kind", "dof", "seed"), [("mass", 2, 11), ("appendage", 3, 12)])

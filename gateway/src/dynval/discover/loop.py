@@ -368,11 +368,17 @@ def _follow_effect_params(s: Session, m: mdl.Model, effects: list[dict[str, Any]
 
 def _changes_as_final(start: mdl.Model, m: mdl.Model, effects: list[dict[str, Any]]) -> None:
     """A stiffness or mass change reports the final model's parameter less the one before the
-    rounds (its value in its own round kept as value_in_its_round): later effects and the
-    joint re-adjustment may move the same parameter (a mass change re-adjusts every story
-    stiffness), and the model written is the one the user gets."""
+    rounds, and each declared parameter re-adjusted with an effect the final model's value
+    (its change from the value before the effect's round): their values in their own round
+    kept as value_in_its_round. Later effects and the joint re-adjustment may move the same
+    parameter (a mass change re-adjusts every story stiffness), and the model written is the
+    one the user gets."""
     p0, pm = start.parameters(), m.parameters()
     for e in effects:
+        for n, r in e.get("readjusted", {}).items():
+            if n in pm and float(pm[n]) != r["value"]:
+                r["value_in_its_round"], r["value"] = r["value"], float(pm[n])
+                r["change_rel"] = change_rel(r["value"], r["before"])
         name = fx.by_type(e["type"]).changes(fx.Candidate(e["type"], e["location"], e["label"],
                                                          True))
         if not name or len(e["parameters"]) != 1:
