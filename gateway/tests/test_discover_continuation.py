@@ -120,3 +120,28 @@ def test_the_continuation_runs_until_one_joint_re_adjustment_is_kept(
     again = loop._readjust_declared(s, kept[0], kept[1])
     assert calls == [1]  # not run again
     assert again is None  # nothing left to re-adjust
+
+
+def test_the_continuation_is_not_run_again_after_a_measurement_chain_effect(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A DAQ filter or a sensor's gain moves no mode: after a re-adjustment through the
+    observer's gains that was not kept, the same search would find the same basin (4-DOF
+    shake-table case of bench/bench_discover.py: 27 s for it after the DAQ filter's round).
+    A structural effect since, and it runs again."""
+    truth = _table_chain()
+    recs = synth.generate(truth, synth.Truth(), n_tests=4, n_samples=2048, seed=4,
+                          levels_n_rms=(3.0,), excitation=synth.Sweep(8.0, 200.0))
+    s = ss.make_session(truth, recs, ss.Options(workers=1))
+    calls: list[bool] = []
+
+    def counted(*a: Any, **k: Any) -> ft.FitResult | None:
+        calls.append(True)
+        return None  # not kept, as on a model with nothing to re-adjust
+
+    monkeypatch.setattr(cont, "fit", counted)
+    table, _ = s.table(truth)
+    assert loop._readjust_declared(s, truth, table) is None and len(calls) == 1
+    assert loop._readjust_declared(s, truth, table, structural=False) is None
+    assert len(calls) == 1  # a measurement-chain effect: not again
+    assert loop._readjust_declared(s, truth, table, structural=True) is None
+    assert len(calls) == 2  # a structural one: again

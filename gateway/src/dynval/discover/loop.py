@@ -177,7 +177,8 @@ def _calibrate_uncertain(s: Session, m: mdl.Model, before: rs.ErrorTable
 READJUST_GAIN = 0.02  # the joint re-adjustment must lower the held-out error by this share
 
 
-def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
+def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable,
+                       structural: bool = True
                        ) -> tuple[mdl.Model, rs.ErrorTable, dict[str, dict[str, np.ndarray]]
                                   ] | None:
     """With the effects in (after each accepted one), every declared stiffness and the damping
@@ -191,7 +192,8 @@ def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
     bandwidths off is a local minimum of the first), the lower fitting error taken; kept
     when the held-out error drops by READJUST_GAIN and the BIC over the fitting tests agrees;
     each change is reported in the notes; None when not kept. Through the gains only until
-    one is kept."""
+    one is kept, and not again after an effect that is not ``structural`` (Session.gains_tried:
+    4-DOF shake-table case, a DAQ filter in round 2: 27 s for the same basin)."""
     pm = cur.parameters()
     # (the damping the tests inform: a rigid-body mode's ratio damps nothing, and a fit
     # free to move it wanders, blind free case 3: zeta1 0.9996 -> 3.79)
@@ -212,8 +214,9 @@ def _readjust_declared(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable
                  "would lower the fitting error by %.2g %%", 100 * screen)
     # through the observer's gains until one re-adjustment is kept: that one moved the modes
     # where the data put them (blind sweep case 15: 118 s for a later round's, not kept)
-    through_gains = ([False] if screen >= READJUST_GAIN else []) + ([] if s.readjust_kept
-                                                                    else [True])
+    again = not s.readjust_kept and (structural or not s.gains_tried)
+    through_gains = ([False] if screen >= READJUST_GAIN else []) + ([True] if again else [])
+    s.gains_tried = s.gains_tried or again
 
     def readjusted(through: bool) -> ft.FitResult | str | None:  # str: open loop's refusal
         if through:
@@ -826,7 +829,8 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
         s.readjusted.update(best["readjusted"])
         # before the next round: a best-linear model's spread over far parameters would
         # otherwise be the next round's "effect" (a 0.3 % stiffness change)
-        kept = _readjust_declared(s, cur, cur_table)
+        kept = _readjust_declared(s, cur, cur_table,
+                                  not fx.by_type(res_b.cand.type).measurement_chain)
         if kept is not None:
             cur, cur_table, res_cur = kept
             _follow_effect_params(s, cur, effects)

@@ -217,6 +217,10 @@ class Session:
     # a joint re-adjustment of the declared parameters was kept (loop._readjust_declared):
     # the modes are where the data put them, and later ones start there
     readjust_kept: bool = False
+    # the re-adjustment went through the observer's gains on the structure as it is (not
+    # kept): a measurement-chain effect accepted since (a DAQ filter, a sensor's gain) moves
+    # no mode, so the same search would find the same basin (loop._readjust_declared)
+    gains_tried: bool = False
 
     @property
     def workers(self) -> int:
