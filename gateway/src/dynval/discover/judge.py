@@ -998,6 +998,14 @@ def change_rel(value: float, before: float) -> float:
     return (value - before) / before if before else math.nan
 
 
+def uncertainty(sigma: float, scatter: float, unit: str) -> dict[str, Any]:
+    """A parameter's uncertainty fields in an effect's entry: the Gauss-Newton sigma and the
+    test-to-test scatter's standard error (fit.scatter), combined in quadrature (the sigma
+    alone where the scatter is NaN)."""
+    return {"uncertainty": math.hypot(sigma, scatter) if math.isfinite(scatter) else sigma,
+            "uncertainty_fit": sigma, "uncertainty_scatter": scatter, "unit": unit}
+
+
 def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
                   spread: Sequence[float]) -> dict[str, Any]:
     """The accepted effect's JSON entry: its parameters, each declared parameter that was
@@ -1014,8 +1022,7 @@ def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
                               list(readj.values()))]
     for n, v, s, sc, u in zip(res.names, res.values, res.sigma, spread, res.units,
                               strict=True):
-        unc = {"uncertainty": math.hypot(s, sc) if math.isfinite(sc) else s,
-               "uncertainty_fit": s, "uncertainty_scatter": sc, "unit": u}
+        unc = uncertainty(s, sc, u)
         name = ft.declared_name(n)
         if name is not None:
             was = float(declared[name])

@@ -49,6 +49,7 @@ from dynval.discover.judge import (
     cand_key,
     change_rel,
     effect_entry,
+    uncertainty,
     wider_of_round,
     with_shape,
 )
@@ -411,12 +412,10 @@ def _daq_order_again(s: Session, cur: mdl.Model, cur_table: rs.ErrorTable,
     e = effects[i]
     old = (e["label"], e["parameters"]["cutoff_hz"]["value"])
     sc = ft.scatter(cur, best, s.fit_t, s.chans, s.scales, workers=s.workers)[0]
-    sig = best.sigma[0]
     e.update(label=best.cand.label, location=dict(best.cand.location),
              in_its_round={"order": f.order, "cutoff_hz": old[1]})
-    e["parameters"]["cutoff_hz"].update(
-        value=float(best.values[0]), uncertainty_fit=sig, uncertainty_scatter=sc,
-        uncertainty=math.hypot(sig, sc) if math.isfinite(sc) else sig)
+    e["parameters"]["cutoff_hz"] = {"value": float(best.values[0]),
+                                    **uncertainty(best.sigma[0], sc, best.units[0])}
     fit_rel, held_rel = (best_tab.total(n) / cur_table.total(n) - 1
                          for n in (s.fit_names, s.held_names))
     s.notes.append(f"the DAQ filter's order chosen again on the final model: {old[0]} at "
