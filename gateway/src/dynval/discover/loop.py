@@ -805,11 +805,47 @@ def _declared_simulation_again(s: Session, declared: mdl.Model, cur: mdl.Model,
     return slow
 
 
-def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
-              on_progress: Callable[[str], None] | None) -> DiscoverResult:
-    t_start = time.perf_counter()
-    if declared.fs_hz is None and recs:  # the rate a DAQ filter's cutoff is relative to
-        declared = dataclasses.replace(declared, fs_hz=float(recs[0].fs_hz))
+@dataclasses.dataclass
+class _Start:
+    """What the rounds start from (_start): the model simulated (the declared one or its
+    cubic-hold twin, simulation_for_fits) and its note, its errors, the prediction ("open
+    loop" or "observer") with the open-loop held-out RMSE under the observer, the floors."""
+
+    m: mdl.Model
+    sim_note: str
+    before: rs.ErrorTable
+    res_before: dict[str, dict[str, np.ndarray]]
+    prediction: str
+    open_loop_before: dict[str, float]
+    floors: dict[str, nz.Floor]
+
+
+@dataclasses.dataclass
+class _Run:
+    """The rounds' running state: the updated model and its errors, the floors judged
+    against, the effects found (entries) and the steps that added them, the rounds, and the
+    seconds by phase: before the rounds, each round's trace and fits, what follows an
+    accepted one (the scatter, the starts, the joint re-adjustment), the end (backward
+    elimination, the final tables), and the whole run."""
+
+    cur: mdl.Model
+    cur_table: rs.ErrorTable
+    floors: dict[str, nz.Floor]
+    effects: list[dict[str, Any]]
+    timing: dict[str, float]
+    steps: list[Step] = dataclasses.field(default_factory=list)
+    rounds: list[Round] = dataclasses.field(default_factory=list)
+    accepted: set[str] = dataclasses.field(default_factory=set)
+
+    def noise(self) -> dict[str, float]:
+        return {c: f.rms for c, f in self.floors.items()}
+
+
+def _start(declared: mdl.Model, recs: Sequence[Recording], o: Options
+           ) -> tuple[Session, _Start]:
+    """The session and the start: the declared model's errors in the simulation the fits use
+    (the declared one where the cubic hold differs from it by more than HOLD_GAP), the
+    observer's predictions instead when the model drifts, the noise floors."""
     m, sim_note = simulation_for_fits(declared, o)
     s = make_session(m, recs, o)
     s.notes += acc_offsets.apply(m, s.tests, s.evals, s.chans)
@@ -847,33 +883,55 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
                        + ("; not in the observer's, which read the measured channels"
                           if prediction == "observer" else ""))
     floors = _floors(s, m, res_before, {}) if prediction == "observer" else open_floors
-    noise = {c: f.rms for c, f in floors.items()}
-    cur, cur_table, calibration = (_calibrate_uncertain(s, m, before) if o.uncertain
-                                   else (m, before, {}))
-    rounds: list[Round] = []
-    effects: list[dict[str, Any]] = []
+    return s, _Start(m, sim_note, before, res_before, prediction, open_loop_before, floors)
+
+
+def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
+              on_progress: Callable[[str], None] | None) -> DiscoverResult:
+    t_start = time.perf_counter()
+    if declared.fs_hz is None and recs:  # the rate a DAQ filter's cutoff is relative to
+        declared = dataclasses.replace(declared, fs_hz=float(recs[0].fs_hz))
+    s, st = _start(declared, recs, o)
+    cur, cur_table, calibration = (_calibrate_uncertain(s, st.m, st.before) if o.uncertain
+                                   else (st.m, st.before, {}))
     cur, cur_table, offsets = _sensor_offsets(s, cur, cur_table)
-    if offsets is not None:
-        effects.append(offsets)
-        if prediction == "open loop":  # an offset read as a slow free motion before
-            initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
-            cur_table, _ = s.table(cur)
-    accepted: set[str] = set()
-    steps: list[Step] = []
-    # seconds by phase: before the rounds, each round's trace and fits, what follows an
-    # accepted one (the scatter, the starts, the joint re-adjustment), the end (backward
-    # elimination, the final tables), and the whole run
-    timing: dict[str, float] = {"setup": time.perf_counter() - t_start}
-    start = cur
+    if offsets is not None and st.prediction == "open loop":
+        initial.apply(cur, s.evals, s.chans, s.scales, s.settle)  # read as a slow motion before
+        cur_table, _ = s.table(cur)
+    run = _Run(cur, cur_table, st.floors, [offsets] if offsets is not None else [],
+               {"setup": time.perf_counter() - t_start})
+    _rounds(s, run, st.prediction, offsets is not None, on_progress)
+    t_end = time.perf_counter()
+    m, before, res_before = _finish(s, run, declared, st)
+    _changes_as_final(cur, run.cur, run.effects)
+    after, res_after = s.table(run.cur)
+    noise = run.noise()
+    left = after.over_noise(s.fit_names + s.held_names, s.chans, noise)
+    unexp = (ux.characterise(s.evals, res_after, s.chans, noise, s.modes_hz)
+             if any(r > o.significance_ratio for r in left.values()) else {})
+    mah = _mahal(m, run.cur, s.tests, s.chans, s.band, noise)
+    run.timing["final"] = time.perf_counter() - t_end
+    run.timing["total"] = time.perf_counter() - t_start
+    return DiscoverResult(m, run.cur, s.evals, s.fit_names, s.held_names, s.chans, s.scales,
+                          noise, before, after, res_before, res_after, run.rounds, run.effects,
+                          mah, s.band, s.modes_hz, s.notes, run.timing, calibration, run.floors,
+                          unexp, st.prediction, st.open_loop_before)
+
+
+def _rounds(s: Session, run: _Run, prediction: str, offsets: bool,
+            on_progress: Callable[[str], None] | None) -> None:
+    """Trace, fit and accept, round after round, until the residual is at the floor, nothing
+    is accepted, or max_effects (the sensor offsets, ``offsets``, not counted)."""
+    o = s.o
     for rnd in range(1, o.max_effects + 2):
         t0 = time.perf_counter()
-        rd = _trace(s, cur, cur_table, rnd, noise)
-        rounds.append(rd)
+        rd = _trace(s, run.cur, run.cur_table, rnd, run.noise())
+        run.rounds.append(rd)
         if on_progress:
             on_progress(f"round {rnd}")
         worst = rs.worst_ratio(rd.ratio)
-        room = len(effects) - (offsets is not None) < o.max_effects
-        gray = room and _gray(o, rd.ratio, bool(accepted))
+        room = len(run.effects) - offsets < o.max_effects
+        gray = room and _gray(o, rd.ratio, bool(run.accepted))
         at_floor = (f"residual at the noise floor (RMSE/noise <= {o.significance_ratio:g} on "
                     "every channel")
         if worst <= o.significance_ratio and not gray:  # NaN ratios left out (no floor)
@@ -882,11 +940,11 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
         if not room:
             rd.decision = f"max_effects = {o.max_effects} reached: stop"
             break
-        pool = _pool(s, rd, cur, cur_table, accepted)
-        best = best_of_round(s, rd, pool, cur, cur_table, accepted)
-        if best is None and pool and not accepted and not gray:
-            best = wider_of_round(s, rd, cur, cur_table)
-        timing[f"round_{rnd}"] = time.perf_counter() - t0
+        pool = _pool(s, rd, run.cur, run.cur_table, run.accepted)
+        best = best_of_round(s, rd, pool, run.cur, run.cur_table, run.accepted)
+        if best is None and pool and not run.accepted and not gray:
+            best = wider_of_round(s, rd, run.cur, run.cur_table)
+        run.timing[f"round_{rnd}"] = time.perf_counter() - t0
         if gray and best is None:
             rd.decision = (f"{at_floor}; the worst, {worst:.3g} x, was tested by fitting: "
                            "no candidate was accepted): stop")
@@ -895,62 +953,69 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
             rd.decision = ("no candidate improved the held-out tests significantly: stop"
                            if pool else "no available candidate: stop")
             break
-        rd.accepted = best
-        steps.append(Step(cur, best, len(effects), rnd))
-        res_b: ft.FitResult = best["fit"]
-        spread = ft.scatter(cur, res_b, s.fit_t, s.chans, s.scales, best["readjusted"],
-                            workers=s.workers)
-        effects.append(effect_entry(res_b, best, cur, spread))
-        added = _added_params(cur, res_b)
-        s.effect_params.update({n: (len(effects) - 1, own) for n, own in added.items()})
-        cur = res_b.model
-        if prediction == "open loop":  # the new model's initial states
-            initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
-            cur = _at_own_starts(s, steps[-1].before, cur,
-                                 [n for n in added if n.startswith("e")], best["readjusted"],
-                                 effects)
-        cur_table, res_cur = s.table(cur)
-        s.readjusted.update(best["readjusted"])
-        # before the next round: a best-linear model's spread over far parameters would
-        # otherwise be the next round's "effect" (a 0.3 % stiffness change)
-        kept = _readjust_declared(s, cur, cur_table,
-                                  not fx.by_type(res_b.cand.type).measurement_chain)
-        if kept is not None:
-            cur, cur_table, res_cur = kept
-            _follow_effect_params(s, cur, effects)
-        floors = _floors(s, cur, res_cur, floors)
-        noise = {c: f.rms for c, f in floors.items()}
-        accepted.add(cand_key(res_b.cand))
-        rd.decision = f"accepted {res_b.cand.label}"
-        timing[f"after_round_{rnd}"] = time.perf_counter() - t0 - timing[f"round_{rnd}"]
-    t_end = time.perf_counter()
-    timing.setdefault(f"round_{rnd}", t_end - t0)  # the round that stopped: its trace
-    n_steps = len(steps)
-    cur, cur_table = backward(s, steps, cur, cur_table, effects, prediction)
-    if len(steps) < n_steps:
-        cur, cur_table = _readjust_after_backward(s, steps, cur, cur_table, effects)
-    cur, cur_table = _daq_order_again(s, cur, cur_table, effects, prediction)
-    slow = (_declared_simulation_again(s, declared, cur, floors)
-            if m is not declared and prediction == "open loop" else None)
-    if slow is not None:  # the report's errors before and after, both as declared
-        if sim_note in s.notes:
-            s.notes.remove(sim_note)
-        m, cur = declared, slow
-        initial.apply(m, s.evals, s.chans, s.scales, s.settle, quiet=True)
-        before, res_before = s.table(m)
-        initial.apply(cur, s.evals, s.chans, s.scales, s.settle, quiet=True)
-    _changes_as_final(start, cur, effects)
-    after, res_after = s.table(cur)
-    left = after.over_noise(s.fit_names + s.held_names, s.chans, noise)
-    unexp = (ux.characterise(s.evals, res_after, s.chans, noise, s.modes_hz)
-             if any(r > o.significance_ratio for r in left.values()) else {})
-    mah = _mahal(m, cur, s.tests, s.chans, s.band, noise)
-    timing["final"] = time.perf_counter() - t_end
-    timing["total"] = time.perf_counter() - t_start
-    return DiscoverResult(m, cur, s.evals, s.fit_names, s.held_names, s.chans, s.scales, noise,
-                          before, after, res_before, res_after, rounds, effects, mah, s.band,
-                          s.modes_hz, s.notes, timing, calibration, floors, unexp, prediction,
-                          open_loop_before)
+        _accept(s, run, rd, best, prediction)
+        run.timing[f"after_round_{rnd}"] = time.perf_counter() - t0 - run.timing[f"round_{rnd}"]
+    run.timing.setdefault(f"round_{rnd}", time.perf_counter() - t0)  # the round that stopped
+
+
+def _accept(s: Session, run: _Run, rd: Round, best: dict[str, Any], prediction: str) -> None:
+    """The round's best fit into the updated model: its entry (with the scatter of per-test
+    fits), its own starts under open loop, the joint re-adjustment of the declared
+    parameters, the floors on the new residual."""
+    rd.accepted = best
+    run.steps.append(Step(run.cur, best, len(run.effects), rd.index))
+    res_b: ft.FitResult = best["fit"]
+    spread = ft.scatter(run.cur, res_b, s.fit_t, s.chans, s.scales, best["readjusted"],
+                        workers=s.workers)
+    run.effects.append(effect_entry(res_b, best, run.cur, spread))
+    added = _added_params(run.cur, res_b)
+    s.effect_params.update({n: (len(run.effects) - 1, own) for n, own in added.items()})
+    cur = res_b.model
+    if prediction == "open loop":  # the new model's initial states
+        initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
+        cur = _at_own_starts(s, run.steps[-1].before, cur,
+                             [n for n in added if n.startswith("e")], best["readjusted"],
+                             run.effects)
+    cur_table, res_cur = s.table(cur)
+    s.readjusted.update(best["readjusted"])
+    # before the next round: a best-linear model's spread over far parameters would
+    # otherwise be the next round's "effect" (a 0.3 % stiffness change)
+    kept = _readjust_declared(s, cur, cur_table,
+                              not fx.by_type(res_b.cand.type).measurement_chain)
+    if kept is not None:
+        cur, cur_table, res_cur = kept
+        _follow_effect_params(s, cur, run.effects)
+    run.cur, run.cur_table = cur, cur_table
+    run.floors = _floors(s, cur, res_cur, run.floors)
+    run.accepted.add(cand_key(res_b.cand))
+    rd.decision = f"accepted {res_b.cand.label}"
+
+
+def _finish(s: Session, run: _Run, declared: mdl.Model, st: _Start
+            ) -> tuple[mdl.Model, rs.ErrorTable, dict[str, dict[str, np.ndarray]]]:
+    """The end of the rounds: backward elimination (and the joint re-adjustment again when it
+    left an effect out), the DAQ filter's order chosen again, the declared simulation again
+    where the hold misses a filter's effect. Returns the model the errors before are of, and
+    those errors (the declared simulation's when the updated model went there)."""
+    n_steps = len(run.steps)
+    run.cur, run.cur_table = backward(s, run.steps, run.cur, run.cur_table, run.effects,
+                                      st.prediction)
+    if len(run.steps) < n_steps:
+        run.cur, run.cur_table = _readjust_after_backward(s, run.steps, run.cur, run.cur_table,
+                                                          run.effects)
+    run.cur, run.cur_table = _daq_order_again(s, run.cur, run.cur_table, run.effects,
+                                              st.prediction)
+    slow = (_declared_simulation_again(s, declared, run.cur, run.floors)
+            if st.m is not declared and st.prediction == "open loop" else None)
+    if slow is None:
+        return st.m, st.before, st.res_before
+    if st.sim_note in s.notes:  # the report's errors before and after, both as declared
+        s.notes.remove(st.sim_note)
+    run.cur = slow
+    initial.apply(declared, s.evals, s.chans, s.scales, s.settle, quiet=True)
+    before, res_before = s.table(declared)
+    initial.apply(slow, s.evals, s.chans, s.scales, s.settle, quiet=True)
+    return declared, before, res_before
 
 
 SECOND_TESTS = 2  # fitting tests the output view's second opinion is scored on
