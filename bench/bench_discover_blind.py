@@ -273,8 +273,10 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False,
     ideal, spread, floors = ideal_error(m, truth, r)
     ratio = r.after.total(r.held_names) / ideal
     if r.model.daq_filter is not None:  # declared or found: also against the truth without it
-        got += f" [{r.after.total(r.held_names) / ideal_error(m, truth, r, False)[0]:.2f} x " \
-               "the ideal without it]"
+        after = r.after.total(r.held_names)  # and with the generator's (a wrong order moves
+        got += (f" [{after / ideal_error(m, truth, r, None)[0]:.2f} x the ideal without "
+                f"it, {after / ideal_error(m, truth, r, GENERATOR_DAQ)[0]:.2f} x with the "
+                "generator's]")  # the ideal with discover's filter too)
     cond = ", ".join(c for c, on in (("free" if free and m.stiffness_n_per_m[0] == 0 else
                                        "position loop", free),
                                       ("cut from a run", cut), ("cheap DAQ", daq),
@@ -297,8 +299,12 @@ SOUND_SPREAD = 1.2
 SPREAD_SIMS = (("bandlimited", 4), ("bandlimited", 8), ("bandlimited", 16))
 
 
-def ideal_error(m: mdl.Model, truth: gen.Truth, r: loop.DiscoverResult, daq: bool = True
-                ) -> tuple[float, float, float]:
+# the generator's own anti-alias filter (simulation.daq_filter "butter8"), as a model states it
+GENERATOR_DAQ = mdl.DaqFilter("butterworth", 8, 0.4 * FS)
+
+
+def ideal_error(m: mdl.Model, truth: gen.Truth, r: loop.DiscoverResult,
+                daq: mdl.DaqFilter | None | str = "found") -> tuple[float, float, float]:
     """The held-out error of the true model driven by the measured input, simulated as the
     declared model asks and as discover simulated (loop.simulation_for_fits): the lower; the
     truth's spread, the largest over the smallest of its errors over those and SPREAD_SIMS,
@@ -306,14 +312,16 @@ def ideal_error(m: mdl.Model, truth: gen.Truth, r: loop.DiscoverResult, daq: boo
     reference: the truth is sensitive); and that lower one's worst channel in discover's
     noise floors (a truth far above them is not predictable from the measured input: a
     hardening spring driven hard through the DAQ's filter read 18-80 x with the noise-free
-    input, blind two-effect seed 3). ``daq`` False: without the declared DAQ filter
-    (--daq's reference of the run without it)."""
+    input, blind two-effect seed 3). ``daq``: the DAQ filter the truth is simulated with,
+    "found" the updated model's (declared or found), None none (--daq's reference of the run
+    without it), or a given one (GENERATOR_DAQ: a wrongly ordered filter found moves the
+    ideal with it)."""
     best, errs, floors = math.inf, [], math.nan
     own = {(m.interpolation, m.oversample), (r.model.interpolation, r.model.oversample)}
     for sim in own | set(SPREAD_SIMS):
         tm = dataclasses.replace(gen.truth_model(m, truth), outputs=m.outputs,
                                  interpolation=sim[0], oversample=sim[1],
-                                 daq_filter=r.model.daq_filter if daq else None)
+                                 daq_filter=r.model.daq_filter if daq == "found" else daq)
         tm = dataclasses.replace(tm, outputs={c: dataclasses.replace(
             o, offset=r.model.outputs[c].offset) for c, o in m.outputs.items()})
         if r.prediction == "open loop":  # the true model's own initial states, as discover's
