@@ -237,7 +237,11 @@ def test_a_stepped_sine_in_steady_state(model: Any, element: mdl.Element,
     fit (within 3 % of its force) was refused at 130 x the true model's held-out error and
     "no effect" said; tests at several frequencies are now paired (session.twins). In that
     split a stiffness change at the contact's story wins round 1 for the contact seen at DOF
-    1 and 3, and only its rivals at every side of that story, from the grid too, find it."""
+    1 and 3, and only its rivals at every side of that story, from the grid too, find it.
+    The true model is simulated as declared: at the samples held linearly (truth_model's
+    own) its error was 17 x higher and hid the stick-slip joint's 1.83 x, its fit having
+    re-adjusted the declared parameters to the fitting tests (now 1.03 x, as declared:
+    Judge.as_declared)."""
     m = model()
     if seen:
         m = dataclasses.replace(m, outputs={f"acc{j}": mdl.Output("acc", j) for j in seen})
@@ -248,7 +252,8 @@ def test_a_stepped_sine_in_steady_state(model: Any, element: mdl.Element,
                 "stick_slip": "force_n", "vv_damping": "c2_n_s2_per_m2"}[found[0]]
     got = r.effects[0]["parameters"][strength]["value"]
     assert got == pytest.approx(getattr(element, strength), rel=0.25)
-    tm = dataclasses.replace(gen.truth_model(m, truth), outputs=m.outputs)
+    tm = dataclasses.replace(gen.truth_model(m, truth), outputs=m.outputs,  # as declared,
+                             interpolation=m.interpolation, oversample=m.oversample)  # not foh
     initial.apply(tm, r.tests, r.chans, r.scales,
                   settle_samples(r.modes_hz, r.band_hz, r.tests[0].fs_hz))
     ideal = rs.error_table(tm, r.tests, r.chans, r.scales)[0].total(r.held_names)

@@ -64,6 +64,7 @@ def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model
         log.info(msg)
         s.notes.append(msg)
     if best is not None:
+        best = judge.as_declared(rd, best)
         best["alternatives"] = tied_with(judge, best, rd.fits, s.o.min_gain)
     return best
 
@@ -808,6 +809,38 @@ class Judge:
         log.info("%s without re-adjusting %s: held-out %.4g (with it %.4g)", res.cand.label,
                  name, tab.total(self.held_names), info["nsse_held_after"])
         return tab.total(self.held_names)
+
+    def as_declared(self, rd: Round, info: dict[str, Any]) -> dict[str, Any]:
+        """The round's winner, or the same effect fitted again from its own values with the
+        declared parameters as they are (only --uncertain ones re-adjusted) when that lowers
+        the held-out error and is accepted against the current model: a re-adjustment can
+        fit the fitting tests' noise where the declared model is right (a stick-slip joint on
+        stepped sines, every test in steady state: m2 +0.25 %, k3 +0.08 %, fitting error
+        0.89 x the true model's, held-out 1.64 x it, the most at a test beside the third
+        mode, 1.08 x with the declared values)."""
+        names = tuple(dict.fromkeys(self.o.uncertain))
+        res: ft.FitResult = info["fit"]
+        if tuple(info["readjusted"]) == names:
+            return info
+        try:
+            r1 = ft.fit(self.cur, res.cand, list(res.own().values()), self.fit_t, self.chans,
+                        self.scales, self.o.max_nfev, names, workers=self.workers)
+        except ConfigError as exc:
+            log.info("%s with the declared parameters as they are failed: %s", res.cand.label,
+                     exc)
+            return info
+        plain = {"candidate": res.cand, "evidence": info["evidence"], "fit": r1,
+                 "readjusted": names, "table": self.table(r1.model, self.held_t),
+                 "confirmed": True, "reference": "the current model"}
+        _, ref_table, ref_p = self.reference(names)
+        self._judged(plain, ref_table, ref_p)
+        log.info("round %d: %s with the declared parameters as they are: held-out %.4g "
+                 "(re-adjusting %s: %.4g)", rd.index, res.cand.label, plain["nsse_held_after"],
+                 ", ".join(info["readjusted"]), info["nsse_held_after"])
+        if not (plain["accepted"] and plain["nsse_held_after"] < info["nsse_held_after"]):
+            return info
+        rd.fits.append(plain)
+        return plain
 
     def warm_reference(self, res: ft.FitResult, names: tuple[str, ...]
                        ) -> rs.ErrorTable | None:
