@@ -813,7 +813,8 @@ class Judge:
     def as_declared(self, rd: Round, info: dict[str, Any]) -> dict[str, Any]:
         """The round's winner, or the same effect fitted again from its own values with the
         declared parameters as they are (only --uncertain ones re-adjusted) when that lowers
-        the held-out error and is accepted against the current model: a re-adjustment can
+        the held-out error and is accepted against its reference (the current model, with
+        --uncertain's parameters re-adjusted if any): a re-adjustment can
         fit the fitting tests' noise where the declared model is right (a stick-slip joint on
         stepped sines, every test in steady state: m2 +0.25 %, k3 +0.08 %, fitting error
         0.89 x the true model's, held-out 1.64 x it, the most at a test beside the third
@@ -829,15 +830,16 @@ class Judge:
             log.info("%s with the declared parameters as they are failed: %s", res.cand.label,
                      exc)
             return info
+        _, ref_table, ref_p = self.reference(names)
         plain = {"candidate": res.cand, "evidence": info["evidence"], "fit": r1,
                  "readjusted": names, "table": self.table(r1.model, self.held_t),
-                 "confirmed": True, "reference": "the current model"}
-        _, ref_table, ref_p = self.reference(names)
+                 "confirmed": not names,  # as Judge.candidate's: --uncertain's reference
+                 "reference": _reference_label(names, "") if ref_p else "the current model"}
         self._judged(plain, ref_table, ref_p)
         log.info("round %d: %s with the declared parameters as they are: held-out %.4g "
                  "(re-adjusting %s: %.4g)", rd.index, res.cand.label, plain["nsse_held_after"],
                  ", ".join(info["readjusted"]), info["nsse_held_after"])
-        if not (plain["accepted"] and plain["nsse_held_after"] < info["nsse_held_after"]):
+        if not (plain["nsse_held_after"] < info["nsse_held_after"] and self.confirm(plain)):
             return info
         rd.fits.append(plain)
         return plain
