@@ -270,7 +270,7 @@ def run(seed: int, count: int = 1, only: str = "", free: bool = False,
     ties = sum(len(e["alternatives"]) for e in phys)
     if ties:
         got += f" (+{ties} as well supported)"
-    ideal, spread, floors = ideal_error(m, truth, r)
+    ideal, spread, floors = ideal_error(m, truth, r, r.model.daq_filter)
     ratio = r.after.total(r.held_names) / ideal
     if r.model.daq_filter is not None:  # declared or found: also against the truth without it
         after = r.after.total(r.held_names)  # and with the generator's (a wrong order moves
@@ -304,7 +304,7 @@ GENERATOR_DAQ = mdl.DaqFilter("butterworth", 8, 0.4 * FS)
 
 
 def ideal_error(m: mdl.Model, truth: gen.Truth, r: loop.DiscoverResult,
-                daq: mdl.DaqFilter | None | str = "found") -> tuple[float, float, float]:
+                daq: mdl.DaqFilter | None) -> tuple[float, float, float]:
     """The held-out error of the true model driven by the measured input, simulated as the
     declared model asks and as discover simulated (loop.simulation_for_fits): the lower; the
     truth's spread, the largest over the smallest of its errors over those and SPREAD_SIMS,
@@ -312,16 +312,15 @@ def ideal_error(m: mdl.Model, truth: gen.Truth, r: loop.DiscoverResult,
     reference: the truth is sensitive); and that lower one's worst channel in discover's
     noise floors (a truth far above them is not predictable from the measured input: a
     hardening spring driven hard through the DAQ's filter read 18-80 x with the noise-free
-    input, blind two-effect seed 3). ``daq``: the DAQ filter the truth is simulated with,
-    "found" the updated model's (declared or found), None none (--daq's reference of the run
-    without it), or a given one (GENERATOR_DAQ: a wrongly ordered filter found moves the
-    ideal with it)."""
+    input, blind two-effect seed 3). ``daq``: the DAQ filter the truth is simulated with:
+    the updated model's (declared or found), None (--daq's reference of the run without it),
+    or GENERATOR_DAQ (a wrongly ordered filter found moves the ideal with it)."""
     best, errs, floors = math.inf, [], math.nan
     own = {(m.interpolation, m.oversample), (r.model.interpolation, r.model.oversample)}
     for sim in own | set(SPREAD_SIMS):
         tm = dataclasses.replace(gen.truth_model(m, truth), outputs=m.outputs,
                                  interpolation=sim[0], oversample=sim[1],
-                                 daq_filter=r.model.daq_filter if daq == "found" else daq)
+                                 daq_filter=daq)
         tm = dataclasses.replace(tm, outputs={c: dataclasses.replace(
             o, offset=r.model.outputs[c].offset) for c, o in m.outputs.items()})
         if r.prediction == "open loop":  # the true model's own initial states, as discover's

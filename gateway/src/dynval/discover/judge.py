@@ -637,7 +637,7 @@ class Judge:
         declared: dict[str, float] = {}
         if not given:
             cand, starts, declared = self.joint_start(e, cand, starts, names)
-        _, ref_table, ref_p = self.reference(names)
+        _, ref_table, _ = self.reference(names)
         # a fit left above it is refused (_verdict): stopped once it cannot get there
         beat = (1 - self.fit_gain_needed()) * ref_table.total(self.fit_names)
         res = None
@@ -663,9 +663,16 @@ class Judge:
                 res = r1
         if res is None:
             return None
-        tab = self.table(res.model, self.held_t)
-        info = {"candidate": cand, "evidence": e.r2, "fit": res, "readjusted": names,
-                "table": tab, "confirmed": not names,
+        return self.entry(cand, e.r2, res, names)
+
+    def entry(self, cand: fx.Candidate, evidence: float, res: ft.FitResult,
+              names: tuple[str, ...]) -> dict[str, Any]:
+        """A fit's entry in the round: its held-out table, judged against its reference
+        (the current model with ``names`` re-adjusted alone, or the current model); a fit
+        with re-adjusted parameters is confirmed later, against its warm reference."""
+        _, ref_table, ref_p = self.reference(names)
+        info = {"candidate": cand, "evidence": evidence, "fit": res, "readjusted": names,
+                "table": self.table(res.model, self.held_t), "confirmed": not names,
                 "reference": _reference_label(names, "") if ref_p else "the current model"}
         self._judged(info, ref_table, ref_p)
         return info
@@ -830,12 +837,7 @@ class Judge:
             log.info("%s with the declared parameters as they are failed: %s", res.cand.label,
                      exc)
             return info
-        _, ref_table, ref_p = self.reference(names)
-        plain = {"candidate": res.cand, "evidence": info["evidence"], "fit": r1,
-                 "readjusted": names, "table": self.table(r1.model, self.held_t),
-                 "confirmed": not names,  # as Judge.candidate's: --uncertain's reference
-                 "reference": _reference_label(names, "") if ref_p else "the current model"}
-        self._judged(plain, ref_table, ref_p)
+        plain = self.entry(res.cand, info["evidence"], r1, names)
         log.info("round %d: %s with the declared parameters as they are: held-out %.4g "
                  "(re-adjusting %s: %.4g)", rd.index, res.cand.label, plain["nsse_held_after"],
                  ", ".join(info["readjusted"]), info["nsse_held_after"])

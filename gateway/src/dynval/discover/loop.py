@@ -892,18 +892,18 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
     if declared.fs_hz is None and recs:  # the rate a DAQ filter's cutoff is relative to
         declared = dataclasses.replace(declared, fs_hz=float(recs[0].fs_hz))
     s, st = _start(declared, recs, o)
-    cur, cur_table, calibration = (_calibrate_uncertain(s, st.m, st.before) if o.uncertain
-                                   else (st.m, st.before, {}))
-    cur, cur_table, offsets = _sensor_offsets(s, cur, cur_table)
+    start, start_table, calibration = (_calibrate_uncertain(s, st.m, st.before)
+                                       if o.uncertain else (st.m, st.before, {}))
+    start, start_table, offsets = _sensor_offsets(s, start, start_table)
     if offsets is not None and st.prediction == "open loop":
-        initial.apply(cur, s.evals, s.chans, s.scales, s.settle)  # read as a slow motion before
-        cur_table, _ = s.table(cur)
-    run = _Run(cur, cur_table, st.floors, [offsets] if offsets is not None else [],
+        initial.apply(start, s.evals, s.chans, s.scales, s.settle)  # a slow motion before
+        start_table, _ = s.table(start)
+    run = _Run(start, start_table, st.floors, [offsets] if offsets is not None else [],
                {"setup": time.perf_counter() - t_start})
     _rounds(s, run, st.prediction, offsets is not None, on_progress)
     t_end = time.perf_counter()
     m, before, res_before = _finish(s, run, declared, st)
-    _changes_as_final(cur, run.cur, run.effects)
+    _changes_as_final(start, run.cur, run.effects)
     after, res_after = s.table(run.cur)
     noise = run.noise()
     left = after.over_noise(s.fit_names + s.held_names, s.chans, noise)
