@@ -97,10 +97,15 @@ STORY1 = {"story": 1, "between": [0, 1]}
 class _Judge:
     """A stand-in for judge.Judge: confirm() says ``ok`` (when not, the fit's gain is gone);
     without_moving() gives ``without`` (the winner's held-out error re-fitted without moving
-    the change's parameter)."""
+    the change's parameter); stood_in_for() ``instead`` (the parameter that change stood in
+    for, '' for none) and ``swapped`` (the winner's fit re-adjusting it in place of the
+    change's), change_of() ``alt`` (that parameter's change fitted)."""
 
-    def __init__(self, ok: bool = True, without: float | None = None) -> None:
-        self.ok, self.without = ok, without
+    def __init__(self, ok: bool = True, without: float | None = None, instead: str = "",
+                 alt: dict[str, Any] | None = None, swapped: dict[str, Any] | None = None
+                 ) -> None:
+        self.ok, self.without, self.instead, self.alt = ok, without, instead, alt
+        self.swapped = swapped
         self.cur = _model()
 
     def confirm(self, info: dict[str, Any]) -> bool:
@@ -111,13 +116,20 @@ class _Judge:
     def without_moving(self, info: dict[str, Any], name: str) -> float | None:
         return self.without
 
+    def stood_in_for(self, info: dict[str, Any], name: str
+                     ) -> tuple[str, float, dict[str, Any] | None]:
+        return (self.instead, 0.5, self.swapped) if self.instead else ("", 0.0, None)
+
+    def change_of(self, name: str, amount: float) -> dict[str, Any] | None:
+        return self.alt
+
 
 _yes = _Judge()
 
 
 def _carried(win: dict[str, Any], fits: list[dict[str, Any]], held_now: float,
              judge_: Any = _yes) -> dict[str, Any] | None:
-    return judge.change_in_the_readjustment(win, fits, held_now, 0.10, judge_)[0]
+    return judge.change_in_the_readjustment(win, list(fits), held_now, 0.10, judge_)[0]
 
 
 def test_a_readjustment_that_is_an_effect_gives_the_round_to_the_change() -> None:
@@ -159,6 +171,22 @@ def test_a_change_the_winner_cannot_do_without_takes_the_round() -> None:
     assert _carried(win, fits, 5.89, _Judge(without=0.5)) is change
     best, why = judge.change_in_the_readjustment(win, fits, 5.89, 0.10, _Judge(without=0.5))
     assert why == f"without moving k2 its held-out error is {math.sqrt(0.5 / 0.076):.2f} x (RMSE)"
+    # k2 moved in place of another parameter's change (m4): that change takes the round if
+    # it gains, fitted (and is added to the round's fits); else the round stays the winner's
+    m4 = _fit("mass_change", {"dof": 4}, 3.1, ref=5.89, m4=0.4)
+    swapped = {**win, "nsse_held_after": 0.0616}  # 0.90 x the winner's held-out RMSE
+    fits_now = [win, change]
+    best, why = judge.change_in_the_readjustment(
+        win, fits_now, 5.89, 0.10, _Judge(without=0.5, instead="m4", alt=m4, swapped=swapped))
+    assert best is m4 and fits_now[-1] is m4
+    assert why == "re-adjusting m4 in place of k2, its held-out error is 0.90 x (RMSE)"
+    # that change fitted alone does not gain: the winner re-adjusting it instead (accepted)
+    worse = _fit("mass_change", {"dof": 4}, 6.0, ref=5.89, m4=0.4)
+    assert _carried(win, fits, 5.89,
+                    _Judge(without=0.5, instead="m4", alt=worse, swapped=swapped)) is swapped
+    refused = {**swapped, "accepted": False}
+    assert _carried(win, fits, 5.89,
+                    _Judge(without=0.5, instead="m4", alt=worse, swapped=refused)) is win
     # losing less than min_gain without it (0.076 > 0.9 x 0.0844): the re-adjustment's
     assert _carried(win, fits, 5.89, _Judge(without=0.0844)) is win
     assert _carried(win, fits, 5.89, _Judge(ok=False, without=0.5)) is win

@@ -415,6 +415,24 @@ def first_order_gain(m: mdl.Model, names: Sequence[str], tests: Sequence[TestDat
     return max(0.0, 1.0 - float(fitted @ fitted) / rr)
 
 
+def single_gains(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
+                 chans: Sequence[str], scales: dict[str, float], workers: int = 1
+                 ) -> dict[str, float]:
+    """For each declared parameter of ``names`` alone, the share of the tests' normalised SSE
+    one Gauss-Newton step on it would remove (first_order_gain of each by itself, all from
+    one Jacobian): which one parameter a residual asks to move."""
+    pb = problem(m, fx.NONE.candidates(m)[0], [], tests, chans, scales, names)
+    with forward_jacobian(pb.fun, workers) as (fun_at, jac):
+        r0 = fun_at(pb.z0)
+        rr = float(r0 @ r0)
+        if rr <= 0:
+            return dict.fromkeys(names, 0.0)
+        j = jac(pb.z0)
+    jr, jj = j.T @ r0, np.einsum("ij,ij->j", j, j)
+    return {n: float(a * a / b / rr) if b > 0 else 0.0
+            for n, a, b in zip(names, jr, jj, strict=True)}
+
+
 def futility_stop(beat: float, max_nfev: int) -> Callable[[Any], None]:
     """least_squares' callback for a fit that must get under the normalised SSE ``beat``:
     raises StopIteration (scipy's way to stop, keeping the last iterate) once it cannot at
