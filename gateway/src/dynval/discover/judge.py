@@ -867,8 +867,9 @@ class Judge:
                      ) -> tuple[str, float, dict[str, Any] | None]:
         """The declared story stiffness or mass outside the fit ``info``'s re-adjusted set
         that, re-adjusted in place of ``name``, lowers its held-out error by min_gain from
-        where moving ``name`` left it: the fit moved ``name`` in place of a change elsewhere (blind two-effect
-        seed 408: a hardening spring at story 1 moved k2 for a mass added at DOF 4). (That
+        where moving ``name`` left it: the fit moved ``name`` in place of a change elsewhere
+        (blind two-effect seed 408: a hardening spring at story 1 moved k2 for a mass added at
+        DOF 4). (That
         parameter, its change in that fit, that fit's judged entry), or ('', 0, None). The
         one tried is the parameter a Gauss-Newton step on each alone (fit.single_gains) picks
         for what the fit leaves without moving ``name`` (without_moving, called first).
