@@ -147,7 +147,8 @@ def test_with_a_filter_found_the_updated_model_is_simulated_as_declared() -> Non
     once a contact and the DAQ filter are in, the filter divided out of the measured input
     lifts what the hold misses near the cutoff: the true model's held-out error measured
     1.62 x under the hold. So the hold is checked again on the updated model, and over
-    HOLD_GAP the model and the report's errors are in the declared simulation (measured:
+    HOLD_GAP the model, re-adjusted there, and the report's errors are in the declared
+    simulation (measured:
     the contact, then the filter, 4th at 229 Hz chosen again as the 8th at 254.9 Hz; 1.13 x
     the true model's held-out error)."""
     m = dataclasses.replace(table_chain(), interpolation="bandlimited", oversample=4)
@@ -159,8 +160,8 @@ def test_with_a_filter_found_the_updated_model_is_simulated_as_declared() -> Non
             for e in r.effects] == [("contact", 2, None), ("daq_filter", None, 8)]
     assert (r.model.interpolation, r.model.oversample) == ("bandlimited", 4)
     assert (r.model0.interpolation, r.model0.oversample) == ("bandlimited", 4)
-    assert any("errors before and after and the updated model are in the declared" in n
-               for n in r.notes)
+    assert any("its parameters re-adjusted again, and the errors before and after, in the "
+               "declared simulation" in n for n in r.notes)
     tm = dataclasses.replace(synth.truth_model(m, truth), outputs=m.outputs, daq_filter=AA)
     ideal, held = (rs.error_table(dataclasses.replace(tm, interpolation=i, oversample=k),
                                   r.tests, r.chans, r.scales)[0].total(r.held_names)

@@ -50,6 +50,19 @@ def test_a_cubic_springs_coefficient_is_taken() -> None:
     assert loop._added_params(res.model, res) == {}  # an element already there is declared
 
 
+def test_a_mass_changes_mass_is_taken_a_stiffness_changes_is_not() -> None:
+    """A mass change's mass moves with the others (a hardening spring's coefficient with the
+    story stiffnesses and the mass at another DOF: 0.87 kg fitted for 1.3 added, 1.28 with
+    it free); its change is reported from the final model. Every story stiffness is
+    re-adjusted anyway."""
+    m = _base()
+    mass = next(c for c in fx.by_type("mass_change").candidates(m) if c.location["dof"] == 2)
+    assert loop._added_params(m, _result(m, mass, ["dm_kg"], [0.2])) == {"m2": ""}
+    story = next(c for c in fx.by_type("stiffness_change").candidates(m)
+                 if c.location["story"] == 2)
+    assert loop._added_params(m, _result(m, story, ["dk_n_per_m"], [-2e3])) == {}
+
+
 def _one_dof(f_hz: float) -> mdl.Model:
     """A single-DOF oscillator with its mode at f_hz (1 kg)."""
     return mdl.Model(masses_kg=(1.0,), stiffness_n_per_m=((2 * math.pi * f_hz) ** 2,),

@@ -119,10 +119,10 @@ def test_where_the_cubic_hold_shows_above_the_noise_the_declared_interpolation_s
                                      mdl.CubicSpring(2, 3, 5e12)])
 def test_an_element_leaves_the_hold_gap_where_the_linear_model_has_it(
         element: mdl.Element) -> None:
-    """Why discover measures the cubic hold's gap on the declared linear model and again at
-    the end only once a DAQ filter is in (loop._declared_simulation_again): with the true
+    """Why discover measures the cubic hold's gap on the declared linear model: with the true
     element in (its harmonics), the gap moves by 0.1-1.1 % here (gap/floor 0.16-0.17 x), far
-    under what would carry it over loop.HOLD_GAP."""
+    under what would carry it over loop.HOLD_GAP, and the updated model stays in the hold at
+    the end (loop._declared_simulation_again)."""
     m = chain()
     truth = gen.Truth(elements=(element,))
     recs = gen.generate(m, truth, n_tests=4, n_samples=2048, seed=3, levels_n_rms=(12.0, 7.2))
@@ -141,3 +141,29 @@ def test_an_element_leaves_the_hold_gap_where_the_linear_model_has_it(
     floors = loop._floors(s, true_fast, res, {})
     slow = dataclasses.replace(true_fast, interpolation="bandlimited", oversample=4)
     assert 0.1 < loop._hold_gap(s, slow, res, floors) < loop.HOLD_GAP
+    assert loop._declared_simulation_again(s, m, true_fast, floors) is None
+
+
+def test_a_strong_element_takes_the_updated_model_back_to_the_declared_simulation() -> None:
+    """A hardening spring at story 1 taking 0.4 of the story's force at its RMS drift (a
+    lighter chain driven at DOF 1): its force stepped at the sample rate is not the one
+    oversampled, and the hold differs from the declared interpolation by 3.1 noise floors
+    with it in (0.5 at half its strength): the updated model goes back to the declared
+    simulation, with no DAQ filter in."""
+    n = 4
+    m = mdl.Model(masses_kg=tuple(5.0 + 0.5 * i for i in range(n)),
+                  stiffness_n_per_m=tuple(3.0e5 - 2e4 * i for i in range(n)),
+                  damping=mdl.Damping("modal", (0.02,) * n),
+                  input=mdl.Input("force", 1, "force_N"), outputs=dict(ACC), fs_hz=640.0)
+    truth = gen.Truth(elements=(mdl.CubicSpring(0, 1, 5.7e13),))
+    recs = gen.generate(m, truth, n_tests=4, n_samples=2048, seed=1)
+    fast, _ = loop.simulation_for_fits(m, loop.Options())
+    s = make_session(fast, recs, loop.Options(workers=1))
+    true_fast = dataclasses.replace(gen.truth_model(fast, truth), outputs=fast.outputs,
+                                    interpolation="cubic", oversample=1)
+    _, res = s.table(true_fast)
+    slow = loop._declared_simulation_again(s, m, true_fast, loop._floors(s, true_fast, res, {}))
+    assert slow is not None and (slow.interpolation, slow.oversample) == ("bandlimited", 4)
+    assert slow.elements == true_fast.elements and slow.daq_filter is None
+    (why,) = [n for n in s.notes if "differs from the declared band-limited" in n]
+    assert float(why.split(" by ")[1].split(" x ")[0]) > 2.0
