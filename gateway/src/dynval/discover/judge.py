@@ -869,10 +869,10 @@ class Judge:
         that, re-adjusted in place of ``name``, lowers its held-out error by min_gain from
         where moving ``name`` left it: the fit moved ``name`` in place of a change elsewhere
         (blind two-effect seed 408: a hardening spring at story 1 moved k2 for a mass added at
-        DOF 4). (That
-        parameter, its change in that fit, that fit's judged entry), or ('', 0, None). The
-        one tried is the parameter a Gauss-Newton step on each alone (fit.single_gains) picks
-        for what the fit leaves without moving ``name`` (without_moving, called first).
+        DOF 4). (That parameter, its change in that fit, that fit's judged entry), or ('', 0,
+        None). The one tried is the parameter a Gauss-Newton step on each alone
+        (fit.single_gains) picks for what the fit leaves without moving ``name``
+        (without_moving, called first).
         Swapped in the re-adjustment, not fitted alone on top: the others re-adjusted without
         ``name`` have moved to stand in for it, and a change alone from there misjudges it
         (blind two-effect seed 5, a k2 loss of 15 %: from there k2 alone took 0.13 of the
