@@ -398,21 +398,31 @@ def problem(m: mdl.Model, cand: fx.Candidate, init: Sequence[float],
     return pb
 
 
+def _declared_jacobian(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
+                       chans: Sequence[str], scales: dict[str, float], workers: int
+                       ) -> tuple[np.ndarray, np.ndarray] | None:
+    """(the tests' residual vector, its Jacobian over the declared parameters ``names`` in
+    the fits' [0, 1] coordinates) at m; None when the residual is zero."""
+    pb = problem(m, fx.NONE.candidates(m)[0], [], tests, chans, scales, names)
+    with forward_jacobian(pb.fun, workers) as (fun_at, jac):
+        r0 = fun_at(pb.z0)
+        if float(r0 @ r0) <= 0:
+            return None
+        return r0, jac(pb.z0)
+
+
 def first_order_gain(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
                      chans: Sequence[str], scales: dict[str, float], workers: int = 1) -> float:
     """The share of the tests' normalised SSE one Gauss-Newton step on the declared
     parameters ``names`` would remove (the residual's projection on the Jacobian's columns;
     bounds ignored): a screen costing one Jacobian, before a fit costing several."""
-    pb = problem(m, fx.NONE.candidates(m)[0], [], tests, chans, scales, names)
-    with forward_jacobian(pb.fun, workers) as (fun_at, jac):
-        r0 = fun_at(pb.z0)
-        rr = float(r0 @ r0)
-        if rr <= 0:
-            return 0.0
-        j = jac(pb.z0)
+    at = _declared_jacobian(m, names, tests, chans, scales, workers)
+    if at is None:
+        return 0.0
+    r0, j = at
     step, *_ = np.linalg.lstsq(j, -r0, rcond=None)
     fitted = r0 + j @ step
-    return max(0.0, 1.0 - float(fitted @ fitted) / rr)
+    return max(0.0, 1.0 - float(fitted @ fitted) / float(r0 @ r0))
 
 
 def single_gains(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
@@ -421,13 +431,11 @@ def single_gains(m: mdl.Model, names: Sequence[str], tests: Sequence[TestData],
     """For each declared parameter of ``names`` alone, the share of the tests' normalised SSE
     one Gauss-Newton step on it would remove (first_order_gain of each by itself, all from
     one Jacobian): which one parameter a residual asks to move."""
-    pb = problem(m, fx.NONE.candidates(m)[0], [], tests, chans, scales, names)
-    with forward_jacobian(pb.fun, workers) as (fun_at, jac):
-        r0 = fun_at(pb.z0)
-        rr = float(r0 @ r0)
-        if rr <= 0:
-            return dict.fromkeys(names, 0.0)
-        j = jac(pb.z0)
+    at = _declared_jacobian(m, names, tests, chans, scales, workers)
+    if at is None:
+        return dict.fromkeys(names, 0.0)
+    r0, j = at
+    rr = float(r0 @ r0)
     jr, jj = j.T @ r0, np.einsum("ij,ij->j", j, j)
     return {n: float(a * a / b / rr) if b > 0 else 0.0
             for n, a, b in zip(names, jr, jj, strict=True)}

@@ -54,18 +54,17 @@ def best_of_round(s: Session, rd: Round, pool: list[tr.Evidence], cur: mdl.Model
     best, why = change_in_the_readjustment(winner, rd.fits, cur_table.total(s.held_names),
                                            s.o.min_gain, judge)
     s.carried = set()
-    if winner is not None and best is not None and best is not winner and cand_key(
-            best["candidate"]) == cand_key(winner["candidate"]):
-        msg = f"round {rd.index}: {winner['candidate'].label} wins, fitted again {why}"
-        log.info(msg)
-        s.notes.append(msg)
-    elif winner is not None and best is not None and best is not winner:
-        s.carried = {cand_key(winner["candidate"])}
-        msg = (f"round {rd.index}: {winner['candidate'].label} would win, but re-adjusting "
-               f"{', '.join(winner['readjusted'])} alone already lowers the held-out error by "
-               f"{1 - winner['nsse_held_before'] / cur_table.total(s.held_names):.0%}, and "
-               f"{why}: {best['candidate'].label} takes the round and the "
-               "other is fitted again next round on top of it")
+    if winner is not None and best is not None and best is not winner:
+        if cand_key(best["candidate"]) == cand_key(winner["candidate"]):
+            msg = f"round {rd.index}: {winner['candidate'].label} wins, fitted again {why}"
+        else:
+            s.carried = {cand_key(winner["candidate"])}
+            msg = (f"round {rd.index}: {winner['candidate'].label} would win, but "
+                   f"re-adjusting {', '.join(winner['readjusted'])} alone already lowers the "
+                   f"held-out error by "
+                   f"{1 - winner['nsse_held_before'] / cur_table.total(s.held_names):.0%}, and "
+                   f"{why}: {best['candidate'].label} takes the round and the "
+                   "other is fitted again next round on top of it")
         log.info(msg)
         s.notes.append(msg)
     if best is not None:
@@ -566,6 +565,12 @@ def _in_place(best: dict[str, Any], name: str, instead: str, amount: float,
     return best, ""
 
 
+def _linear_changes(m: mdl.Model) -> dict[str, fx.Candidate]:
+    """m's story stiffness and mass changes by the declared parameter each changes."""
+    return {fx.by_type(t).changes(c): c for t in ("stiffness_change", "mass_change")
+            for c in fx.by_type(t).candidates(m)}
+
+
 def _gains(change: dict[str, Any]) -> bool:
     """Whether a change fitted alone lowers the held-out error with the BIC's support, by
     min_gain or less: beside a stronger effect its own gain is smaller (a contact at DOF 1
@@ -881,9 +886,7 @@ class Judge:
         m = self._without.get((cand_key(info["candidate"]), name))
         if m is None:
             return none
-        names = [n for n in dict.fromkeys(
-            fx.by_type(t).changes(c) for t in ("stiffness_change", "mass_change")
-            for c in fx.by_type(t).candidates(m)) if n not in info["readjusted"]]
+        names = [n for n in _linear_changes(m) if n not in info["readjusted"]]
         if not names:
             return none
         step = ft.single_gains(m, names, self.fit_t, self.chans, self.scales, self.workers)
@@ -903,9 +906,7 @@ class Judge:
     def change_of(self, name: str, amount: float) -> dict[str, Any] | None:
         """The linear change of the declared story stiffness or mass ``name`` fitted as a
         candidate from ``amount`` (N/m or kg), or None (no such change, its fit failed)."""
-        cand = next((c for t in ("stiffness_change", "mass_change")
-                     for c in fx.by_type(t).candidates(self.cur)
-                     if fx.by_type(t).changes(c) == name), None)
+        cand = _linear_changes(self.cur).get(name)
         return None if cand is None else self.candidate(tr.Evidence(cand, 0.0, amount))
 
     def as_declared(self, rd: Round, info: dict[str, Any]) -> dict[str, Any]:
