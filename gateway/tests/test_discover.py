@@ -357,3 +357,24 @@ def test_discover_a_sliding_joint_between_two_dofs() -> None:
     assert e["type"] == "friction" and e["location"]["between"] == [1, 2]
     assert e["parameters"]["force_n"]["value"] == pytest.approx(0.6, rel=0.1)
     assert held_reduction(r) > 0.8
+
+
+def test_a_bases_products_over_its_rows_are_the_dense_ones() -> None:
+    """trace._Products takes |b|^2, b.f, Q'b and b.f_res over the rows an n x T field is not
+    zero on (an element between two DOFs): the same numbers as over the whole flattened
+    field, and as the 1-D image's."""
+    rng = np.random.default_rng(3)
+    n, t = 5, 700
+    f = rng.standard_normal(n * t)
+    q, _ = np.linalg.qr(rng.standard_normal((n * t, 4)))
+    f_res = f - q @ (q.T @ f)
+    b = np.zeros((n, t))
+    b[1], b[3] = rng.standard_normal(t), rng.standard_normal(t)
+    products = tr._Products(f, f_res, np.ascontiguousarray(q.T), n)
+    dense = b.ravel()
+    want = (dense @ dense, dense @ f, q.T @ dense, dense @ f_res)
+    for got in (products(b), products(dense)):
+        np.testing.assert_allclose(got[0], want[0], rtol=1e-12)
+        np.testing.assert_allclose([got[1], got[3]], [want[1], want[3]], rtol=1e-12)
+        np.testing.assert_allclose(got[2], want[2], rtol=1e-12, atol=1e-12)
+    assert products(np.zeros((n, t)))[0] == 0.0
