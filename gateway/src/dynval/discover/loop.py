@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from dynval import model as mdl
-from dynval.discover import acc_offsets, continuation, initial, parallel
+from dynval.discover import acc_offsets, continuation, extrapolation, initial, parallel
 from dynval.discover import drift as dr
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
@@ -919,6 +919,7 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
     m, before, res_before = _finish(s, run, declared, st)
     _changes_as_final(start, run.cur, run.effects)
     after, res_after = s.table(run.cur)
+    s.notes += extrapolation.notes(m, run.cur, s.fit_t, s.held_t)
     noise = run.noise()
     left = after.over_noise(s.fit_names + s.held_names, s.chans, noise)
     unexp = (ux.characterise(s.evals, res_after, s.chans, noise, s.modes_hz)
