@@ -428,7 +428,8 @@ def figure_list(r: DiscoverResult, units: Mapping[str, str] | None = None) -> li
         plot.pyplot().close(fig)
         return out
 
-    # the longest first (the pool waits on its last figure): seconds of a 6-DOF case's
+    # the longest first (the pool waits on its last figure); the seconds each took on a
+    # 6-DOF case
     cost = {"residual": 0.7, "residual_zoom": 0.1, "surface": 0.25, "spectra": 1.5,
             "ranking": 0.25}
     drawn = parallel.ordered_map(render, list(makers), parallel.available_workers(),
