@@ -414,13 +414,17 @@ def figure_list(r: DiscoverResult, units: Mapping[str, str] | None = None) -> li
     if _plt() is None:
         return []
     labels = labels_of(r, units)
-    makers: dict[str, Callable[[], tuple[Any, str] | None]] = {
-        "residual": lambda: figure_residual(r, labels),
-        "residual_zoom": lambda: figure_zoom(r, labels), "surface": lambda: figure_surface(r),
-        "spectra": lambda: figure_spectra(r, labels), "ranking": lambda: figure_ranking(r)}
+    # each with the seconds it took on a 6-DOF case: drawn longest first (the pool waits on
+    # its last figure)
+    makers: dict[str, tuple[float, Callable[[], tuple[Any, str] | None]]] = {
+        "residual": (0.7, lambda: figure_residual(r, labels)),
+        "residual_zoom": (0.1, lambda: figure_zoom(r, labels)),
+        "surface": (0.25, lambda: figure_surface(r)),
+        "spectra": (1.5, lambda: figure_spectra(r, labels)),
+        "ranking": (0.25, lambda: figure_ranking(r))}
 
     def render(name: str) -> Figure | None:
-        fc = makers[name]()
+        fc = makers[name][1]()
         if fc is None:
             return None
         fig, caption = fc
@@ -428,12 +432,8 @@ def figure_list(r: DiscoverResult, units: Mapping[str, str] | None = None) -> li
         plot.pyplot().close(fig)
         return out
 
-    # the longest first (the pool waits on its last figure); the seconds each took on a
-    # 6-DOF case
-    cost = {"residual": 0.7, "residual_zoom": 0.1, "surface": 0.25, "spectra": 1.5,
-            "ranking": 0.25}
     drawn = parallel.ordered_map(render, list(makers), parallel.available_workers(),
-                                 [cost[n] for n in makers])
+                                 [cost for cost, _ in makers.values()])
     return [f for f in drawn if f is not None]
 
 

@@ -211,7 +211,7 @@ def channel_scales(tests: Sequence[TestData], chans: Sequence[str]) -> dict[str,
 def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     """The model's open-loop (or observer) prediction, or None when the core refuses the
     model; on the channels in t.demean, with the test's own mean residual (acc_offsets.py)."""
-    x0 = _nonlinear_start(m, t)
+    x0 = nonlinear_start(m, t)
     try:
         p = (mdl.simulate(m, t.input_for(m), t.fs_hz, x0=x0) if t.observer is None else
              mdl.predict_observed(m, t.observer_input(m), t.observed(), t.fs_hz,
@@ -228,7 +228,7 @@ def predict(m: mdl.Model, t: TestData) -> dict[str, np.ndarray] | None:
     return p
 
 
-def _nonlinear_start(m: mdl.Model, t: TestData) -> np.ndarray | None:
+def nonlinear_start(m: mdl.Model, t: TestData) -> np.ndarray | None:
     """The state an open-loop simulation of m starts from instead of adding the free motion
     t.start: for a model with elements (a friction element stuck at the start moves
     nothing the linear free motion would) of the size the state was estimated at."""

@@ -558,6 +558,9 @@ def score(view: ForceView, cands: Sequence[fx.Candidate], workers: int = 1
             return view.propagate(b)
         return (b[:1] if ro else b).ravel()
 
+    def dense(b: np.ndarray) -> np.ndarray:  # a basis as bases() gives it, as its image
+        return b if b.ndim == 1 else image(b)
+
     def bases(cand: fx.Candidate) -> list[tuple[dict[str, float], np.ndarray]]:
         """The candidate's bases, as restoring-force fields (n x T) where the view reads them
         as they are, else as their images (1-D: the output view's)."""
@@ -571,7 +574,7 @@ def score(view: ForceView, cands: Sequence[fx.Candidate], workers: int = 1
     for cand in cands:
         if cand.type in _NUISANCE:
             for _, b in bases(cand):
-                nuis.append(b.ravel() if b.ndim == 1 else image(b))
+                nuis.append(dense(b))
                 nuis_params.append(_declared_name(cand))
     # Q' stored row by row (Q' b read contiguously: 2.6 x faster a product than Q's columns)
     qt = np.zeros((0, f.size))
@@ -612,8 +615,7 @@ def score(view: ForceView, cands: Sequence[fx.Candidate], workers: int = 1
                 # |br|^2 = |bv|^2 - |Q'bv|^2, computed directly where that difference cancels
                 brr = bb - float(qb @ qb)
                 if brr <= 1e-6 * bb:
-                    bv = b if b.ndim == 1 else image(b)
-                    br = bv - qt.T @ qb
+                    br = dense(b) - qt.T @ qb
                     brr = float(br @ br)
                 if brr <= 1e-12 * bb:
                     continue
