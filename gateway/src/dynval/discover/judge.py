@@ -493,10 +493,10 @@ def change_in_the_readjustment(best: dict[str, Any] | None, fits: list[dict[str,
     parameters: it lowers the held-out error little by itself. When the winner's reference
     (its re-adjusted parameters fitted alone) already lowers the current held-out error
     ``held_now`` by min_gain, a change of one of those parameters alone (EffectType.changes),
-    apart from the winner (_apart), is an effect of its own if, accepted and away from the
+    apart from the winner (apart), is an effect of its own if, accepted and away from the
     winner's place, it comes within half of min_gain of that reference, or if the winner
     moved that parameter the same way, the change alone at least half as far (asked_without)
-    with some held-out gain (_gains), and loses min_gain of its held-out error without
+    with some held-out gain (gains), and loses min_gain of its held-out error without
     moving it (the reference's other parameters can mimic part of the winner: a lost story
     stiffness beside an added mass); but when another declared parameter re-adjusted in its
     place does better still (Judge.stood_in_for: the winner moved it in place of a change
@@ -515,7 +515,7 @@ def change_in_the_readjustment(best: dict[str, Any] | None, fits: list[dict[str,
         return best, ""
     linear = bool(fx.by_type(best["candidate"].type).changes(best["candidate"]))
     inside = sorted((f for f in fits if fx.by_type(f["candidate"].type).changes(f["candidate"])
-                     in best["readjusted"] and _apart(f["candidate"], best["candidate"])),
+                     in best["readjusted"] and apart(f["candidate"], best["candidate"])),
                     key=lambda f: f["nsse_held_after"])
     # (a mass at the winner's own DOF only through asked_without: an appendage's reference
     # re-adjusts that mass, and below its frequency the appendage is a mass there too)
@@ -526,7 +526,7 @@ def change_in_the_readjustment(best: dict[str, Any] | None, fits: list[dict[str,
         return tied, f"{tied['candidate'].label} alone does as well"
     for f in inside:
         name = fx.by_type(f["candidate"].type).changes(f["candidate"])
-        if not (_gains(f) and asked_without(best, f, name, judge.cur)):
+        if not (gains(f) and asked_without(best, f, name, judge.cur)):
             continue
         without = judge.without_moving(best, name)
         if without is None or best["nsse_held_after"] > (1 - min_gain) * without:
@@ -535,7 +535,7 @@ def change_in_the_readjustment(best: dict[str, Any] | None, fits: list[dict[str,
         if swapped is not None:
             return _in_place(best, name, instead, amount, swapped, fits, judge)
         judge.confirm(f)  # an accepted change re-judged against its warm reference
-        if _gains(f):
+        if gains(f):
             return f, (f"without moving {name} its held-out error is "
                        f"{math.sqrt(without / best['nsse_held_after']):.2f} x (RMSE)")
     return best, ""
@@ -546,7 +546,7 @@ def _in_place(best: dict[str, Any], name: str, instead: str, amount: float,
               ) -> tuple[dict[str, Any], str]:
     """The round's winner when ``best`` moved ``name`` in place of ``instead`` (``swapped``:
     its fit re-adjusting ``instead`` in place of ``name``, a lower held-out error): the change
-    of ``instead`` fitted by itself (added to ``fits``) if it gains (_gains), else
+    of ``instead`` fitted by itself (added to ``fits``) if it gains (gains), else
     ``swapped`` if accepted, else ``best``; with why."""
     ratio = math.sqrt(swapped["nsse_held_after"] / best["nsse_held_after"])
     why = f"re-adjusting {instead} in place of {name}, its held-out error is {ratio:.2f} x (RMSE)"
@@ -557,7 +557,7 @@ def _in_place(best: dict[str, Any], name: str, instead: str, amount: float,
         log.info("%s fitted from %.4g: held-out %.4g (gain %.3f), dBIC %.1f",
                  alt["candidate"].label, amount, alt["nsse_held_after"], alt["held_gain"],
                  alt["delta_bic"])
-        if _gains(alt):
+        if gains(alt):
             return alt, why
     if swapped["accepted"] and judge.confirm(swapped):
         fits.append(swapped)
@@ -565,13 +565,13 @@ def _in_place(best: dict[str, Any], name: str, instead: str, amount: float,
     return best, ""
 
 
-def _linear_changes(m: mdl.Model) -> dict[str, fx.Candidate]:
+def linear_changes(m: mdl.Model) -> dict[str, fx.Candidate]:
     """m's story stiffness and mass changes by the declared parameter each changes."""
     return {fx.by_type(t).changes(c): c for t in ("stiffness_change", "mass_change")
             for c in fx.by_type(t).candidates(m)}
 
 
-def _gains(change: dict[str, Any]) -> bool:
+def gains(change: dict[str, Any]) -> bool:
     """Whether a change fitted alone lowers the held-out error with the BIC's support, by
     min_gain or less: beside a stronger effect its own gain is smaller (a contact at DOF 1
     and 0.35 kg added there: the mass alone 9.3 %, the contact's fit 8.3 x worse in RMSE
@@ -599,15 +599,19 @@ def _away(change: fx.Candidate, effect: fx.Candidate) -> bool:
     return any(effect.location.get(k) != v for k, v in change.location.items())
 
 
-def _apart(change: fx.Candidate, effect: fx.Candidate) -> bool:
+def apart(change: fx.Candidate, effect: fx.Candidate) -> bool:
     """Whether a linear change can be an effect apart from ``effect``, not its own linear
-    part: away from its place, or a mass change at it. A DOF's mass is no element's linear
-    part, nor an appendage's above the appendage's frequency; a story stiffness at an
-    element's place is the element's (a hardening spring stiffens its story at every level
-    tested). Blind two-effect seed 2: 0.419 kg added at an appendage's DOF was fitted as the
-    appendage's re-adjustment of m1, +0.414 kg, and not named."""
-    return _away(change, effect) or (change.type == "mass_change"
-                                     and effect.type != "mass_change")
+    part: away from its place, a mass change at it, or a story stiffness change at the place
+    of an effect whose law has no stiffness (EffectType.stiffens: a velocity-squared damper,
+    a friction). A DOF's mass is no element's linear part, nor an appendage's above the
+    appendage's frequency; a story stiffness at a stiffening element's place is the
+    element's (a hardening spring stiffens its story at every level tested). Blind
+    two-effect seed 2: 0.419 kg added at an appendage's DOF was fitted as the appendage's
+    re-adjustment of m1, +0.414 kg, and not named; seed 400: a story's 7.4 % loss of
+    stiffness re-adjusted with a velocity-squared damper in that story."""
+    return (_away(change, effect)
+            or (change.type == "mass_change" and effect.type != "mass_change")
+            or (change.type == "stiffness_change" and not fx.by_type(effect.type).stiffens))
 
 
 class Judge:
@@ -886,7 +890,7 @@ class Judge:
         m = self._without.get((cand_key(info["candidate"]), name))
         if m is None:
             return none
-        names = [n for n in _linear_changes(m) if n not in info["readjusted"]]
+        names = [n for n in linear_changes(m) if n not in info["readjusted"]]
         if not names:
             return none
         step = ft.single_gains(m, names, self.fit_t, self.chans, self.scales, self.workers)
@@ -906,7 +910,7 @@ class Judge:
     def change_of(self, name: str, amount: float) -> dict[str, Any] | None:
         """The linear change of the declared story stiffness or mass ``name`` fitted as a
         candidate from ``amount`` (N/m or kg), or None (no such change, its fit failed)."""
-        cand = _linear_changes(self.cur).get(name)
+        cand = linear_changes(self.cur).get(name)
         return None if cand is None else self.candidate(tr.Evidence(cand, 0.0, amount))
 
     def as_declared(self, rd: Round, info: dict[str, Any]) -> dict[str, Any]:
@@ -1268,7 +1272,7 @@ def _refit_later(s: Session, steps: Sequence[Step], k: int, m: mdl.Model, predic
         # two-effect case 6)
         have = m.parameters()
         names = tuple(n for n in st.info["readjusted"]
-                      if n in have and (n != param or not _apart(gone, res.cand)))
+                      if n in have and (n != param or not apart(gone, res.cand)))
         try:
             r = ft.fit(m, res.cand, own, s.fit_t, s.chans, s.scales, s.o.max_nfev, names,
                        workers=s.workers)

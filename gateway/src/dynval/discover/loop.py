@@ -33,7 +33,14 @@ from typing import Any
 import numpy as np
 
 from dynval import model as mdl
-from dynval.discover import acc_offsets, continuation, extrapolation, initial, parallel
+from dynval.discover import (
+    acc_offsets,
+    changes_apart,
+    continuation,
+    extrapolation,
+    initial,
+    parallel,
+)
 from dynval.discover import drift as dr
 from dynval.discover import effects as fx
 from dynval.discover import fit as ft
@@ -918,6 +925,7 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
     t_end = time.perf_counter()
     m, before, res_before = _finish(s, run, declared, st)
     _changes_as_final(start, run.cur, run.effects)
+    changes_apart.name_changes(s, start, run.cur, run.cur_table, run.effects)
     after, res_after = s.table(run.cur)
     s.notes += extrapolation.notes(m, run.cur, s.fit_t, s.held_t)
     noise = run.noise()

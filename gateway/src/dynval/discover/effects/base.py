@@ -220,6 +220,10 @@ class EffectType:
     # its places are few and cheap to fit, and its evidence cannot rank them: when one wins a
     # round, the others are fitted too, from its values (judge.siblings)
     fit_every_place = False
+    # its law has a linear stiffness at its place (a spring's, a closed contact's, a stuck
+    # joint's): a best-linear model's story stiffness there took up part of it, and a change of
+    # that stiffness found with it is its own linear part, not a change apart (judge.apart)
+    stiffens = False
 
     def locations(self, m: mdl.Model) -> list[dict[str, Any]]:
         raise NotImplementedError

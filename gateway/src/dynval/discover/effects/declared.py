@@ -28,6 +28,7 @@ _REL_GRID = (-0.4, -0.25, -0.15, -0.08, -0.03, 0.03, 0.08, 0.15, 0.25, 0.5)
 
 class StiffnessChange(EffectType):
     type = "stiffness_change"
+    stiffens = True
     location_kind = "story"
     law = "k_s -> k_s + dk: extra story force dk X (linear)"
     moves_modes = True

@@ -31,6 +31,7 @@ _QUANTILES = (0.6, 0.75, 0.85, 0.9, 0.95, 0.98, 0.99, 0.995, 0.998)
 
 class Contact(EffectType):
     type = "contact"
+    stiffens = True
     location_kind = "story"
     nonlinear = True
     simpler = ("cubic_stiffness",)  # a smooth hardening with one parameter for three
@@ -277,6 +278,7 @@ class Friction(_FrictionOffset):
 class StickSlipFriction(_FrictionOffset):
     tag = "stick-slip"
     type = "stick_slip"
+    stiffens = True
     element = "stick_slip"
     what = "stick-slip friction"
     law = ("stick-slip (Jenkins) friction between DOF a and DOF b (or the ground): a stick "
@@ -312,6 +314,7 @@ class CubicStiffness(_OneCoefficient):
 
     tag = "cubic"
     type = "cubic_stiffness"
+    stiffens = True
     element = "cubic_spring"
     what = "cubic stiffness"
     default_scale = 1e12

@@ -1,0 +1,168 @@
+"""Declared masses and story stiffnesses whose re-adjustment is a change of its own.
+
+An effect's fit re-adjusts the declared parameters it interacts with, and the joint
+re-adjustment after each round moves every stiffness: a best-linear declared model had
+spread part of the effect over them. But a mass added away from an element, or a story that
+lost stiffness beside a mass change, is taken up by the same re-adjustments and then never
+named (blind two-effect case 408: a mass at DOF 4 found as m4 +19.9 % re-adjusted with a
+cubic spring at story 1, the truth +19.3 %). At the end, each such parameter is a change of
+its own when all hold:
+- it is significant: SIGNIFICANT x the uncertainty of the re-adjustment it was found as;
+- the updated model needs it: with that parameter alone put back to its value before the
+  rounds, the held-out error rises by min_gain;
+- the data ask for it without the effects: the change alone, fitted on the model before the
+  rounds, moves it the same way, within ALONE_FACTOR of the updated model's change, with
+  the BIC's support and a held-out gain of half min_gain (with the effects unmodelled
+  there its gain is smaller: 7 % for that mass beside the spring; 1.1 % for a story's
+  1.1 %, not in the truth, re-adjusted with a friction there; 0.1 % for a mass at the DOF of
+  an appendage under a swept sine).
+A best-linear model's compensation fails the last: on the model it was fitted into, the
+change alone has nothing to gain (blind one-effect case 0, a mass at DOF 1 whose best-linear
+fit had moved k2 by -13 %: alone, k2 moves 0.00 of the way back). A story stiffness at a
+stiffening element's place is that element's linear part and stays a re-adjustment
+(judge.apart). The updated model is not changed: only what its changes are called."""
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from typing import Any
+
+from dynval import model as mdl
+from dynval.discover import effects as fx
+from dynval.discover import fit as ft
+from dynval.discover import parallel
+from dynval.discover import residual as rs
+from dynval.discover.judge import Judge, apart, change_rel, effect_entry, gains, linear_changes
+from dynval.discover.session import Session
+from dynval.errors import ConfigError
+
+log = logging.getLogger(__name__)
+
+# the change alone moves its parameter within this factor of the updated model's change: the
+# same change, not a stand-in for an effect (blind: a story stiffening 4.4 x as far alone in
+# place of a hardening spring, 2.8 x in place of an appendage at its DOF)
+ALONE_FACTOR = 2.0
+UNCERTAINTY_FIELDS = ("uncertainty", "uncertainty_fit", "uncertainty_scatter")
+# a change within this many times its uncertainty (judge.uncertainty: the Gauss-Newton sigma
+# and the per-test fits' scatter) is not told from none
+SIGNIFICANT = 2.0
+
+
+def _moved(start: mdl.Model, cur: mdl.Model, effects: list[dict[str, Any]]
+           ) -> dict[str, fx.Candidate]:
+    """The masses and story stiffnesses cur moved from start that no effect names and that
+    are no element's linear part."""
+    p0, pm = start.parameters(), cur.parameters()
+    placed = [fx.Candidate(e["type"], e["location"], e["label"], True) for e in effects]
+    named = {fx.by_type(c.type).changes(c) for c in placed}
+    return {n: c for n, c in linear_changes(start).items()
+            if n not in named and n in pm and pm[n] != p0[n]
+            and all(apart(c, e) for e in placed)}
+
+
+def _needed(judge: Judge, start: mdl.Model, names: list[str]) -> dict[str, float]:
+    """Of ``names``, those the updated model (judge.cur) needs: name -> the held-out error
+    with it put back to start's value, over the updated model's."""
+    held = judge.table(judge.cur, judge.held_t).total(judge.held_names)
+    p0 = start.parameters()
+
+    def back(n: str) -> float:
+        m = judge.cur.with_params({n: p0[n]})
+        return judge.table(m, judge.held_t).total(judge.held_names) / held
+
+    ratios = dict(zip(names, parallel.ordered_map(back, names, judge.workers), strict=True))
+    return {n: r for n, r in ratios.items() if r * (1 - judge.o.min_gain) >= 1}
+
+
+def name_changes(s: Session, start: mdl.Model, cur: mdl.Model, cur_table: rs.ErrorTable,
+                 effects: list[dict[str, Any]]) -> None:
+    """Append to ``effects`` each declared mass or story stiffness cur moved from start that
+    is a change of its own (module doc), its value cur's less start's; the parameter leaves
+    the re-adjusted lists of the effects it moved with; a note says why, with the figures."""
+    p0, pm = start.parameters(), cur.parameters()
+    found = {n: r["uncertainty"] for e in effects for n, r in e.get("readjusted", {}).items()}
+    moved = {n: c for n, c in _moved(start, cur, effects).items()
+             if _significant(c.label, float(pm[n] - p0[n]), found.get(n, 0.0))}
+    if not moved:
+        return
+    o = dataclasses.replace(s.o, readjust=False, uncertain=())
+    now = Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, o, s.band, s.workers)
+    needed = _needed(now, start, list(moved))
+    if not needed:
+        return
+    before = Judge(start, now.table(start, [*s.fit_t, *s.held_t]), s.fit_t, s.held_t,
+                   s.chans, s.scales, o, s.band, s.workers)
+    names = list(needed)
+    amounts = [float(pm[n] - p0[n]) for n in names]
+    fits = parallel.ordered_map(lambda k: _alone(before, moved[names[k]], amounts[k]),
+                                range(len(names)), s.workers)
+    for n, amount, alone in zip(names, amounts, fits, strict=True):
+        if alone is None:
+            continue
+        went = float(alone["fit"].model.parameters()[n] - p0[n])
+        log.info("%s alone on the model before the rounds: %+.4g (in the updated model "
+                 "%+.4g, put back %.3f x), held-out gain %.3f, dBIC %.1f", moved[n].label, went,
+                 amount, needed[n], alone["held_gain"], alone["delta_bic"])
+        if (gains(alone) and alone["held_gain"] >= 0.5 * s.o.min_gain
+                and 1 / ALONE_FACTOR <= went / amount <= ALONE_FACTOR):
+            entry = _entry(s, start, cur, n, alone, needed[n], effects)
+            if entry is not None:
+                effects.append(entry)
+
+
+def _significant(label: str, amount: float, uncertainty: float) -> bool:
+    """Whether a change of ``amount`` is SIGNIFICANT x its ``uncertainty`` (0: not known)."""
+    if abs(amount) >= SIGNIFICANT * uncertainty:
+        return True
+    log.info("%s: %+.4g in the updated model, within %g x its uncertainty (%.3g)", label,
+             amount, SIGNIFICANT, uncertainty)
+    return False
+
+
+def _alone(before: Judge, cand: fx.Candidate, amount: float) -> dict[str, Any] | None:
+    """The change ``cand`` alone fitted on the model before the rounds from ``amount``, judged
+    there (its entry as a round's); None if the fit fails."""
+    try:
+        res = ft.fit(before.cur, cand, [amount], before.fit_t, before.chans, before.scales,
+                     before.o.max_nfev)
+    except ConfigError as exc:
+        log.info("%s alone on the model before the rounds: %s", cand.label, exc)
+        return None
+    return before.entry(cand, 0.0, res, ())
+
+
+def _entry(s: Session, start: mdl.Model, cur: mdl.Model, name: str, alone: dict[str, Any],
+           ratio: float, effects: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """The change's entry: cur's value, the held-out gain it has in cur, the alone fit's BIC;
+    its uncertainty that of the re-adjustment it was found as (a fit with the effects in),
+    else of the alone fit (its Gauss-Newton sigma and per-test scatter), None when the change
+    is within SIGNIFICANT x that; its note. ``name`` leaves the re-adjusted lists of the
+    effects it moved with."""
+    res: ft.FitResult = alone["fit"]
+    found = [(e["label"], e["readjusted"].pop(name)) for e in effects
+             if name in e.get("readjusted", {})]
+    spread = ([math.nan] * len(res.names) if found else
+              ft.scatter(start, res, s.fit_t, s.chans, s.scales, workers=s.workers))
+    entry = effect_entry(res, {**alone, "reference": "the model before the rounds"}, start,
+                         spread)
+    entry.update(readjusted={}, at_bound=[])  # the alone fit's, not the updated model's
+    value = float(cur.parameters()[name] - start.parameters()[name])
+    par = next(iter(entry["parameters"].values()))
+    par.update(value=value, value_alone=par["value"])
+    if found:
+        par.update({k: found[0][1][k] for k in UNCERTAINTY_FIELDS})
+    elif not _significant(entry["label"], value, par["uncertainty"]):
+        return None
+    entry["held_out_gain"] = 1.0 - 1.0 / ratio
+    was = float(start.parameters()[name])
+    note = (f"{entry['label']}: {name} {was:.4g} -> {was + value:.4g} "
+            f"({100 * change_rel(was + value, was):+.1f} %, uncertainty {par['uncertainty']:.2g})"
+            + (f", re-adjusted with {', '.join(lab for lab, _ in found)}," if found else "")
+            + f" is a change of its own: put back alone, the held-out error is {ratio:.2f} x "
+              f"the updated model's; alone on the model before the rounds it moves "
+              f"{par['value_alone']:+.4g} with a held-out gain of "
+              f"{100 * alone['held_gain']:.0f} %")
+    log.info(note)
+    s.notes.append(note)
+    return entry
