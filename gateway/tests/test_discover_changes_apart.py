@@ -13,7 +13,7 @@ from dynval import model as mdl
 from dynval import synth
 from dynval.discover import changes_apart as ca
 from dynval.discover import effects as fx
-from dynval.discover import judge
+from dynval.discover import judge, report
 from dynval.discover import session as ss
 
 K = 3.0e5
@@ -63,6 +63,9 @@ def test_a_mass_re_adjusted_with_a_spring_elsewhere_is_named(k3: float, named: b
     alone = effects[1]["parameters"]["dm_kg"]["value_alone"]
     assert 0.4 / ca.ALONE_FACTOR <= alone <= 0.4 * ca.ALONE_FACTOR
     assert set(effects[0]["readjusted"]) == {"k1", "m1"}
+    assert effects[1]["found_as"] == ["cubic stiffness, story 1 (ground-DOF 1)"]
+    html = report._html_effects({"effects": effects[1:]})
+    assert "found as a re-adjustment with cubic stiffness, story 1 (ground-DOF 1)" in html
     # its uncertainty is the re-adjustment's (fitted with the spring in)
     assert effects[1]["parameters"]["dm_kg"]["uncertainty"] == pytest.approx(0.01)
     assert any(n.startswith("mass change, DOF 3: m3 2.5 -> 2.9 (+16.0 %, uncertainty 0.01), "

@@ -146,7 +146,8 @@ def _entry(s: Session, start: mdl.Model, cur: mdl.Model, name: str, alone: dict[
               ft.scatter(start, res, s.fit_t, s.chans, s.scales, workers=s.workers))
     entry = effect_entry(res, {**alone, "reference": "the model before the rounds"}, start,
                          spread)
-    entry.update(readjusted={}, at_bound=[])  # the alone fit's, not the updated model's
+    entry.update(readjusted={}, at_bound=[],  # the alone fit's, not the updated model's
+                 found_as=[lab for lab, _ in found])
     value = float(cur.parameters()[name] - start.parameters()[name])
     par = next(iter(entry["parameters"].values()))
     par.update(value=value, value_alone=par["value"])

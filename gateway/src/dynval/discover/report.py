@@ -471,6 +471,8 @@ def _html_effects(doc: dict[str, Any]) -> str:
         out.append(f"<li><b>{e(x['label'])}</b>: {ps} (held-out gain "
                    f"{100 * x['held_out_gain']:.1f} %, &Delta;BIC {x['delta_bic']:.0f})"
                    + (f"<br>re-adjusted with it: {ra}" if ra else "")
+                   + (f"<br>found as a re-adjustment with {e(', '.join(x['found_as']))}, and a "
+                      "change of its own (see the notes)" if x.get("found_as") else "")
                    + (f"<br>at the end of its search range (the fit wanted to go further: "
                       f"the effect may stand in for something else): {bound}"
                       if bound else "")
