@@ -23,7 +23,6 @@ stiffening element's place is that element's linear part and stays a re-adjustme
 (judge.apart). The updated model is not changed: only what its changes are called."""
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 from typing import Any
@@ -33,7 +32,15 @@ from dynval.discover import effects as fx
 from dynval.discover import fit as ft
 from dynval.discover import parallel
 from dynval.discover import residual as rs
-from dynval.discover.judge import Judge, apart, change_rel, effect_entry, gains, linear_changes
+from dynval.discover.judge import (
+    Judge,
+    apart,
+    change_rel,
+    effect_entry,
+    entry_candidate,
+    gains,
+    linear_changes,
+)
 from dynval.discover.session import Session
 from dynval.errors import ConfigError
 
@@ -54,7 +61,7 @@ def _moved(start: mdl.Model, cur: mdl.Model, effects: list[dict[str, Any]]
     """The masses and story stiffnesses cur moved from start that no effect names and that
     are no element's linear part."""
     p0, pm = start.parameters(), cur.parameters()
-    placed = [fx.Candidate(e["type"], e["location"], e["label"], True) for e in effects]
+    placed = [entry_candidate(e) for e in effects]
     named = {fx.by_type(c.type).changes(c) for c in placed}
     return {n: c for n, c in linear_changes(start).items()
             if n not in named and n in pm and pm[n] != p0[n]
@@ -81,18 +88,18 @@ def name_changes(s: Session, start: mdl.Model, cur: mdl.Model, cur_table: rs.Err
     is a change of its own (module doc), its value cur's less start's; the parameter leaves
     the re-adjusted lists of the effects it moved with; a note says why, with the figures."""
     p0, pm = start.parameters(), cur.parameters()
-    found = {n: r["uncertainty"] for e in effects for n, r in e.get("readjusted", {}).items()}
+    uncertainties = {n: r["uncertainty"] for e in effects
+                     for n, r in e.get("readjusted", {}).items()}
     moved = {n: c for n, c in _moved(start, cur, effects).items()
-             if _significant(c.label, float(pm[n] - p0[n]), found.get(n, 0.0))}
+             if _significant(c.label, float(pm[n] - p0[n]), uncertainties.get(n, 0.0))}
     if not moved:
         return
-    o = dataclasses.replace(s.o, readjust=False, uncertain=())
-    now = Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, o, s.band, s.workers)
+    now = Judge(cur, cur_table, s.fit_t, s.held_t, s.chans, s.scales, s.o, s.band, s.workers)
     needed = _needed(now, start, list(moved))
     if not needed:
         return
     before = Judge(start, now.table(start, [*s.fit_t, *s.held_t]), s.fit_t, s.held_t,
-                   s.chans, s.scales, o, s.band, s.workers)
+                   s.chans, s.scales, s.o, s.band, s.workers)
     names = list(needed)
     amounts = [float(pm[n] - p0[n]) for n in names]
     fits = parallel.ordered_map(lambda k: _alone(before, moved[names[k]], amounts[k]),
@@ -106,7 +113,7 @@ def name_changes(s: Session, start: mdl.Model, cur: mdl.Model, cur_table: rs.Err
                  amount, needed[n], alone["held_gain"], alone["delta_bic"])
         if (gains(alone) and alone["held_gain"] >= 0.5 * s.o.min_gain
                 and 1 / ALONE_FACTOR <= went / amount <= ALONE_FACTOR):
-            entry = _entry(s, start, cur, n, alone, needed[n], effects)
+            entry = _entry(s, start, n, amount, alone, needed[n], effects)
             if entry is not None:
                 effects.append(entry)
 
@@ -132,13 +139,13 @@ def _alone(before: Judge, cand: fx.Candidate, amount: float) -> dict[str, Any] |
     return before.entry(cand, 0.0, res, ())
 
 
-def _entry(s: Session, start: mdl.Model, cur: mdl.Model, name: str, alone: dict[str, Any],
+def _entry(s: Session, start: mdl.Model, name: str, value: float, alone: dict[str, Any],
            ratio: float, effects: list[dict[str, Any]]) -> dict[str, Any] | None:
-    """The change's entry: cur's value, the held-out gain it has in cur, the alone fit's BIC;
-    its uncertainty that of the re-adjustment it was found as (a fit with the effects in),
-    else of the alone fit (its Gauss-Newton sigma and per-test scatter), None when the change
-    is within SIGNIFICANT x that; its note. ``name`` leaves the re-adjusted lists of the
-    effects it moved with."""
+    """The change's entry: ``value`` (the updated model's change), the held-out gain it has
+    there, the alone fit's BIC; its uncertainty that of the re-adjustment it was found as (a
+    fit with the effects in), else of the alone fit (its Gauss-Newton sigma and per-test
+    scatter), None when the change is within SIGNIFICANT x that; its note. ``name`` leaves
+    the re-adjusted lists of the effects it moved with."""
     res: ft.FitResult = alone["fit"]
     found = [(e["label"], e["readjusted"].pop(name)) for e in effects
              if name in e.get("readjusted", {})]
@@ -148,7 +155,6 @@ def _entry(s: Session, start: mdl.Model, cur: mdl.Model, name: str, alone: dict[
                          spread)
     entry.update(readjusted={}, at_bound=[],  # the alone fit's, not the updated model's
                  found_as=[lab for lab, _ in found])
-    value = float(cur.parameters()[name] - start.parameters()[name])
     par = next(iter(entry["parameters"].values()))
     par.update(value=value, value_alone=par["value"])
     if found:

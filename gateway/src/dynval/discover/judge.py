@@ -1171,6 +1171,11 @@ def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
             "at_bound": at_bound}
 
 
+def entry_candidate(e: dict[str, Any]) -> fx.Candidate:
+    """The candidate an effect's entry (effect_entry) is of."""
+    return fx.Candidate(e["type"], e["location"], e["label"], True)
+
+
 @dataclass
 class Step:
     """An accepted effect: the model before it, its fit's record, its index in the effects,
