@@ -357,3 +357,33 @@ def test_no_refit_at_own_starts_for_records_at_rest() -> None:
     s = make_session(m, recs, Options())
     initial.apply(m, s.evals, s.chans, s.scales, s.settle)
     assert ft.at_own_starts(m, ("e1.gap_m",), s.fit_t, s.chans, s.scales, s.settle) is None
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_records_found_at_rest_under_a_wrong_model_are_asked_again_under_each(
+        seed: int) -> None:
+    """A 3-DOF chain, records cut from a run, story 1 11.5 % softer and DOF 2 0.45 kg heavier
+    than declared: under the declared model the start-up transient is lost in the model's
+    error and every record is found at rest; the true model judged at rest leaves 5-7 x its
+    held-out error with its own states (measured 0.0282 and 0.0412 against 0.0055). A
+    candidate is judged at the states it puts the records in: the true model's error with
+    them is its own (blind two-effect case 415, these two changes: 57.8 x the ideal when the
+    records stayed at rest, the right changes at 1.00 x when asked again)."""
+    dec = mdl.Model(masses_kg=(3.6, 5.0, 6.1), stiffness_n_per_m=(2.7e5, 2.1e5, 1.7e5),
+                    damping=mdl.Damping("modal", (0.013, 0.03, 0.013)),
+                    input=mdl.Input("force", 1, "force_N"),
+                    outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in (1, 3)},
+                    fs_hz=640.0)
+    truth = gen.Truth(k_scale={1: 0.885}, m_add_kg={2: 0.45})
+    recs = second_halves(gen.generate(dec, truth, n_tests=6, n_samples=2 * N, seed=seed), N)
+    s = make_session(dec, recs, Options())
+    assert initial.apply(dec, s.evals, s.chans, s.scales, s.settle) == []  # the premise
+    tm = dataclasses.replace(gen.truth_model(dec, truth), outputs=dec.outputs)
+    at_rest = s.table(tm)[0].total(s.held_names)
+    with initial.starts_under(tm, s.evals, s.chans, s.scales):
+        asked = s.table(tm)[0].total(s.held_names)
+    assert all(t.start is None for t in s.evals)  # back as they were
+    assert len(initial.apply(tm, s.evals, s.chans, s.scales, s.settle, quiet=True)) == len(recs)
+    own = s.table(tm)[0].total(s.held_names)
+    assert at_rest > 4 * own
+    assert asked == pytest.approx(own, rel=1e-9)
