@@ -15,12 +15,18 @@ its own when all hold:
   the BIC's support and a held-out gain of half min_gain (with the effects unmodelled
   there its gain is smaller: 7 % for that mass beside the spring; 1.1 % for a story's
   1.1 %, not in the truth, re-adjusted with a friction there; 0.1 % for a mass at the DOF of
-  an appendage under a swept sine).
+  an appendage under a swept sine). A mass is also asked as a round's candidate, every
+  story stiffness re-adjusted with it: a best-linear model's stiffnesses took part of it up,
+  and by itself it cannot move there (blind two-effect 404 and 406, a mass beside a contact:
+  alone 0.19 and 0.02 of the way, as a candidate 1.00 and 0.98; a stiffness asked that way
+  named a story beside an appendage, not in the truth: blind sweep 400).
 A best-linear model's compensation fails the last: on the model it was fitted into, the
 change alone has nothing to gain (blind one-effect case 0, a mass at DOF 1 whose best-linear
 fit had moved k2 by -13 %: alone, k2 moves 0.00 of the way back). A story stiffness at a
 stiffening element's place is that element's linear part and stays a re-adjustment
-(judge.apart). The updated model is not changed: only what its changes are called."""
+(judge.apart). The other way round, a change found in a round that the later effects
+moved back to within SIGNIFICANT x its uncertainty is no longer named (unname_changes). The
+updated model is not changed: only what its changes are called."""
 from __future__ import annotations
 
 import logging
@@ -100,22 +106,67 @@ def name_changes(s: Session, start: mdl.Model, cur: mdl.Model, cur_table: rs.Err
         return
     before = Judge(start, now.table(start, [*s.fit_t, *s.held_t]), s.fit_t, s.held_t,
                    s.chans, s.scales, s.o, s.band, s.workers)
-    names = list(needed)
-    amounts = [float(pm[n] - p0[n]) for n in names]
-    fits = parallel.ordered_map(lambda k: _alone(before, moved[names[k]], amounts[k]),
-                                range(len(names)), s.workers)
-    for n, amount, alone in zip(names, amounts, fits, strict=True):
-        if alone is None:
-            continue
-        went = float(alone["fit"].model.parameters()[n] - p0[n])
-        log.info("%s alone on the model before the rounds: %+.4g (in the updated model "
-                 "%+.4g, put back %.3f x), held-out gain %.3f, dBIC %.1f", moved[n].label, went,
-                 amount, needed[n], alone["held_gain"], alone["delta_bic"])
-        if (gains(alone) and alone["held_gain"] >= 0.5 * s.o.min_gain
-                and 1 / ALONE_FACTOR <= went / amount <= ALONE_FACTOR):
-            entry = _entry(s, start, n, amount, alone, needed[n], effects)
+    amounts = {n: float(pm[n] - p0[n]) for n in needed}
+
+    def asked(names: list[str], fits: list[dict[str, Any] | None]
+              ) -> dict[str, dict[str, Any]]:
+        return {n: a for n, a in zip(names, fits, strict=True)
+                if a is not None and _asks(s, n, float(p0[n]), amounts[n], a, needed[n])}
+
+    found = asked(list(needed), parallel.ordered_map(
+        lambda n: _alone(before, moved[n], amounts[n]), list(needed), s.workers))
+    # a mass the best-linear stiffnesses took up shows only when they may move back: the
+    # mass change's form as a round's candidate (blind two-effect 404, 406)
+    masses = [n for n in needed if n not in found and moved[n].type == "mass_change"]
+    found.update(asked(masses, parallel.ordered_map(
+        lambda n: _as_candidate(before, n, amounts[n]), masses, s.workers)))
+    for n in needed:
+        if n in found:
+            entry = _entry(s, start, n, amounts[n], found[n], needed[n], effects)
             if entry is not None:
                 effects.append(entry)
+
+
+def unname_changes(s: Session, effects: list[dict[str, Any]]) -> None:
+    """Drop from ``effects`` each stiffness or mass change found in a round whose final
+    value (loop._changes_as_final) is within SIGNIFICANT x its uncertainty: later effects
+    and the joint re-adjustments moved its parameter back, and it changes nothing (blind
+    two-effect 421, a story stiffness -200 N/m +- 5818 at the end beside the softening spring
+    at that story; 422, -58 +- 1852 beside a friction at its DOF). The model is unchanged; a
+    note says why, with the figures."""
+    for e in [e for e in effects if _moved_back(e)]:
+        effects.remove(e)
+        par = next(iter(e["parameters"].values()))
+        note = (f"{e['label']} (found as {par['value_in_its_round']:+.4g}) is left out: the "
+                f"later effects and re-adjustments moved it back to {par['value']:+.4g}, "
+                f"within {SIGNIFICANT:g} x its uncertainty ({par['uncertainty']:.2g})")
+        log.info(note)
+        s.notes.append(note)
+
+
+def _moved_back(e: dict[str, Any]) -> bool:
+    """Whether ``e`` is a change of one declared parameter whose final value is no longer
+    SIGNIFICANT (an unknown uncertainty: it is)."""
+    if not fx.by_type(e["type"]).changes(entry_candidate(e)) or len(e["parameters"]) != 1:
+        return False
+    par = next(iter(e["parameters"].values()))
+    u = par.get("uncertainty")
+    return bool("value_in_its_round" in par and u and math.isfinite(u)
+                and abs(par["value"]) < SIGNIFICANT * u)
+
+
+def _asks(s: Session, name: str, was: float, amount: float, alone: dict[str, Any],
+          ratio: float) -> bool:
+    """Whether the change fitted alone on the model before the rounds (``alone``: by itself
+    or as a round's candidate) asks for the updated model's ``amount`` (module doc); logged
+    with the figures (``ratio``: the held-out error put back, over the updated model's)."""
+    went = float(alone["fit"].model.parameters()[name]) - was
+    form = " as a round's candidate" if alone["readjusted"] else ""
+    log.info("%s alone on the model before the rounds%s: %+.4g (in the updated model %+.4g, "
+             "put back %.3f x), held-out gain %.3f, dBIC %.1f", alone["candidate"].label, form,
+             went, amount, ratio, alone["held_gain"], alone["delta_bic"])
+    return bool(gains(alone) and alone["held_gain"] >= 0.5 * s.o.min_gain
+                and 1 / ALONE_FACTOR <= went / amount <= ALONE_FACTOR)
 
 
 def _significant(label: str, amount: float, uncertainty: float) -> bool:
@@ -137,6 +188,16 @@ def _alone(before: Judge, cand: fx.Candidate, amount: float) -> dict[str, Any] |
         log.info("%s alone on the model before the rounds: %s", cand.label, exc)
         return None
     return before.entry(cand, 0.0, res, ())
+
+
+def _as_candidate(before: Judge, name: str, amount: float) -> dict[str, Any] | None:
+    """The change of ``name`` fitted on the model before the rounds as a round's candidate
+    (its type's re-adjustment), from ``amount``, judged against its warm reference; None if
+    the fit fails."""
+    info = before.change_of(name, amount)
+    if info is not None:
+        before.confirm(info)
+    return info
 
 
 def _entry(s: Session, start: mdl.Model, name: str, value: float, alone: dict[str, Any],
@@ -163,11 +224,13 @@ def _entry(s: Session, start: mdl.Model, name: str, value: float, alone: dict[st
         return None
     entry["held_out_gain"] = 1.0 - 1.0 / ratio
     was = float(start.parameters()[name])
+    asked = (f" (re-adjusting {', '.join(alone['readjusted'])} with it)"
+             if alone["readjusted"] else "")
     note = (f"{entry['label']}: {name} {was:.4g} -> {was + value:.4g} "
             f"({100 * change_rel(was + value, was):+.1f} %, uncertainty {par['uncertainty']:.2g})"
             + (f", re-adjusted with {', '.join(lab for lab, _ in found)}," if found else "")
             + f" is a change of its own: put back alone, the held-out error is {ratio:.2f} x "
-              f"the updated model's; alone on the model before the rounds it moves "
+              f"the updated model's; alone on the model before the rounds{asked} it moves "
               f"{par['value_alone']:+.4g} with a held-out gain of "
               f"{100 * alone['held_gain']:.0f} %")
     log.info(note)

@@ -925,6 +925,7 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
     t_end = time.perf_counter()
     m, before, res_before = _finish(s, run, declared, st)
     _changes_as_final(start, run.cur, run.effects)
+    changes_apart.unname_changes(s, run.effects)
     changes_apart.name_changes(s, start, run.cur, run.cur_table, run.effects)
     after, res_after = s.table(run.cur)
     s.notes += extrapolation.notes(m, run.cur, s.fit_t, s.held_t)
