@@ -387,3 +387,23 @@ def test_records_found_at_rest_under_a_wrong_model_are_asked_again_under_each(
     own = s.table(tm)[0].total(s.held_names)
     assert at_rest > 4 * own
     assert asked == pytest.approx(own, rel=1e-9)
+
+
+def test_the_head_bound_skips_only_records_estimate_finds_at_rest(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """initial._head_bound, the first settling window's own least-squares free motion, is an
+    upper bound of the share estimate's whole-record state explains there: a record it puts
+    under MIN_REDUCTION is one estimate finds at rest anyway (records cut from a run and
+    records at rest, the declared 4-DOF model)."""
+    cut = cut_from_a_run(gen.Truth(label="cut"), seed=5)
+    rest = gen.generate(declared(), gen.Truth(label="rest"), n_tests=4, seed=6)
+    m = declared()
+    s = make_session(m, [*cut, *rest], Options())
+    bounds = {t.name: initial._head_bound(m, t, s.chans, s.scales, s.settle) for t in s.evals}
+    monkeypatch.setattr(initial, "_head_bound", lambda *a: 1.0)
+    full = {t.name: initial.estimate(m, t, s.chans, s.scales, s.settle) for t in s.evals}
+    found = {n: st.reduction for n, st in full.items() if st is not None}
+    assert found and len(found) < len(full)  # both kinds are there
+    assert all(bounds[n] >= r - 1e-9 for n, r in found.items()), (bounds, found)
+    assert any(b < initial.MIN_REDUCTION for b in bounds.values())
+    assert all(full[n] is None for n, b in bounds.items() if b < initial.MIN_REDUCTION)

@@ -94,6 +94,10 @@ def estimate(m: mdl.Model, t: TestData, chans: Sequence[str], scales: dict[str, 
     (or the model cannot be simulated)."""
     if not t.moving and quiet_start(m, t, chans):
         return None
+    w = min(settle, t.u.size)
+    if (not t.moving and not set(chans) & set(t.demean)
+            and _head_bound(m, t, chans, scales, w) < MIN_REDUCTION):
+        return None
     at_rest = TestData(t.name, t.fs_hz, t.u, t.y, demean=t.demean)
     p = predict(m, at_rest)
     if p is None:
@@ -102,7 +106,6 @@ def estimate(m: mdl.Model, t: TestData, chans: Sequence[str], scales: dict[str, 
     if fm is None:
         return None
     a, r, x0, n = fm.a, fm.r, fm.x0, t.u.size
-    w = min(settle, n)
     head = np.concatenate([np.arange(k * n, k * n + w) for k in range(len(chans))])
     before = float(r[head] @ r[head])
     left = r[head] - a[head] @ x0
@@ -112,6 +115,30 @@ def estimate(m: mdl.Model, t: TestData, chans: Sequence[str], scales: dict[str, 
         return None
     outs = {c: fm.basis[:, j, :] @ x0 for j, c in enumerate(m.outputs)}
     return Start(x0, outs, reduction)
+
+
+def _head_bound(m: mdl.Model, t: TestData, chans: Sequence[str], scales: dict[str, float],
+                w: int) -> float:
+    """The largest share of the first w samples' residual energy from rest that any free
+    motion of m explains (their own least squares): estimate's reduction, whose state is
+    fitted over the whole record, is at most this (the simulation and the free responses
+    are causal: their first w samples are the whole record's), at a fraction of its cost
+    (a record asked again under each candidate, starts_under). 1 where m cannot be
+    simulated: no bound."""
+    try:
+        p = mdl.simulate(m, _head_input(t.input_for(m), w), t.fs_hz)
+    except ConfigError:
+        return 1.0
+    basis = mdl.free_response(m, t.fs_hz, w)
+    outs = list(m.outputs)
+    a = np.concatenate([basis[:, outs.index(c), :] / scales[c] for c in chans])
+    r = np.concatenate([(t.y[c][:w] - p[c]) / scales[c] for c in chans])
+    e = float(r @ r)
+    if not (np.all(np.isfinite(a)) and np.isfinite(e)) or e == 0.0:
+        return 1.0
+    x, *_ = np.linalg.lstsq(a, r, rcond=None)
+    left = r - a @ x
+    return 1.0 - float(left @ left) / e
 
 
 def _head_input(u: mdl.PreparedInput | np.ndarray, w: int) -> mdl.PreparedInput | np.ndarray:
