@@ -44,6 +44,7 @@ from dynval.discover.judge import (
     change_rel,
     effect_entry,
     entry_candidate,
+    entry_changes,
     gains,
     linear_changes,
 )
@@ -147,7 +148,7 @@ def unname_changes(s: Session, effects: list[dict[str, Any]]) -> None:
 def _moved_back(e: dict[str, Any]) -> bool:
     """Whether ``e`` is a change of one declared parameter whose final value is no longer
     SIGNIFICANT (an unknown uncertainty: it is)."""
-    if not fx.by_type(e["type"]).changes(entry_candidate(e)) or len(e["parameters"]) != 1:
+    if not entry_changes(e):
         return False
     par = next(iter(e["parameters"].values()))
     u = par.get("uncertainty")

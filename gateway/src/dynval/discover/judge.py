@@ -1176,6 +1176,13 @@ def entry_candidate(e: dict[str, Any]) -> fx.Candidate:
     return fx.Candidate(e["type"], e["location"], e["label"], True)
 
 
+def entry_changes(e: dict[str, Any]) -> str:
+    """The declared parameter an effect's entry changes when it is a change of only that
+    (EffectType.changes, one parameter of its own); ''."""
+    name = fx.by_type(e["type"]).changes(entry_candidate(e))
+    return name if len(e["parameters"]) == 1 else ""
+
+
 @dataclass
 class Step:
     """An accepted effect: the model before it, its fit's record, its index in the effects,

@@ -56,7 +56,7 @@ from dynval.discover.judge import (
     cand_key,
     change_rel,
     effect_entry,
-    entry_candidate,
+    entry_changes,
     uncertainty,
     wider_of_round,
     with_shape,
@@ -457,8 +457,8 @@ def _changes_as_final(start: mdl.Model, m: mdl.Model, effects: list[dict[str, An
             if n in pm and float(pm[n]) != r["value"]:
                 r["value_in_its_round"], r["value"] = r["value"], float(pm[n])
                 r["change_rel"] = change_rel(r["value"], r["before"])
-        name = fx.by_type(e["type"]).changes(entry_candidate(e))
-        if not name or len(e["parameters"]) != 1:
+        name = entry_changes(e)
+        if not name:
             continue
         d = next(iter(e["parameters"].values()))
         final = float(pm[name] - p0[name])
