@@ -57,6 +57,7 @@ from dynval.discover.judge import (
     change_rel,
     effect_entry,
     entry_changes,
+    simpler_in_place,
     uncertainty,
     wider_of_round,
     with_shape,
@@ -1025,7 +1026,9 @@ def _finish(s: Session, run: _Run, declared: mdl.Model, st: _Start
     n_steps = len(run.steps)
     run.cur, run.cur_table = backward(s, run.steps, run.cur, run.cur_table, run.effects,
                                       st.prediction)
-    if len(run.steps) < n_steps:
+    run.cur, run.cur_table, replaced = simpler_in_place(s, run.steps, run.cur, run.cur_table,
+                                                        run.effects, st.prediction)
+    if len(run.steps) < n_steps or replaced:
         run.cur, run.cur_table = _readjust_again(s, run.steps, run.cur, run.cur_table,
                                                  run.effects)
     run.cur, run.cur_table = _daq_order_again(s, run.cur, run.cur_table, run.effects,

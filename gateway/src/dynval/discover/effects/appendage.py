@@ -123,6 +123,9 @@ class Appendage(EffectType):
     _SCAN_STEP = 1.15
     SCAN_MASS = 0.1  # ... at the evidence's mass and at this share of the DOF's mass
 
+    def simpler_amount(self, simpler: str, values: dict[str, float]) -> float:
+        return values["mass_kg"]  # far above the band it moves with its DOF: that DOF's mass
+
     def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
         f, ma, z = self.initial(m, cand, amp)
         return [[f, ma, z], [f, ma, 0.1]]

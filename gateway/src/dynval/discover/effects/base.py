@@ -255,6 +255,12 @@ class EffectType:
         change: the loop does not offer it once an accepted effect re-adjusted it); ''."""
         return ""
 
+    def simpler_amount(self, simpler: str, values: dict[str, float]) -> float:
+        """The evidence amplitude to fit the simpler type ``simpler`` (one of self.simpler)
+        from, in place of this effect with its fitted ``values`` (by parameter name); 0: its
+        own starts."""
+        return 0.0
+
     def starts(self, m: mdl.Model, cand: Candidate, amp: float) -> list[list[float]]:
         """Starting points of the fit (the best fit over them is kept; more than two are
         screened by one simulation each, fit.screen, and the best two fitted)."""
