@@ -593,7 +593,7 @@ def _floors(s: Session, m: mdl.Model, res: dict[str, dict[str, np.ndarray]],
         return {c: a[c] - b[c] for c in s.chans}
 
     new = nz.estimate(s.tests, s.chans, once, s.band, settle_s(s.modes_hz), s.o.noise,
-                      respond)
+                      respond, s.modes_hz)
     out = dict(new)
     for c, f in before.items():
         if f.rms <= new[c].rms:
