@@ -1245,9 +1245,7 @@ def backward(s: Session, steps: list[Step], cur: mdl.Model, cur_table: rs.ErrorT
     while k < len(steps) - 1:
         trial = without(s, steps, k, prediction, cur)
         held_full = cur_table.total(s.held_names)
-        if trial is None or trial[1].total(s.held_names) > (1 + 0.5 * s.o.min_gain) * held_full:
-            if prediction == "open loop":  # the tests' initial states for cur again
-                initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
+        if not _as_good(s, trial[1] if trial else None, held_full, cur, prediction) or not trial:
             k += 1
             continue
         cur, cur_table, refits = trial
@@ -1263,6 +1261,19 @@ def backward(s: Session, steps: list[Step], cur: mdl.Model, cur_table: rs.ErrorT
         _refitted(s, steps[k + 1:], refits, effects)
         del steps[k]
     return cur, cur_table
+
+
+def _as_good(s: Session, trial: rs.ErrorTable | None, held_full: float, cur: mdl.Model,
+             prediction: str) -> bool:
+    """Whether a trial model in place of the full one (its error table; None: a fit failed)
+    keeps the held-out error within half of min_gain of the full model's ``held_full``
+    (backward elimination, simpler_in_place). If not, the tests' initial states are set for
+    cur again (open loop): the trial's fits moved them."""
+    if trial is not None and trial.total(s.held_names) <= (1 + 0.5 * s.o.min_gain) * held_full:
+        return True
+    if prediction == "open loop":
+        initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
+    return False
 
 
 def simpler_in_place(s: Session, steps: list[Step], cur: mdl.Model, cur_table: rs.ErrorTable,
@@ -1283,9 +1294,8 @@ def simpler_in_place(s: Session, steps: list[Step], cur: mdl.Model, cur_table: r
         for typ in fx.by_type(rich.type).simpler:
             trial = _simpler_step(s, steps, k, typ, effects[st.entry], prediction, cur)
             held_full = cur_table.total(s.held_names)
-            if trial is None or trial[1].total(s.held_names) > (1 + 0.5 * s.o.min_gain) * held_full:
-                if prediction == "open loop":  # the tests' initial states for cur again
-                    initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
+            if not _as_good(s, trial[1] if trial else None, held_full, cur,
+                            prediction) or not trial:
                 continue
             cur, cur_table, before, info, refits = trial
             s.notes.append(f"{rich.label} (round {st.round}) replaced by "

@@ -612,10 +612,10 @@ def out_of_band_power(f: np.ndarray, p: np.ndarray, band_hz: tuple[float, float]
         fa = float(np.median(f[above]))
         inside = (f > fb) & (f < fa)
         model[inside] = lb * (f[inside] / fb) ** (math.log(la / lb) / math.log(fa / fb))
-    model[near & (f < lo)] = lb
-    model[near & (f > hi)] = la if la > 0 else lb
+    out = near & ((f < lo) | (f > hi))
+    model[out] = np.where(f[out] < lo, lb, la if la > 0 else lb)
     if via_input is not None:
-        model[near & ((f < lo) | (f > hi))] += via_input[near & ((f < lo) | (f > hi))]
+        model[out] += via_input[out]
     return float(np.sum(model[1:]) * float(f[1] - f[0]))
 
 
