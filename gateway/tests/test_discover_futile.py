@@ -5,6 +5,7 @@ closed-form problem, against the same fits run to their end, and in Judge.candid
 reference's error is what it passes)."""
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,7 @@ from dynval.discover import effects as fx
 from dynval.discover import fit as ft
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
-from dynval.discover.judge import FIT_GAIN_SHARE, Judge
+from dynval.discover.judge import FIT_GAIN_SHARE, STRONG_FIT_GAIN_SHARE, Judge
 from dynval.discover.session import Options
 
 least_squares: Any = ft.least_squares
@@ -144,6 +145,35 @@ def test_a_held_out_gain_without_a_fitting_gain_is_refused(
     assert short["held_gain"] == enough["held_gain"] == pytest.approx(0.2)
     assert short["delta_bic"] < 0 and short["fit_gain"] == pytest.approx(0.9 * gain)
     assert not short["accepted"] and enough["accepted"]
+
+
+@pytest.mark.parametrize(("held", "accepted"), [
+    ((0.2, 0.6, 0.6), True),     # gain 0.53, 0.40 without its best test: strong
+    ((0.2, 1.0, 1.0), False),    # gain 0.27: under 3 x min_gain
+    ((0.1, 0.92, 0.92), False),  # gain 0.35, but 0.08 without its best test
+])
+def test_a_strong_replicated_held_out_gain_needs_less_of_the_fitting_tests(
+        case: tuple[mdl.Model, list[rs.TestData], list[str], dict[str, float], float],
+        held: tuple[float, float, float], accepted: bool) -> None:
+    """Blind one-effect case 47: a contact across story 2 that the loudest test, held out,
+    closes most gained 0.541 held out (0.168 without its best test) and 0.030 on the quieter
+    fitting twins: under FIT_GAIN_SHARE x min_gain, over STRONG_FIT_GAIN_SHARE x min_gain. A
+    fit gaining 0.03 on its fitting test is accepted only where the held-out gain is 3 x
+    min_gain or more and min_gain without its best held-out test."""
+    m, tests, chans, scales, _ = case
+    fit_n = tests[0].name
+    held_t = [dataclasses.replace(tests[1], name=f"held {k}") for k in range(3)]
+    names = [t.name for t in held_t]
+    ref = rs.ErrorTable({}, {fit_n: 1.0, **dict.fromkeys(names, 1.0)})
+    judge = Judge(m, ref, tests[:1], held_t, chans, scales, Options(), (20.0, 200.0))
+    fit_gain = 0.03
+    assert STRONG_FIT_GAIN_SHARE * Options().min_gain < fit_gain
+    assert fit_gain < FIT_GAIN_SHARE * Options().min_gain
+    res = ft.FitResult(_crawlers(m)[0], ["a"], ["-"], [1.0], [0.0], m, 1.0 - fit_gain, 1, True)
+    v = judge._verdict(res, rs.ErrorTable({}, {fit_n: 1.0 - fit_gain,
+                                               **dict(zip(names, held, strict=True))}), ref, 0)
+    assert v["delta_bic"] < 0 and v["fit_gain"] == pytest.approx(fit_gain)
+    assert v["accepted"] is accepted, v
 
 
 def test_a_prediction_that_diverges_but_stays_finite_is_a_refused_point(

@@ -61,11 +61,11 @@ def test_a_contact_under_the_significance_ratio_is_found_by_fitting() -> None:
 @pytest.mark.parametrize("seed", [1, 3, 9])
 def test_per_test_offsets_keep_a_clean_twin_out_of_the_gray_zone(seed: int) -> None:
     """The cheap DAQ's offsets grow with each test's level. Counted as residual they put 3 of
-    12 clean twins at 1.01-1.04 x their floor (the gray zone: fitted, nothing accepted);
-    taken per test (acc_offsets.py) these read 0.88-0.99 x and stop at once."""
+    12 clean twins at 1.01-1.04 x their floor; taken per test (acc_offsets.py) these read
+    0.88-0.99 x (in the gray zone since it starts at 0.8: fitted, nothing accepted)."""
     _, _, r = case(seed, False)
-    assert max(r.rounds[0].ratio.values()) < 1.0
-    assert r.effects == [] and not r.rounds[0].fits
+    assert rs.GRAY_RATIO < max(r.rounds[0].ratio.values()) < 1.0
+    assert r.effects == [] and r.rounds[0].fits
     assert any(n.startswith("the mean residual of ") for n in r.notes)
 
 
@@ -78,7 +78,7 @@ def test_the_verdict_says_the_gray_zone_was_fitted() -> None:
     recs = gen.generate(m, gen.Truth(), n_tests=6, seed=1, noise=0.0)
     cheap_daq(recs, rng, offset=0.0, hum=2.0)
     read = loop.discover(m, recs)
-    assert read.effects == [] and not read.rounds[0].fits  # 1.00 x: under the gray zone
+    assert read.effects == []  # 1.00 x: in the gray zone, fitted, nothing accepted
     r = loop.discover(m, recs, loop.Options(noise={c: 0.8 * v for c, v in read.noise.items()}))
     assert r.effects == []
     verdict = report.to_json(r)["verdict"]
@@ -102,7 +102,7 @@ def test_a_channel_without_a_floor_does_not_decide_the_gray_zone() -> None:
         assert loop._gray(Options(), rd(ratio).ratio, False)
     assert rs.worst_ratio({"a": nan}) == 0.0
     assert not loop._gray(Options(), rd({"a": nan}).ratio, False)
-    assert not loop._gray(Options(), rd({"a": nan, "b": 0.9}).ratio, False)
+    assert not loop._gray(Options(), rd({"a": nan, "b": 0.75}).ratio, False)
     assert loop._gray(Options(), rd({"b": 1.2}).ratio, True)  # after an accepted effect
     assert not loop._gray(Options(), rd({"b": 1.05}).ratio, True)  # ... only above 1.1
 

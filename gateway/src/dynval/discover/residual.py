@@ -33,8 +33,11 @@ SIGNIFICANCE_RATIO = 1.5
 # cases 1.2-1.4 x the true model's error): before any effect is accepted, a residual above
 # GRAY_RATIO x its floor is tested by fitting the evidence's first batch, judged as any round
 # (the clean twins of blind seeds 0-8: every one of the 9 above 1.0 x, the best held-out
-# gain 0.7 %, under the 10 % acceptance)
-GRAY_RATIO = 1.0
+# gain 0.7 %, under the 10 % acceptance). 0.8: a contact's impacts raised a two-sensor
+# out-of-band floor 1.25 x over the true model's error, and the declared model read 0.92 x
+# it with 2.34 x the true model's error (blind one-effect case 47; the clean twins 0-11 at
+# 0.8: all "no effect")
+GRAY_RATIO = 0.8
 # ... and after an effect is accepted, above this one: a second effect's share left under the
 # significance ratio (two-effect blind seed 1: a v|v| damper found, the friction beside it
 # left at 1.42 x the floor while the true model's error is 0.89-0.95 x it; seed 15: a mass
