@@ -159,16 +159,23 @@ def test_a_prediction_that_overflowed_is_left_to_its_caller() -> None:
     assert all(np.all(np.isinf(out[c])) for c in m.outputs)
 
 
+def table_chain(masses_kg: tuple[float, ...], stiffness_n_per_m: tuple[float, ...],
+                zetas: tuple[float, ...]) -> mdl.Model:
+    """A chain on a shake table (modal damping) with an accelerometer at every DOF."""
+    return mdl.Model(masses_kg=masses_kg, stiffness_n_per_m=stiffness_n_per_m,
+                     damping=mdl.Damping("modal", zetas),
+                     input=mdl.Input("ground_acc", 0, "table_mps2"),
+                     outputs={f"acc{j}_mps2": mdl.Output("acc", j)
+                              for j in range(1, len(masses_kg) + 1)},
+                     fs_hz=640.0)
+
+
 def table_sweep_with_a_contact(seed: int) -> tuple[mdl.Model, list[Recording]]:
     """A 5-DOF chain on a shake table swept from 13 Hz (its 0.25 s ramp: the records start
     at rest), a contact across story 4 that the low start of the sweep closes most (blind
     swept sine 4), and the true model."""
-    m = mdl.Model(masses_kg=(2.83, 4.28, 5.72, 7.02, 2.75),
-                  stiffness_n_per_m=(3.46e5, 2.46e5, 4.39e5, 3.75e5, 2.25e5),
-                  damping=mdl.Damping("modal", (0.011, 0.025, 0.020, 0.039, 0.033)),
-                  input=mdl.Input("ground_acc", 0, "table_mps2"),
-                  outputs={f"acc{j}_mps2": mdl.Output("acc", j) for j in range(1, 6)},
-                  fs_hz=640.0)
+    m = table_chain((2.83, 4.28, 5.72, 7.02, 2.75), (3.46e5, 2.46e5, 4.39e5, 3.75e5, 2.25e5),
+                    (0.011, 0.025, 0.020, 0.039, 0.033))
     truth = gen.Truth(elements=(mdl.Contact(3, 4, 1.04e-4, 5e-5, 1.5e6, side="pos"),),
                       label="sweep")
     recs = gen.generate(m, truth, n_tests=6, n_samples=N, seed=seed, fs_hz=640.0,
@@ -417,12 +424,8 @@ def test_a_lightly_damped_transient_that_rings_on_is_a_start_not_an_effect() -> 
     shares (reduction against twice the later window's share) half of these records were
     found at rest (blind sweep case 20: the true model read 400-700 x the noise floor); as
     energies every record starts where the run left it."""
-    m = mdl.Model(masses_kg=(2.45, 6.24, 2.53, 4.60, 4.94),
-                  stiffness_n_per_m=(3.40e5, 3.62e5, 2.90e5, 4.56e5, 4.12e5),
-                  damping=mdl.Damping("modal", (0.011, 0.037, 0.028, 0.032, 0.032)),
-                  input=mdl.Input("ground_acc", 0, "table_mps2"),
-                  outputs={f"acc{j}_mps2": mdl.Output("acc", j) for j in range(1, 6)},
-                  fs_hz=640.0)
+    m = table_chain((2.45, 6.24, 2.53, 4.60, 4.94), (3.40e5, 3.62e5, 2.90e5, 4.56e5, 4.12e5),
+                    (0.011, 0.037, 0.028, 0.032, 0.032))
     runs = gen.generate(m, gen.Truth(label="cut"), n_tests=6, n_samples=2 * N, seed=20,
                         fs_hz=640.0, levels_n_rms=(3.0, 1.8), noise=1e-4,
                         excitation=gen.Sweep(9.3, 213.7, "linear"))
