@@ -203,6 +203,17 @@ def _external(m: mdl.Model, t: TestData, mass: np.ndarray, k: np.ndarray, c: np.
 LP_BAND = 1.5
 
 
+def view_corner(modes_w: np.ndarray, band: tuple[float, float]) -> float:
+    """The views' high-pass corner (Hz): 0.4 x the lowest flexible mode, and at least half the
+    input band's lower edge: below it the structure barely moves and the sensors' low-frequency
+    noise (a cheap DAQ's 1/f), integrated twice, would swamp the displacements a gap or a
+    stick-slip acts on; in the output view it would be most of the residual (a free 3-DOF
+    chain under the observer: 95 % of its one-step errors below 5 Hz, a 20-240 Hz input)."""
+    flex = modes_w[modes_w > 2 * np.pi * 1.0]
+    f_hp = 0.4 * float(flex.min()) / (2 * np.pi) if flex.size else 5.0
+    return max(f_hp, 0.5 * band[0])
+
+
 def force_view(m: mdl.Model, tests: Sequence[TestData], motions: bool = False
                ) -> ForceView | None:
     """Reconstruct states and the missing force, or None when not every DOF carries an
@@ -229,14 +240,9 @@ def force_view(m: mdl.Model, tests: Sequence[TestData], motions: bool = False
     if motions and not any(orders):
         return None
     mass, k, c, w, phi = matrices(m)
-    flex = w[w > 2 * np.pi * 1.0]
     fs = tests[0].fs_hz
-    f_hp = 0.4 * float(flex.min()) / (2 * np.pi) if flex.size else 5.0
-    # and at least half the input band's lower edge: below it the structure barely moves and
-    # the sensors' low-frequency noise (a cheap DAQ's 1/f), integrated twice, would swamp the
-    # displacements a gap or a stick-slip acts on
     band = input_band(tests)
-    f_hp = max(f_hp, 0.5 * band[0])
+    f_hp = view_corner(w, band)
     # a differentiated displacement or velocity sensor's noise grows with frequency: the view
     # stops above the input band (LP_BAND x its upper edge)
     f_lp = min(LP_BAND * band[1], 0.45 * fs) if any(orders) else None
@@ -416,8 +422,9 @@ def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
     and G what a force leaves in them (_innovation_frf): an open-loop residual there is the
     drift. Channels are normalised by their measured RMS, as in the fit. On a shake
     table the states are relative to it and G is the same (the table's motion is prescribed:
-    a missing force changes the relative motion only). None for a ground-displacement input
-    or when a channel is not an acc/vel/disp output."""
+    a missing force changes the relative motion only). The residual and every image are
+    high-passed at view_corner, as the force view's states are. None for a ground-displacement
+    input or when a channel is not an acc/vel/disp output."""
     table = m.input.kind == "ground_acc"
     if m.input.kind not in ("force", "ground_acc") or not chans:
         return None
@@ -426,6 +433,7 @@ def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
     n = m.n_dof
     mass, k, c, w, phi = matrices(m)
     fs = tests[0].fs_hz
+    f_hp = view_corner(w, input_band(tests))
     xs, vs, as_, target, tables = [], [], [], [], []
     pred: dict[str, list[np.ndarray]] = {ch: [] for ch in chans}
     lens: list[int] = []
@@ -439,10 +447,16 @@ def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
         as_.append(_dof_rows(p, "a", n) - (t.u[None, :] if table else 0.0))
         if table:
             tables.append(t.u)
-        target.append(np.concatenate([-(t.y[ch] - p[ch]) / scales[ch] for ch in chans]))
+        ln = t.u.size
+        nf = next_fast_len(2 * ln, real=True)  # the grid propagate() filters the images on
+        h = _hp_response(nf, fs, f_hp)[1]
+
+        def hp(z: np.ndarray, h: np.ndarray = h, nf: int = nf, ln: int = ln) -> np.ndarray:
+            return np.asarray(np.fft.irfft(np.fft.rfft(z, nf) * h, nf)[:ln])
+        target.append(np.concatenate([-hp(t.y[ch] - p[ch]) / scales[ch] for ch in chans]))
         for ch in chans:
-            pred[ch].append(p[ch] / scales[ch])
-        lens.append(t.u.size)
+            pred[ch].append(hp(p[ch]) / scales[ch])
+        lens.append(ln)
     frf: dict[int, np.ndarray] = {}
     obs = tests[0].observer
     for ln in set(lens):
@@ -452,6 +466,7 @@ def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
                                                                                  nf, fs)
         except DynvalError:
             return None
+        frf[ln] = frf[ln] * _hp_response(nf, fs, f_hp)[1][:, None, None]
     inv_scale = np.array([1.0 / scales[ch] for ch in chans])
     # by the DOF the force is at, then channel, then frequency: one DOF's block read whole
     # (indexing the frequency-first array by DOF copied it per basis, a third of the view)
