@@ -67,10 +67,10 @@ def test_a_mass_changes_mass_is_taken_a_stiffness_changes_is_not() -> None:
     assert loop._added_params(m, _result(m, story, ["dk_n_per_m"], [-2e3])) == {}
 
 
-def _one_dof(f_hz: float) -> mdl.Model:
+def _one_dof(f_hz: float, zeta: float = 0.03) -> mdl.Model:
     """A single-DOF oscillator with its mode at f_hz (1 kg)."""
     return mdl.Model(masses_kg=(1.0,), stiffness_n_per_m=((2 * math.pi * f_hz) ** 2,),
-                     damping=mdl.Damping("modal", (0.03,)),
+                     damping=mdl.Damping("modal", (zeta,)),
                      input=mdl.Input("ground_acc", 0, "a0"),
                      outputs={"a1": mdl.Output("acc", 1)}, fs_hz=640.0)
 
@@ -87,6 +87,19 @@ def test_the_damping_re_adjusted_reaches_a_mode_below_the_input_band() -> None:
     assert fx.damping_params(_one_dof(0.25 * 21.25 * 0.99), band) == []
     assert fx.damping_params(_one_dof(1.2 * 239.375 * 1.01), band) == []
     assert fx.damping_params(_one_dof(0.9), (2.0, 20.0)) == []  # under 1 Hz: a drift, not damped
+
+
+def test_a_heavily_damped_mode_far_under_the_band_is_re_adjusted_too() -> None:
+    """Blind free case 38: a position loop at 1.8 Hz (zeta 0.41, best-linear 0.72: it had
+    taken a friction's dissipation) under a 10-250 Hz input, left out of the friction's
+    re-adjustment: 1.48 x the ideal. Its dashpot's force at the band's edge is 2 zeta f / f_low
+    = 0.15 of its inertia there (DAMPING_REACH 0.05); a light one (zeta 0.1: 0.036) and an
+    undamped rigid-body mode stay out."""
+    band = (10.0, 250.0)
+    assert fx.damping_params(_one_dof(1.8, 0.41), band) == ["zeta1"]
+    assert fx.damping_params(_one_dof(1.8, 0.1), band) == []
+    assert fx.damping_params(_one_dof(0.5, 0.6), band) == ["zeta1"]  # 0.06
+    assert fx.damping_params(_one_dof(1e-3, 0.0), band) == []
 
 
 def test_single_gains_are_each_parameters_first_order_gain_alone() -> None:
