@@ -79,6 +79,26 @@ def test_a_special_case_of_the_winner_is_not_a_tie() -> None:
     assert judge.alternatives(win, [_fit("friction", {"between": [0, 2]}, 1.0)], 0.10) == []
 
 
+def test_a_displacement_sensors_offset_wins_a_tie_with_a_constant_force() -> None:
+    """Blind free case 38 (a position loop, a cheap DAQ's offset on the encoder): a constant
+    force at DOF 2 won its round by 0.2 % of the held-out error over the encoder's offset.
+    Within half of min_gain the sensor's zero is taken; a force that beats it by more, an
+    accelerometer's offset, or one confirm() refuses, leave the force the winner."""
+    class Outputs:
+        outputs = {"x1_m": SimpleNamespace(kind="disp"), "a1_mps2": SimpleNamespace(kind="acc")}
+    force = _fit("force_offset", {"dof": 2, "between": [0, 2]}, 0.03560)
+    zero = _fit("sensor_offset", {"channel": "x1_m"}, 0.03562)
+    acc = _fit("sensor_offset", {"channel": "a1_mps2"}, 0.03561)
+    cur: Any = Outputs()
+    assert judge.sensor_zero(force, [force, acc, zero], 0.10, cur, lambda i: True) is zero
+    assert judge.sensor_zero(force, [force, acc, zero], 0.10, cur, lambda i: False) is force
+    assert judge.sensor_zero(force, [force, acc], 0.10, cur, lambda i: True) is force
+    far = _fit("sensor_offset", {"channel": "x1_m"}, 0.03560 / 0.94)  # the force 6 % lower
+    assert judge.sensor_zero(force, [force, far], 0.10, cur, lambda i: True) is force
+    win = _fit("friction", {"between": [0, 2]}, 0.03)  # not a constant force: as it is
+    assert judge.sensor_zero(win, [win, zero], 0.10, cur, lambda i: True) is win
+
+
 def test_the_verdict_names_the_ties() -> None:
     alt = [{"label": f"appendage, DOF {d}"} for d in range(1, 6)]
     eff = {"type": "stiffness_change", "label": "stiffness change, story 1"}
