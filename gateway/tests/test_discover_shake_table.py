@@ -164,3 +164,26 @@ def test_a_clearance_under_a_cheap_daqs_pink_noise_ranks_first(seed: int) -> Non
     top = tr.score(view, fx.catalogue(m))[0]
     assert (top.cand.type, top.cand.location["between"]) == ("contact", [1, 2])
     assert top.r2 > 0.2
+
+
+def test_a_mass_the_stiffnesses_stood_in_for_is_asked_again_at_the_floor() -> None:
+    """Blind 2-DOF case 27: 0.30 kg added at DOF 1 of a 2-DOF chain on a shake table. Round 1's
+    mass change (45 % held-out gain over re-adjusting both stiffnesses) gave the round to the
+    story-1 stiffness change it carried, to be asked again on top of it; that change and the
+    joint re-adjustment left the residual at 0.96 x its floor, the round was never asked and
+    the model stayed 1.8 x the true model's held-out error (simulated alike). Asked: within
+    1.2 x of it."""
+    m = mdl.Model(masses_kg=(5.372873860462428, 5.390972366656358),
+                  stiffness_n_per_m=(154030.56080230296, 467037.47173231374),
+                  damping=mdl.Damping("modal", (0.03975657752689802, 0.02077875353801136)),
+                  input=mdl.Input("ground_acc", 0, "table_mps2"),
+                  outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in (1, 2)},
+                  substeps=8, oversample=4, interpolation="bandlimited", fs_hz=640.0)
+    truth = gen.Truth(m_add_kg={1: 0.3021691433399584})
+    recs = gen.generate(m, truth, n_tests=6, seed=27, levels_n_rms=(3.0, 1.8))
+    r = loop.discover(m, recs)
+    # the true model simulated as discover simulated its updated model (the cubic hold)
+    tm = dataclasses.replace(gen.truth_model(m, truth), outputs=m.outputs,
+                             interpolation=r.model.interpolation, oversample=r.model.oversample)
+    ideal = rs.error_table(tm, r.tests, r.chans, r.scales)[0]
+    assert r.after.total(r.held_names) < 1.2 * ideal.total(r.held_names)
