@@ -155,9 +155,12 @@ def _integrate(y: np.ndarray, orders: Sequence[int], fs: float, f_hp: float,
     return ah, vh, xh
 
 
-def _hp(x: np.ndarray, fs: float, f_hp: float, f_lp: float | None = None) -> np.ndarray:
+def _hp(x: np.ndarray, fs: float, f_hp: float, f_lp: float | None = None,
+        nf: int | None = None) -> np.ndarray:
+    """x high-passed (zero phase) on an nf-point zero-padded grid (default: a quarter more
+    than x's length), cut back to x's length."""
     n = x.shape[-1]
-    nf = next_fast_len(n + n // 4, real=True)
+    nf = nf or next_fast_len(n + n // 4, real=True)
     _, h = _hp_response(nf, fs, f_hp, f_lp)
     return np.asarray(np.fft.irfft(np.fft.rfft(x, nf, axis=-1) * h, nf, axis=-1)[..., :n])
 
@@ -449,13 +452,10 @@ def output_view(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
             tables.append(t.u)
         ln = t.u.size
         nf = next_fast_len(2 * ln, real=True)  # the grid propagate() filters the images on
-        h = _hp_response(nf, fs, f_hp)[1]
-
-        def hp(z: np.ndarray, h: np.ndarray = h, nf: int = nf, ln: int = ln) -> np.ndarray:
-            return np.asarray(np.fft.irfft(np.fft.rfft(z, nf) * h, nf)[:ln])
-        target.append(np.concatenate([-hp(t.y[ch] - p[ch]) / scales[ch] for ch in chans]))
+        target.append(np.concatenate([-_hp(t.y[ch] - p[ch], fs, f_hp, nf=nf) / scales[ch]
+                                      for ch in chans]))
         for ch in chans:
-            pred[ch].append(hp(p[ch]) / scales[ch])
+            pred[ch].append(_hp(p[ch], fs, f_hp, nf=nf) / scales[ch])
         lens.append(ln)
     frf: dict[int, np.ndarray] = {}
     obs = tests[0].observer
