@@ -7,7 +7,7 @@ lost stiffness beside a mass change, is taken up by the same re-adjustments and 
 named (blind two-effect case 408: a mass at DOF 4 found as m4 +19.9 % re-adjusted with a
 cubic spring at story 1, the truth +19.3 %). At the end, each such parameter is a change of
 its own when all hold:
-- it is significant: SIGNIFICANT x the uncertainty of the re-adjustment it was found as;
+- it is significant: NAMED x the uncertainty of the re-adjustment it was found as;
 - the updated model needs it: with that parameter alone put back to its value before the
   rounds, the held-out error rises by min_gain;
 - the data ask for it without the effects: the change alone, fitted on the model before the
@@ -61,6 +61,10 @@ UNCERTAINTY_FIELDS = ("uncertainty", "uncertainty_fit", "uncertainty_scatter")
 # a change within this many times its uncertainty (judge.uncertainty: the Gauss-Newton sigma
 # and the per-test fits' scatter) is not told from none
 SIGNIFICANT = 2.0
+# a re-adjusted change named apart must stand this many times its uncertainty: at 2 x, blind
+# 2-DOF case 29 named a contact's re-adjustment of m1 (-0.014 kg at 2.15 x) a mass change the
+# truth lacks; the true ones named in the blind suites stand 12-170 x (two-effect 406-408)
+NAMED = 3.0
 
 
 def _moved(start: mdl.Model, cur: mdl.Model, effects: list[dict[str, Any]]
@@ -171,11 +175,11 @@ def _asks(s: Session, name: str, was: float, amount: float, alone: dict[str, Any
 
 
 def _significant(label: str, amount: float, uncertainty: float) -> bool:
-    """Whether a change of ``amount`` is SIGNIFICANT x its ``uncertainty`` (0: not known)."""
-    if abs(amount) >= SIGNIFICANT * uncertainty:
+    """Whether a change of ``amount`` is NAMED x its ``uncertainty`` (0: not known)."""
+    if abs(amount) >= NAMED * uncertainty:
         return True
     log.info("%s: %+.4g in the updated model, within %g x its uncertainty (%.3g)", label,
-             amount, SIGNIFICANT, uncertainty)
+             amount, NAMED, uncertainty)
     return False
 
 
@@ -206,7 +210,7 @@ def _entry(s: Session, start: mdl.Model, name: str, value: float, alone: dict[st
     """The change's entry: ``value`` (the updated model's change), the held-out gain it has
     there, the alone fit's BIC; its uncertainty that of the re-adjustment it was found as (a
     fit with the effects in), else of the alone fit (its Gauss-Newton sigma and per-test
-    scatter), None when the change is within SIGNIFICANT x that; its note. ``name`` leaves
+    scatter), None when the change is within NAMED x that; its note. ``name`` leaves
     the re-adjusted lists of the effects it moved with."""
     res: ft.FitResult = alone["fit"]
     found = [(e["label"], e["readjusted"].pop(name)) for e in effects
