@@ -511,6 +511,18 @@ def nested_in(simple: fx.Candidate, rich: fx.Candidate) -> bool:
     return simple.type in fx.by_type(rich.type).simpler and simple.location == loc
 
 
+def _tie_taken(best: dict[str, Any], fits: Sequence[dict[str, Any]], min_gain: float,
+               confirm: Callable[[dict[str, Any]], bool],
+               takes: Callable[[dict[str, Any]], bool]) -> dict[str, Any]:
+    """The best fit, or the accepted (``confirm``) fit ``takes`` prefers with the lowest
+    held-out error, where the best lowers that error by less than half of min_gain more."""
+    tied = [info for info in fits
+            if info["accepted"] and takes(info)
+            and best["nsse_held_after"] > (1 - 0.5 * min_gain) * info["nsse_held_after"]
+            and confirm(info)]
+    return min(tied, key=lambda i: i["nsse_held_after"]) if tied else best
+
+
 def simplest_nested(best: dict[str, Any] | None, fits: Sequence[dict[str, Any]],
                     min_gain: float, confirm: Callable[[dict[str, Any]], bool]
                     ) -> dict[str, Any] | None:
@@ -519,12 +531,9 @@ def simplest_nested(best: dict[str, Any] | None, fits: Sequence[dict[str, Any]],
     more: a spurious offset, or an appendage standing in for a mass, must not win on a tie."""
     if best is None:
         return None
-    simpler = [info for info in fits
-               if info["accepted"] and nested_in(info["candidate"], best["candidate"])
-               and len(info["fit"].values) < len(best["fit"].values)
-               and best["nsse_held_after"] > (1 - 0.5 * min_gain) * info["nsse_held_after"]
-               and confirm(info)]
-    return min(simpler, key=lambda i: i["nsse_held_after"]) if simpler else best
+    return _tie_taken(best, fits, min_gain, confirm, lambda info: (
+        nested_in(info["candidate"], best["candidate"])
+        and len(info["fit"].values) < len(best["fit"].values)))
 
 
 def sensor_zero(best: dict[str, Any] | None, fits: Sequence[dict[str, Any]], min_gain: float,
@@ -538,12 +547,9 @@ def sensor_zero(best: dict[str, Any] | None, fits: Sequence[dict[str, Any]], min
     the encoder: a 0.0056 N force at DOF 2 had won by 0.2 % of the held-out error."""
     if best is None or best["candidate"].type != "force_offset":
         return best
-    zeros = [info for info in fits
-             if info["accepted"] and info["candidate"].type == "sensor_offset"
-             and cur.outputs[info["candidate"].location["channel"]].kind == "disp"
-             and best["nsse_held_after"] > (1 - 0.5 * min_gain) * info["nsse_held_after"]
-             and confirm(info)]
-    return min(zeros, key=lambda i: i["nsse_held_after"]) if zeros else best
+    return _tie_taken(best, fits, min_gain, confirm, lambda info: (
+        info["candidate"].type == "sensor_offset"
+        and cur.outputs[info["candidate"].location["channel"]].kind == "disp"))
 
 
 def change_in_the_readjustment(best: dict[str, Any] | None, fits: list[dict[str, Any]],
@@ -1064,18 +1070,19 @@ FIT_GAIN_SHARE = 0.5
 STRONG_FIT_GAIN_SHARE = 0.25
 STRONG_GAIN = 3.0
 
-
-def strong_held(gain: float, again: float, min_gain: float) -> bool:
-    """Whether a held-out gain is strong (STRONG_GAIN x min_gain) and replicated: min_gain
-    without the held-out test it helps most (a finite replicated_gain: three held-out tests
-    or more)."""
-    return gain >= STRONG_GAIN * min_gain and math.isfinite(again) and again >= min_gain
 # an effect must gain on more than one held-out test: with the test it helps most left out
 # the others still gain REPLICATED x min_gain. A response on a knife edge (a contact near a
 # jump) moves with any small change: on a stepped sine seen at DOF 1 and 3, a 0.02 N force
 # offset (its per-test refits +-0.18 N) gained 20 %, all of it on one of five held-out
 # tests (the others -1 %). Every effect the 72 blind cases accept keeps >= 0.097 of it.
 REPLICATED = 0.5
+
+
+def strong_held(gain: float, again: float, min_gain: float) -> bool:
+    """Whether a held-out gain is strong (STRONG_GAIN x min_gain) and replicated: min_gain
+    without the held-out test it helps most (a finite replicated_gain: three held-out tests
+    or more)."""
+    return gain >= STRONG_GAIN * min_gain and math.isfinite(again) and again >= min_gain
 
 
 def replicated_gain(tab: rs.ErrorTable, ref_table: rs.ErrorTable, held: Sequence[str]
