@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 from lanl4dof import KS, declared
+from test_discover_shake_table import table_chain
 
 from dynval import model as mdl
 from dynval import synth as gen
@@ -157,17 +158,6 @@ def test_a_prediction_that_overflowed_is_left_to_its_caller() -> None:
     p = {c: np.full(t.u.size, np.inf) for c in m.outputs}
     out = rs._with_free_start(m, t, p, {c: 1.0 for c in m.outputs})
     assert all(np.all(np.isinf(out[c])) for c in m.outputs)
-
-
-def table_chain(masses_kg: tuple[float, ...], stiffness_n_per_m: tuple[float, ...],
-                zetas: tuple[float, ...]) -> mdl.Model:
-    """A chain on a shake table (modal damping) with an accelerometer at every DOF."""
-    return mdl.Model(masses_kg=masses_kg, stiffness_n_per_m=stiffness_n_per_m,
-                     damping=mdl.Damping("modal", zetas),
-                     input=mdl.Input("ground_acc", 0, "table_mps2"),
-                     outputs={f"acc{j}_mps2": mdl.Output("acc", j)
-                              for j in range(1, len(masses_kg) + 1)},
-                     fs_hz=640.0)
 
 
 def table_sweep_with_a_contact(seed: int) -> tuple[mdl.Model, list[Recording]]:
