@@ -21,6 +21,7 @@ from dynval.discover import initial, loop
 from dynval.discover import residual as rs
 from dynval.discover.session import Options, make_session, settle_samples
 from dynval.io.recording import Recording
+from dynval.model.structure import with_appendage
 
 N = 8192
 
@@ -57,10 +58,11 @@ def test_records_that_start_at_rest_stay_at_rest() -> None:
 
 def test_a_fit_that_moves_the_damping_moves_the_records_free_motion_with_it() -> None:
     """A 3-DOF table swept from 6 Hz, records cut from a run, the declared first mode's
-    damping twice the truth's. Held at the declared model's initial states (the free motion
-    decays at 6 %), the fit kept zeta1 at 1.91 x the truth and 1.6 x the true model's held-out
-    error (measured); with the states estimated under each model (variable projection)
-    zeta1 within 5 % and the held-out error within 1 % of the true model's."""
+    damping twice the truth's. Held at the declared model's initial states, the fit kept
+    zeta1 at 1.30 x the truth (measured; 1.91 x when the free motion itself was the declared
+    model's, decaying at 6 %, not the fitted model's: residual.start_state); with the states
+    estimated under each model (variable projection) zeta1 within 5 % and the held-out error
+    within 1 % of the true model's."""
     truth = mdl.Model(masses_kg=(3.0, 7.0, 2.5), stiffness_n_per_m=(2e5, 2e5, 2.1e5),
                       damping=mdl.Damping("modal", (0.03, 0.02, 0.02)),
                       input=mdl.Input("ground_acc", 0, "table_mps2"),
@@ -83,7 +85,8 @@ def test_a_fit_that_moves_the_damping_moves_the_records_free_motion_with_it() ->
     fixed = ft.fit(dec, none, [], s.fit_t, s.chans, s.scales, 40, names).model
     free = ft.fit(dec, none, [], loop._free_starts(s), s.chans, s.scales, 40, names).model
     ideal = held(truth)
-    assert fixed.parameters()["zeta1"] > 1.5 * 0.03  # the premise: measured 1.91 x
+    # the premise, and the fixed states' fit moving the transient with zeta1: 1.30 x
+    assert 1.2 * 0.03 < fixed.parameters()["zeta1"] < 1.5 * 0.03
     assert free.parameters()["zeta1"] == pytest.approx(0.03, rel=0.05)
     assert held(free) < 1.01 * ideal < held(fixed)
 
@@ -101,6 +104,28 @@ def stuck_chain() -> tuple[mdl.Model, gen.Truth, list[Recording]]:
     runs = gen.generate(chain, truth, n_tests=4, n_samples=2 * N, seed=5, fs_hz=640.0,
                         excitation=gen.Sweep(100.0, 250.0, "linear"))
     return chain, truth, second_halves(runs, N)
+
+
+def test_an_appendage_is_judged_at_its_hosts_states_estimated_under_it() -> None:
+    """Records of the 4-DOF structure with an appendage at DOF 2 (0.3 kg, 20 Hz) cut from a
+    run, the declared model without it. The true model judged at the declared model's
+    initial states read 1.27 x its held-out error at its own (measured); its hosts' states
+    estimated under it (the appendage's DOF starting where its host does: no state of its
+    own, so no free parameters on the held-out tests) within 1 % of that."""
+    recs = cut_from_a_run(gen.Truth(appendages=(gen.Appendage(2, 0.3, 20.0, 0.02),)), seed=3)
+    dec = declared()
+    truth = with_appendage(dec, 2, 0.3, 20.0, 0.02)
+    s = make_session(dec, recs, Options())
+    assert len(initial.apply(dec, s.evals, s.chans, s.scales, s.settle)) == len(recs)
+    with initial.kept(s.evals):
+        kept = s.table(truth)[0].total(s.held_names)  # the declared model's states
+    with initial.starts_under(truth, s.evals, s.chans, s.scales):
+        assert all(t.start_x0 is not None and t.start_x0.size == 2 * dec.n_dof
+                   for t in s.evals)
+        hosts = s.table(truth)[0].total(s.held_names)
+    initial.apply(truth, s.evals, s.chans, s.scales, s.settle)
+    own = s.table(truth)[0].total(s.held_names)  # every DOF's state its own
+    assert hosts < 1.01 * own < 0.85 * kept
 
 
 def test_a_friction_element_stuck_where_the_cut_left_it_starts_there() -> None:

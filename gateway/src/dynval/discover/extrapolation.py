@@ -37,7 +37,7 @@ def _peak_forces(m: mdl.Model, elements: Sequence[int], tests: Sequence[rs.TestD
         if t.observer is not None:
             return None
         try:
-            p = mdl.simulate(probe, t.input_for(probe), t.fs_hz, x0=rs.nonlinear_start(m, t))
+            p = mdl.simulate(probe, t.input_for(probe), t.fs_hz, x0=rs.start_state(m, t))
         except DynvalError as exc:
             log.debug("%s: the elements' forces not simulated: %s", t.name, exc)
             return None
