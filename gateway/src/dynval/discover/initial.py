@@ -6,11 +6,11 @@ the state the record began in. That free motion is linear in the initial state x
 exact discretisation: model.free_response), so x0 is the least-squares fit of the residual
 (each channel weighed by its scale) over the record. It is kept only when it explains a real
 share of the residual over the first ``settle`` samples, where a start-up transient lives;
-for a record that starts at rest the estimate is noise and the record stays at rest. A
-linear model's prediction is the one from rest plus that free motion; a model with elements
-is simulated from x0 (the core's dv_obs_set_state), and x0 is refined through the model
-over the first samples (refined): the linear part's x0 misses what the elements do to the
-transient (a friction element holds its DOF where it stopped). Once per model under apply;
+for a record that starts at rest the estimate is noise and the record stays at rest. Every
+model tried is simulated from x0 (the core's dv_obs_set_state; residual.start_state), so the
+transient is its own; under a model with elements x0 is refined through it over the first
+samples (refined): the linear part's x0 misses what the elements do to the transient (a
+friction element holds its DOF where it stopped). Once per model under apply;
 every candidate is fitted and judged at its own initial states (starts_under), and an
 accepted element's parameters are fitted again with the states estimated under each model
 tried (fit.at_own_starts). Whether a record starts at rest is asked again under each
