@@ -291,3 +291,16 @@ def test_a_gain_one_held_out_test_alone_makes_is_not_replicated() -> None:
     every = _table({h: 0.6 * v for h, v in ref.nsse.items()})
     assert judge.replicated_gain(every, ref, held) == pytest.approx(0.4)
     assert math.isinf(judge.replicated_gain(knife, ref, held[:2]))
+
+
+def test_nothing_to_replicate_where_the_other_held_out_tests_are_at_the_floor() -> None:
+    """Blind free case 75: a contact that closes in the loudest tests only, one held-out test
+    0.0276 -> 0.0013, the other two at their noise floor already (unchanged): a gain of
+    0.012 without its best test, yet nothing was left there to gain. With one of them above
+    its floor the rule holds."""
+    held = ["loud", "b", "c"]
+    ref = _table({"loud": 0.02763, "b": 0.00113, "c": 0.00042})
+    contact = _table({"loud": 0.00134, "b": 0.00111, "c": 0.00042})
+    assert judge.replicated_gain(contact, ref, held) == pytest.approx(0.0129, abs=1e-4)
+    assert math.isinf(judge.replicated_gain(contact, ref, held, {"b", "c"}))
+    assert judge.replicated_gain(contact, ref, held, {"c"}) == pytest.approx(0.0129, abs=1e-4)
