@@ -302,5 +302,6 @@ def test_nothing_to_replicate_where_the_other_held_out_tests_are_at_the_floor() 
     ref = _table({"loud": 0.02763, "b": 0.00113, "c": 0.00042})
     contact = _table({"loud": 0.00134, "b": 0.00111, "c": 0.00042})
     assert judge.replicated_gain(contact, ref, held) == pytest.approx(0.0129, abs=1e-4)
-    assert math.isinf(judge.replicated_gain(contact, ref, held, {"b", "c"}))
-    assert judge.replicated_gain(contact, ref, held, {"c"}) == pytest.approx(0.0129, abs=1e-4)
+    assert judge.others_at_floor(contact, ref, held, {"b", "c"})
+    assert not judge.others_at_floor(contact, ref, held, {"c"})
+    assert not judge.others_at_floor(contact, ref, held[1:], {"b", "c"})  # two: inf already
