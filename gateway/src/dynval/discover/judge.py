@@ -691,7 +691,7 @@ class Judge:
                  o: Options, band: tuple[float, float], workers: int = 1,
                  noise: dict[str, float] | None = None) -> None:
         self.cur, self.cur_table = cur, cur_table
-        self.noise = noise or {}  # the channels' noise floors (replicated_gain's)
+        self.noise = noise or {}  # the channels' noise floors (at_floor's)
         self.workers = workers  # for the fits done here (confirm), not in a round's workers
         self.fit_t, self.held_t, self.chans, self.scales, self.o = fit_t, held_t, chans, scales, o
         self.band = band
@@ -1029,8 +1029,10 @@ class Judge:
     def at_floor(self, table: rs.ErrorTable) -> set[str]:
         """The held-out tests ``table`` leaves within significance_ratio of the noise floor on
         every channel (none without floors)."""
+        if not self.noise:
+            return set()
         return {h for h in self.held_names
-                if self.noise and h in table.rmse
+                if h in table.rmse
                 and all(table.rmse[h][c] <= self.o.significance_ratio * self.noise[c]
                         for c in self.chans if self.noise.get(c, 0.0) > 0)}
 
@@ -1124,8 +1126,10 @@ def others_at_floor(tab: rs.ErrorTable, ref_table: rs.ErrorTable, held: Sequence
     """Whether every held-out test but the one ``tab`` helps most is in ``at_floor`` (the
     reference's error there at the noise floor): nothing is left there to replicate a gain
     on."""
-    top = _helped_most(tab, ref_table, held) if held else ""
-    return len(held) >= 3 and all(h in at_floor for h in held if h != top)
+    if len(held) < 3:  # replicated_gain asks nothing of them either
+        return False
+    top = _helped_most(tab, ref_table, held)
+    return all(h in at_floor for h in held if h != top)
 
 
 def _reference_label(names: Sequence[str], start: str) -> str:
