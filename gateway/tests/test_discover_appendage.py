@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from generated import table_chain
 from lanl4dof import declared
 from scipy.linalg import eigh
 
@@ -156,11 +157,7 @@ def test_the_scan_reaches_an_appendage_between_two_declared_modes() -> None:
 
 def _table_chain() -> mdl.Model:
     """4 DOF on a shake table, an accelerometer on every DOF (modes 14, 35, 56, 71 Hz)."""
-    return mdl.Model(masses_kg=(5.0, 4.0, 3.0, 4.0), stiffness_n_per_m=(3e5, 2.5e5, 2e5, 1.5e5),
-                     damping=mdl.Damping("modal", (0.02,) * 4),
-                     input=mdl.Input("ground_acc", 0, "table_mps2"),
-                     outputs={f"acc{j}": mdl.Output("acc", j) for j in range(1, 5)},
-                     fs_hz=640.0)
+    return table_chain((5.0, 4.0, 3.0, 4.0), (3e5, 2.5e5, 2e5, 1.5e5), (0.02,) * 4)
 
 
 @pytest.mark.parametrize("with_appendage", [True, False], ids=["appendage", "clean-twin"])

@@ -11,7 +11,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from generated import sought
+from generated import sought, table_chain
 from lanl4dof import KS, declared
 
 from dynval import model as mdl
@@ -149,10 +149,7 @@ def test_a_story_loss_the_best_linear_model_moved_next_door_is_found() -> None:
     DOFs story 1 with k2 re-adjusted and story 2 with k1 re-adjusted are the same model:
     either is named and the other given as a tie."""
     ks, loss = (4.94e5, 4.94e5), 0.91
-    m = mdl.Model(masses_kg=(6.9, 3.3), stiffness_n_per_m=ks,
-                  damping=mdl.Damping("modal", (0.035, 0.022)),
-                  input=mdl.Input("ground_acc", 0, "table_mps2"),
-                  outputs={f"acc{j}_mps2": mdl.Output("acc", j) for j in (1, 2)}, fs_hz=640.0)
+    m = table_chain((6.9, 3.3), ks, (0.035, 0.022))
     recs = gen.generate(m, gen.Truth(k_scale={1: loss}), n_tests=6, seed=8,
                         levels_n_rms=(3.0, 1.8))
     bl = gen.best_linear(m, recs)

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from generated import sought
+from generated import sought, table_chain
 
 from dynval import model as mdl
 from dynval import synth
@@ -27,11 +27,7 @@ NAMES = ("k1", "k2", "k3", "k4", "zeta1", "zeta2", "zeta3", "zeta4")
 
 
 def _table_chain() -> mdl.Model:
-    return mdl.Model(masses_kg=(6.5, 6.6, 6.7, 6.8), stiffness_n_per_m=(K,) * 4,
-                     damping=mdl.Damping("modal", (0.01, 0.05, 0.01, 0.01)),
-                     input=mdl.Input("ground_acc", 0, "table_mps2"),
-                     outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, 5)},
-                     fs_hz=640.0)
+    return table_chain((6.5, 6.6, 6.7, 6.8), (K,) * 4, (0.01, 0.05, 0.01, 0.01))
 
 
 def test_a_model_with_modes_bandwidths_off_is_brought_back_by_the_continuation() -> None:

@@ -10,6 +10,7 @@ import dataclasses
 from typing import Any
 
 import pytest
+from generated import table_chain
 
 from dynval import model as mdl
 from dynval import synth
@@ -22,18 +23,14 @@ FS = 640.0
 AA = mdl.DaqFilter("butterworth", 8, 0.4 * FS)  # synth.daq_filter("butter8")'s analog twin
 
 
-def table_chain() -> mdl.Model:
-    return mdl.Model(masses_kg=(6.5, 6.6, 6.7, 6.8), stiffness_n_per_m=(4e5,) * 4,
-                     damping=mdl.Damping("modal", (0.01, 0.02, 0.01, 0.015)),
-                     input=mdl.Input("ground_acc", 0, "table_mps2"),
-                     outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, 5)},
-                     fs_hz=FS)
+def _table_chain() -> mdl.Model:
+    return table_chain((6.5, 6.6, 6.7, 6.8), (4e5,) * 4, (0.01, 0.02, 0.01, 0.015))
 
 
 def test_the_filter_is_offered_only_where_the_tests_can_see_it() -> None:
     """A linear model commutes with the filter, a declared filter is there already, and a
     cutoff needs the sample rate: no candidate then; else one per order."""
-    m = table_chain()
+    m = _table_chain()
     with_contact = dataclasses.replace(m, elements=(mdl.Contact(1, 2, 1e-4, 1e-4, 1e6),))
 
     def offered(mm: mdl.Model) -> list[str]:
@@ -60,7 +57,7 @@ def test_discover_names_the_filter_a_right_nonlinear_model_lacks() -> None:
     0.00191 against 0.00176, from 0.00774 before); the model written keeps it. Every order
     is fitted once one wins (before, only the 4th and 8th were: a probe at one cutoff ranked
     them, and blind sweep case 4 took the 4th for the generator's 8th)."""
-    m = table_chain()
+    m = _table_chain()
     truth = synth.Truth(elements=(mdl.Contact(1, 2, 1.5e-4, 5e-5, 8e5),))
     recs = synth.generate(m, truth, n_tests=4, n_samples=4096, seed=11,
                           levels_n_rms=(3.0, 1.8), excitation=synth.Sweep(8.0, 200.0))
@@ -119,7 +116,7 @@ def test_the_filter_order_is_chosen_again_on_the_final_model(order: int) -> None
     within 6 % of the generator's (measured 268.8 Hz on these four tests, 255.3 Hz on the
     bench case's ten: the harmonics reach only so far) and the held-out error lower, its
     entry keeping the round's; from the 8th at 256 Hz nothing changes."""
-    m = table_chain()
+    m = _table_chain()
     truth = synth.Truth(elements=(mdl.Contact(1, 2, 1.5e-4, 5e-5, 8e5),))
     recs = synth.generate(m, truth, n_tests=4, n_samples=4096, seed=11,
                           levels_n_rms=(3.0, 1.8), excitation=synth.Sweep(8.0, 200.0))
@@ -151,7 +148,7 @@ def test_with_a_filter_found_the_updated_model_is_simulated_as_declared() -> Non
     simulation (measured:
     the contact, then the filter, 4th at 229 Hz chosen again as the 8th at 254.9 Hz; 1.13 x
     the true model's held-out error)."""
-    m = dataclasses.replace(table_chain(), interpolation="bandlimited", oversample=4)
+    m = dataclasses.replace(_table_chain(), interpolation="bandlimited", oversample=4)
     truth = synth.Truth(elements=(mdl.Contact(1, 2, 1.5e-4, 5e-5, 8e5),))
     recs = synth.generate(m, truth, n_tests=6, n_samples=4096, seed=11,
                           levels_n_rms=(3.0, 1.8), excitation=synth.Sweep(8.0, 200.0))

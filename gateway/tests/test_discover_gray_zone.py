@@ -9,6 +9,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from generated import table_chain
 from test_discover_noise import cheap_daq
 
 from dynval import model as mdl
@@ -129,12 +130,9 @@ def test_a_second_effect_left_just_over_the_floor_is_fitted() -> None:
     The mass change is accepted first and leaves the residual at 1.19 x its floor; at the
     former later gray ratio (1.3) the loop stopped there ("at the noise floor", the damper
     missed); now that round is fitted, the damper is found and the next round reads 1.07 x."""
-    m = mdl.Model(masses_kg=(6.629, 7.804, 2.977, 2.781, 5.849),
-                  stiffness_n_per_m=(4.527e5, 2.515e5, 4.821e5, 4.280e5, 4.556e5),
-                  damping=mdl.Damping("modal", (0.0104, 0.0220, 0.0135, 0.0305, 0.0393)),
-                  input=mdl.Input("ground_acc", 0, "table_mps2"),
-                  outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, 6)},
-                  fs_hz=FS)
+    m = table_chain((6.629, 7.804, 2.977, 2.781, 5.849),
+                    (4.527e5, 2.515e5, 4.821e5, 4.280e5, 4.556e5),
+                    (0.0104, 0.0220, 0.0135, 0.0305, 0.0393))
     truth = gen.Truth(m_add_kg={2: 0.806}, elements=(mdl.VVDamper(3, 4, 2000.0),))
     rng = np.random.default_rng(15)
     recs = gen.generate(m, truth, n_tests=6, n_samples=8192, seed=15, fs_hz=FS,

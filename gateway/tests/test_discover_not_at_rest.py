@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from generated import table_chain
 from lanl4dof import KS, declared
-from test_discover_shake_table import table_chain
 
 from dynval import model as mdl
 from dynval import synth as gen
@@ -63,11 +63,7 @@ def test_a_fit_that_moves_the_damping_moves_the_records_free_motion_with_it() ->
     model's, decaying at 6 %, not the fitted model's: residual.start_state); with the states
     estimated under each model (variable projection) zeta1 within 5 % and the held-out error
     within 1 % of the true model's."""
-    truth = mdl.Model(masses_kg=(3.0, 7.0, 2.5), stiffness_n_per_m=(2e5, 2e5, 2.1e5),
-                      damping=mdl.Damping("modal", (0.03, 0.02, 0.02)),
-                      input=mdl.Input("ground_acc", 0, "table_mps2"),
-                      outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in (1, 2, 3)},
-                      fs_hz=640.0)
+    truth = table_chain((3.0, 7.0, 2.5), (2e5, 2e5, 2.1e5), (0.03, 0.02, 0.02))
     n = 2048
     runs = gen.generate(truth, gen.Truth(), n_tests=4, n_samples=2 * n, seed=1,
                         levels_n_rms=(3.0, 1.8), excitation=gen.Sweep(6.0, 200.0))

@@ -8,28 +8,20 @@ import dataclasses
 
 import numpy as np
 import pytest
-from generated import sought
+from generated import sought, table_chain
 from test_discover_noise import pink
 
 from dynval import model as mdl
 from dynval import synth as gen
+from dynval.discover import changes_apart as ca
 from dynval.discover import effects as fx
 from dynval.discover import loop
 from dynval.discover import residual as rs
 from dynval.discover import trace as tr
+from dynval.model import simulation as sim
+from dynval.model.structure import with_appendage
 
 ACC = {f"acc{i}_mps2": mdl.Output("acc", i) for i in range(1, 5)}
-
-
-def table_chain(masses_kg: tuple[float, ...], stiffness_n_per_m: tuple[float, ...],
-                zetas: tuple[float, ...]) -> mdl.Model:
-    """A chain on a shake table (modal damping) with an accelerometer at every DOF."""
-    return mdl.Model(masses_kg=masses_kg, stiffness_n_per_m=stiffness_n_per_m,
-                     damping=mdl.Damping("modal", zetas),
-                     input=mdl.Input("ground_acc", 0, "table_mps2"),
-                     outputs={f"acc{j}_mps2": mdl.Output("acc", j)
-                              for j in range(1, len(masses_kg) + 1)},
-                     fs_hz=640.0)
 
 
 def on_a_table() -> mdl.Model:
@@ -188,3 +180,45 @@ def test_a_mass_the_stiffnesses_stood_in_for_is_asked_again_at_the_floor() -> No
                              interpolation=r.model.interpolation, oversample=r.model.oversample)
     ideal = rs.error_table(tm, r.tests, r.chans, r.scales)[0]
     assert r.after.total(r.held_names) < 1.2 * ideal.total(r.held_names)
+    # named at the declared scale: the mass at DOF 1, not m2, k1 and k2 all 5 % lower (was)
+    assert [(e["type"], e["location"]) for e in r.effects] == [("mass_change", {"dof": 1})]
+    assert r.effects[0]["parameters"]["dm_kg"]["value"] == pytest.approx(0.302, rel=0.1)
+    p0, p = m.parameters(), r.model.parameters()
+    assert all(p[n] == pytest.approx(p0[n], rel=0.005) for n in ("m2", "k1", "k2"))
+
+
+def test_a_model_scaled_on_a_table_predicts_the_same() -> None:
+    """M, C, K and the element forces times one factor: the same equation of motion under a
+    ground motion (a contact, an appendage's link and a damping matrix scaled with them; the
+    contact's gap and the modal ratios do not move)."""
+    m = table_chain((2.0, 3.0), (2e5, 3e5), (0.02, 0.03))
+    m = dataclasses.replace(with_appendage(m, 2, 0.4, 40.0, 0.02),
+                            elements=(mdl.Contact(1, 2, 2e-4, 1e-4, 6e5),))
+    m = dataclasses.replace(m, damping=mdl.Damping("matrix", c_n_s_per_m=(
+        (60.0, -20.0, 0.0), (-20.0, 50.0, -8.0), (0.0, -8.0, 8.0))))
+    ag = np.random.default_rng(1).normal(0.0, 20.0, 4096)
+    a = ca.scaled(m, 1.7)
+    y, ya = (sim.simulate(x, ag, 640.0) for x in (m, a))
+    assert a.parameters()["e1.gap_m"] == m.parameters()["e1.gap_m"]
+    assert a.parameters()["e1.kb_n_per_m"] == pytest.approx(1.7 * 6e5)
+    assert np.allclose(a.damping.c_n_s_per_m, 1.7 * np.asarray(m.damping.c_n_s_per_m))
+    for c in y:
+        assert np.max(np.abs(ya[c] - y[c])) < 1e-9 * np.max(np.abs(y[c]))
+
+
+def test_the_changes_are_named_at_the_scale_that_changes_the_fewest() -> None:
+    """A mass at DOF 1 fitted as m2, k1 and k2 scaled down together: at the declared scale one
+    change (m1 +6 %) and every other mass and stiffness as declared; none with a force input
+    (the scale is seen), nor on one DOF (k/m: a stiffness or a mass, one change either way)."""
+    start = table_chain((5.0, 5.0), (1.5e5, 4.5e5), (0.04, 0.02))
+    cur = ca.scaled(start.with_params({"m1": 5.3}), 0.95)
+    sc = ca.at_declared_scale(start, cur, [])
+    assert sc is not None and sc.changed == ["m1"]
+    p = sc.model.parameters()
+    assert p["m1"] == pytest.approx(5.3, rel=1e-12)
+    assert all(p[n] == pytest.approx(v, rel=1e-12) for n, v in start.parameters().items()
+               if n != "m1")
+    forced = dataclasses.replace(start, input=mdl.Input("force", 1, "f_n"))
+    assert ca.at_declared_scale(forced, dataclasses.replace(cur, input=forced.input), []) is None
+    one = table_chain((5.0,), (1.5e5,), (0.04,))
+    assert ca.at_declared_scale(one, one.with_params({"k1": 1.4e5}), []) is None

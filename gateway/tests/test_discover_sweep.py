@@ -10,6 +10,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from generated import table_chain
 from test_discover_noise import cheap_daq
 
 from dynval import model as mdl
@@ -47,11 +48,7 @@ def test_a_hardening_spring_under_a_sweep_on_a_best_linear_model_is_the_cubic_al
     far too low); with the bound at 1e4 x, the spring alone (with or without the start at a
     tenth, CubicStiffness.other_starts, which the full-length case needs: its fit from the
     evidence's coefficient on the stiffened story stopped in another basin)."""
-    m = mdl.Model(masses_kg=(4.97, 5.97, 6.51), stiffness_n_per_m=(4.03e5, 2.69e5, 3.59e5),
-                  damping=mdl.Damping("modal", (0.039, 0.031, 0.017)),
-                  input=mdl.Input("ground_acc", 0, "table_mps2"),
-                  outputs={f"acc{i}_mps2": mdl.Output("acc", i) for i in (1, 2, 3)},
-                  fs_hz=640.0)
+    m = table_chain((4.97, 5.97, 6.51), (4.03e5, 2.69e5, 3.59e5), (0.039, 0.031, 0.017))
     k3 = 1.34e13
     truth = gen.Truth(elements=(mdl.CubicSpring(1, 2, k3),))
     recs = gen.generate(m, truth, n_tests=6, n_samples=4096, seed=3, noise=0.0,

@@ -1201,6 +1201,14 @@ def _carries(f: dict[str, Any], own: str | None, best: dict[str, Any]) -> bool:
     return not (theirs and theirs in best.get("readjusted", ()))
 
 
+def scale_unseen(m: mdl.Model) -> bool:
+    """Whether m's tests see its masses, damping, stiffnesses and element forces only up to one
+    common factor: driven by ground motion and read by motion sensors only, nothing measures a
+    force, and M x'' + C x' + K x + f(x, x') = -M 1 a_g is the same equation times any factor."""
+    return m.input.kind != "force" and all(o.kind in ("acc", "vel", "disp")
+                                           for o in m.outputs.values())
+
+
 # a single DOF driven by ground motion and read by motion sensors responds to k/m and c/m only
 _TWINS = {"stiffness_change": "mass_change", "mass_change": "stiffness_change"}
 
@@ -1218,8 +1226,7 @@ def mass_stiffness_twin(judge: Judge, best: dict[str, Any], min_gain: float
     the re-adjusted stiffness, already is the winner (alternatives leaves such fits out)."""
     cur, win = judge.cur, best["candidate"]
     other = _TWINS.get(win.type)
-    if (other is None or cur.n_dof != 1 or cur.input.kind == "force"
-            or any(o.kind not in ("acc", "vel", "disp") for o in cur.outputs.values())):
+    if other is None or cur.n_dof != 1 or not scale_unseen(cur):
         return []
     before, after = cur.parameters(), best["fit"].model.parameters()
     if not min(before["k1"], after["k1"], before["m1"], after["m1"]) > 0:

@@ -467,6 +467,53 @@ def _changes_as_final(start: mdl.Model, m: mdl.Model, effects: list[dict[str, An
             d["value_in_its_round"], d["value"] = d["value"], final
 
 
+def _name_changes(s: Session, start: mdl.Model, cur: mdl.Model, cur_table: rs.ErrorTable,
+                  effects: list[dict[str, Any]]) -> None:
+    """The changes' final values, those moved back unnamed, those re-adjusted named
+    (changes_apart)."""
+    _changes_as_final(start, cur, effects)
+    changes_apart.unname_changes(s, effects)
+    changes_apart.name_changes(s, start, cur, cur_table, effects)
+
+
+# the held-out error of the model at the declared scale within this share of the updated
+# model's: the same predictions (rounding only)
+SAME_PREDICTIONS = 1e-6
+
+
+def _at_declared_scale(s: Session, start: mdl.Model, run: _Run) -> bool:
+    """The changes named (_name_changes) at the declared scale (changes_apart.
+    at_declared_scale) as well as on the updated model as fitted; the scaled model and its
+    names kept when its predictions are the same, each declared mass or stiffness it changes
+    is named and fewer changes are. Whether the names were given (else _name_changes is the
+    caller's)."""
+    sc = changes_apart.at_declared_scale(start, run.cur, run.effects)
+    if sc is None:
+        return False
+    tab = s.table(sc.model)[0]
+    now, then = (t.total(s.fit_names + s.held_names) for t in (run.cur_table, tab))
+    if not abs(then - now) <= SAME_PREDICTIONS * now:
+        log.info("at the declared scale the error is %.6g against %.6g: not the same model",
+                 then, now)
+        return False
+    first = len(s.notes)
+    _name_changes(s, start, run.cur, run.cur_table, run.effects)
+    fitted_notes = s.notes[first:]
+    del s.notes[first:]
+    _name_changes(s, start, sc.model, tab, sc.effects)
+    named, fitted = ([n for n in map(entry_changes, effects) if n]
+                     for effects in (sc.effects, run.effects))
+    if set(sc.changed) <= set(named) and len(named) < len(fitted):
+        log.info(sc.note)
+        s.notes.insert(first, sc.note)
+        run.cur, run.cur_table, run.effects[:] = sc.model, tab, sc.effects
+    else:
+        log.info("at the declared scale %s named (%s as fitted): kept as fitted",
+                 ", ".join(named) or "none", ", ".join(fitted) or "none")
+        s.notes[first:] = fitted_notes
+    return True
+
+
 OFFSET_SHARE = 0.05  # a channel's constant residual must hold this share of its energy
 
 
@@ -926,9 +973,8 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
     _rounds(s, run, st.prediction, offsets is not None, on_progress)
     t_end = time.perf_counter()
     m, before, res_before = _finish(s, run, declared, st)
-    _changes_as_final(start, run.cur, run.effects)
-    changes_apart.unname_changes(s, run.effects)
-    changes_apart.name_changes(s, start, run.cur, run.cur_table, run.effects)
+    if not _at_declared_scale(s, start, run):
+        _name_changes(s, start, run.cur, run.cur_table, run.effects)
     after, res_after = s.table(run.cur)
     s.notes += extrapolation.notes(m, run.cur, s.fit_t, s.held_t)
     noise = run.noise()
