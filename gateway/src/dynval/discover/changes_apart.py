@@ -26,7 +26,10 @@ fit had moved k2 by -13 %: alone, k2 moves 0.00 of the way back). A story stiffn
 stiffening element's place is that element's linear part and stays a re-adjustment
 (judge.apart). The other way round, a change found in a round that the later effects
 moved back to within SIGNIFICANT x its uncertainty is no longer named (unname_changes). The
-updated model is not changed: only what its changes are called."""
+updated model is not changed: only what its changes are called. But where the tests see it
+only up to one common factor of its masses, damping, stiffnesses and element forces (a ground
+motion read by motion sensors), the model at the factor that names the fewest changes is an
+alternative (at_declared_scale): the same predictions."""
 from __future__ import annotations
 
 import copy
