@@ -215,8 +215,8 @@ def starts_under(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
     """Within the block, each record that does not start at rest starts where m puts it (a
     candidate is judged at its own initial states, as the current model is at its): the least-
     squares state of m's own residual, refined through m's elements, or the states as they are
-    where m's elements are the ones they were refined under (a candidate that leaves the current
-    model's elements as they are). A model with DOFs the states do not have (an appendage)
+    where m's elements are the ones they were refined under and m has no DOF more (a candidate
+    that leaves the current model's elements as they are). A model with DOFs the states do not have (an appendage)
     starts its new DOFs where their hosts do (sized_start), the hosts' states estimated under it
     that way: its own states would give it two free parameters per record on the held-out tests
     themselves (a spurious appendage beside an encoder's zero on a position loop); the current
@@ -234,7 +234,7 @@ def starts_under(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
         if t.observer is not None or t.free_start is not None:
             continue
         if (t.start_x0 is not None and t.start_x0.size <= 2 * m.n_dof
-                and not (h and t.start_elements == h)):
+                and not (h and t.start_elements == h and t.start_x0.size == 2 * m.n_dof)):
             todo.setdefault(id(t.u), t)
         elif t.start_x0 is None and t.start_window > 0:
             at_rest.setdefault(id(t.u), t)
