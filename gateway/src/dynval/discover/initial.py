@@ -212,21 +212,21 @@ def _own_start(m: mdl.Model, t: TestData, chans: Sequence[str], scales: dict[str
 @contextmanager
 def starts_under(m: mdl.Model, tests: Sequence[TestData], chans: Sequence[str],
                  scales: dict[str, float]) -> Iterator[None]:
-    """Within the block, each record that does not start at rest starts where m puts it (a
-    candidate is judged at its own initial states, as the current model is at its): the least-
-    squares state of m's own residual, refined through m's elements, or the states as they are
-    where m's elements are the ones they were refined under and m has no DOF more (a candidate
-    that leaves the current model's elements as they are). A model with DOFs the states do not have (an appendage)
-    starts its new DOFs where their hosts do (sized_start), the hosts' states estimated under it
-    that way: its own states would give it two free parameters per record on the held-out tests
-    themselves (a spurious appendage beside an encoder's zero on a position loop); the current
-    model's, simulated through the appendage's, left blind free case 64's true appendage a held-
-    out test 2 x worse. A record found at rest under the current model is asked again under m
-    (estimate): under a model far from the truth the start-up transient is lost in the model's
-    error (blind two-effect case 415, story 1 11.5 % soft and a mass 9 % light, records cut from
-    a run: every record found at rest, the true model's held-out error 54 x its own at its
-    states, so the right change gained 5 % and a damping change won). Back to what they were
-    after it: the next candidate starts from the same states whichever process fits it."""
+    """Within the block, each record that does not start at rest starts where m puts it (a candidate
+    is judged at its own initial states, as the current model is at its): the least-squares state of
+    m's own residual, refined through m's elements, or the states as they are where m's elements are
+    the ones they were refined under and m has no DOF more (a candidate that leaves the current
+    model's elements as they are). A model with DOFs the states do not have (an appendage) starts
+    its new DOFs where their hosts do (sized_start), the hosts' states estimated under it that way:
+    its own states would give it two free parameters per record on the held-out tests themselves (a
+    spurious appendage beside an encoder's zero on a position loop); the current model's, simulated
+    through the appendage's, left blind free case 64's true appendage a held-out test 2 x worse. A
+    record found at rest under the current model is asked again under m (estimate): under a model
+    far from the truth the start-up transient is lost in the model's error (blind two-effect case
+    415, story 1 11.5 % soft and a mass 9 % light, records cut from a run: every record found at
+    rest, the true model's held-out error 54 x its own at its states, so the right change gained 5 %
+    and a damping change won). Back to what they were after it: the next candidate starts from the
+    same states whichever process fits it."""
     h = m.elements
     todo: dict[int, TestData] = {}
     at_rest: dict[int, TestData] = {}
