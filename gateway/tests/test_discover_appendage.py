@@ -20,7 +20,7 @@ from scipy.linalg import eigh
 
 from dynval import model as mdl
 from dynval import synth as gen
-from dynval.discover import loop
+from dynval.discover import judge, loop
 from dynval.discover import residual as rs
 from dynval.errors import ConfigError
 from dynval.model.structure import with_appendage
@@ -255,3 +255,24 @@ def test_an_appendage_read_as_a_negative_mass_is_started_at_the_residual_peak() 
     seen = judge._peak
     judge.at_residual_peak(cand, tr.Evidence(cand, 0.1, -0.004, shape))
     assert judge._peak is seen  # once per round
+
+
+def test_a_ratio_re_adjusted_beside_an_appendage_below_its_mode_reports_that_mode() -> None:
+    """An appendage below mode 1 adds the lowest mode: the final model's zeta1 is the
+    appendage's. The effect's re-adjusted zeta1 (mode 1 of the model it was fitted on) is the
+    final model's zeta2 (blind mixed-sensor case 11, an appendage at 12 Hz under a mode at 24
+    Hz: reported 0.041 -> 0.0005, the appendage mode's ratio)."""
+    start = mdl.Model(masses_kg=(3.0, 2.5), stiffness_n_per_m=(3e5, 3e5),
+                      damping=mdl.Damping("modal", (0.03, 0.02)), input=mdl.Input("force", 1),
+                      outputs={"acc1": mdl.Output("acc", 1)}, fs_hz=640.0)
+    f1 = float(mdl.natural_frequencies(start)[0])
+    final = with_appendage(start.with_params({"zeta1": 0.035}), 1, 0.2, 0.5 * f1, 0.02)
+    e = {"type": "appendage", "location": {"dof": 1}, "label": "appendage, DOF 1",
+         "parameters": {k: {"value": 0.0} for k in ("f_hz", "mass_kg", "zeta")},
+         "readjusted": {"zeta1": {"before": 0.03, "value": 0.035, "change_rel": 1 / 6,
+                                  "mode_hz": judge.ratio_mode_hz(start, "zeta1")}}}
+    assert e["readjusted"]["zeta1"]["mode_hz"] == pytest.approx(f1)
+    pf = final.parameters()
+    assert pf["zeta2"] == pytest.approx(0.035, rel=0.05) and pf["zeta1"] < 0.02
+    loop._changes_as_final(start, final, [e])
+    assert e["readjusted"]["zeta1"]["value"] == pytest.approx(pf["zeta2"], rel=1e-12)

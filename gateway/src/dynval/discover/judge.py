@@ -1287,6 +1287,8 @@ def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
             was = float(declared[name])
             readjusted[name] = {"before": was, "value": v, **unc,
                                 "change_rel": change_rel(v, was)}
+            if name.startswith("zeta"):  # found again by it in the final model
+                readjusted[name]["mode_hz"] = ratio_mode_hz(before, name)
         else:
             params[n] = {"value": v, **unc}
     return {"type": res.cand.type, "location": dict(res.cand.location),
@@ -1295,6 +1297,15 @@ def effect_entry(res: ft.FitResult, info: dict[str, Any], before: mdl.Model,
             "evidence": info["evidence"], "held_out_gain": info["held_gain"],
             "delta_bic": info["delta_bic"], "alternatives": info.get("alternatives", []),
             "at_bound": at_bound}
+
+
+def ratio_mode_hz(m: mdl.Model, name: str) -> float:
+    """The undamped frequency, Hz, of the mode whose damping ratio m's parameter ``name``
+    (zeta<i>) is: mode i, or a Rayleigh definition's i-th mode."""
+    i = int(name[len("zeta"):])
+    d = m.damping
+    mode = d.modes[i - 1] if d.type == "rayleigh" and d.modes else i
+    return float(mdl.natural_frequencies(m)[mode - 1])
 
 
 def entry_candidate(e: dict[str, Any]) -> fx.Candidate:

@@ -451,12 +451,17 @@ def _changes_as_final(start: mdl.Model, m: mdl.Model, effects: list[dict[str, An
     (its change from the value before the effect's round): their values in their own round
     kept as value_in_its_round. Later effects and the joint re-adjustment may move the same
     parameter (a mass change re-adjusts every story stiffness), and the model written is the
-    one the user gets."""
+    one the user gets. A damping ratio is read from the final model's mode nearest its own
+    mode's frequency (mode_hz): an appendage below a mode puts a mode before it."""
     p0, pm = start.parameters(), m.parameters()
+    f = mdl.natural_frequencies(m) if m.damping.type in ("modal", "matrix") else None
     for e in effects:
         for n, r in e.get("readjusted", {}).items():
-            if n in pm and float(pm[n]) != r["value"]:
-                r["value_in_its_round"], r["value"] = r["value"], float(pm[n])
+            # a damping ratio is its mode's: an appendage below it added a mode before it
+            now = (n if f is None or "mode_hz" not in r
+                   else f"zeta{1 + int(np.argmin(np.abs(f - r['mode_hz'])))}")
+            if now in pm and float(pm[now]) != r["value"]:
+                r["value_in_its_round"], r["value"] = r["value"], float(pm[now])
                 r["change_rel"] = change_rel(r["value"], r["before"])
         name = entry_changes(e)
         if not name:
