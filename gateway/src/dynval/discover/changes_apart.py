@@ -324,7 +324,8 @@ def scaled(m: mdl.Model, a: float) -> mdl.Model:
 
 def _scaled_entry(e: dict[str, Any], a: float) -> dict[str, Any]:
     """A copy of an effect's entry with its values and uncertainties in a mass's or a force's
-    unit times ``a`` (its own parameters and the declared ones it re-adjusted)."""
+    unit times ``a`` (its own parameters and the declared ones it re-adjusted; a change's own
+    value is read from the model again, loop._changes_as_final)."""
     out = copy.deepcopy(e)
     for group in ("parameters", "readjusted"):
         for par in out.get(group, {}).values():

@@ -457,7 +457,6 @@ def _changes_as_final(start: mdl.Model, m: mdl.Model, effects: list[dict[str, An
     f = mdl.natural_frequencies(m) if m.damping.type in ("modal", "matrix") else None
     for e in effects:
         for n, r in e.get("readjusted", {}).items():
-            # a damping ratio is its mode's: an appendage below it added a mode before it
             now = (n if f is None or "mode_hz" not in r
                    else f"zeta{1 + int(np.argmin(np.abs(f - r['mode_hz'])))}")
             if now in pm and float(pm[now]) != r["value"]:
@@ -481,8 +480,8 @@ def _name_changes(s: Session, start: mdl.Model, cur: mdl.Model, cur_table: rs.Er
     changes_apart.name_changes(s, start, cur, cur_table, effects)
 
 
-# the held-out error of the model at the declared scale within this share of the updated
-# model's: the same predictions (rounding only)
+# the tests' error of the model at the declared scale within this share of the updated model's:
+# the same predictions (rounding only)
 SAME_PREDICTIONS = 1e-6
 
 
