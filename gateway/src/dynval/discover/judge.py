@@ -588,7 +588,7 @@ def change_in_the_readjustment(best: dict[str, Any] | None, fits: list[dict[str,
     # re-adjusts that mass, and below its frequency the appendage is a mass there too)
     tied = None if linear else next(
         (f for f in inside if f["accepted"] and _away(f["candidate"], best["candidate"])
-         and f["nsse_held_after"] <= (1 + 0.5 * min_gain) * ref and judge.confirm(f)), None)
+         and within_tie(f["nsse_held_after"], ref, min_gain) and judge.confirm(f)), None)
     if tied is not None:
         return tied, f"{tied['candidate'].label} alone does as well"
     for f in inside:
@@ -1172,7 +1172,7 @@ def alternatives(best: dict[str, Any], fits: Sequence[dict[str, Any]], min_gain:
 
     tied = [f for f in fits
             if supported(f) and cand_key(f["candidate"]) != cand_key(win)
-            and f["nsse_held_after"] <= (1 + 0.5 * min_gain) * err
+            and within_tie(f["nsse_held_after"], err, min_gain)
             and not nested_in(f["candidate"], win) and not nested_in(win, f["candidate"])
             and not _carries(f, own, best)]
     tied.sort(key=lambda f: f["nsse_held_after"])
@@ -1199,6 +1199,16 @@ def _carries(f: dict[str, Any], own: str | None, best: dict[str, Any]) -> bool:
         return False
     theirs = fx.by_type(f["candidate"].type).changes(f["candidate"])
     return not (theirs and theirs in best.get("readjusted", ()))
+
+
+# two held-out errors within this share of min_gain of each other: the tests do not tell the
+# models apart (an alternative listed, or the simpler model kept)
+TIE_SHARE = 0.5
+
+
+def within_tie(err: float, ref: float, min_gain: float) -> bool:
+    """Whether a held-out error ``err`` is within TIE_SHARE x min_gain of ``ref``."""
+    return err <= (1 + TIE_SHARE * min_gain) * ref
 
 
 def scale_unseen(m: mdl.Model) -> bool:
@@ -1243,7 +1253,7 @@ def mass_stiffness_twin(judge: Judge, best: dict[str, Any], min_gain: float
         return []
     won = best["nsse_held_after"]
     cand = next((c for c in fx.catalogue(cur, quiet=True) if c.type == other), None)
-    if cand is None or not err <= (1 + 0.5 * min_gain) * won:
+    if cand is None or not within_tie(err, won, min_gain):
         return []
     log.info("%s: the tests do not tell it from %s (%s; held-out error %.4g against %.4g): "
              "on one DOF driven by ground motion only k/m is seen", win.label, cand.label,
@@ -1365,7 +1375,7 @@ def _as_good(s: Session, trial: rs.ErrorTable | None, held_full: float, cur: mdl
     keeps the held-out error within half of min_gain of the full model's ``held_full``
     (backward elimination, simpler_in_place). If not, the tests' initial states are set for
     cur again (open loop): the trial's fits moved them."""
-    if trial is not None and trial.total(s.held_names) <= (1 + 0.5 * s.o.min_gain) * held_full:
+    if trial is not None and within_tie(trial.total(s.held_names), held_full, s.o.min_gain):
         return True
     if prediction == "open loop":
         initial.apply(cur, s.evals, s.chans, s.scales, s.settle)
