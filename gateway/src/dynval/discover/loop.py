@@ -485,23 +485,22 @@ def _name_changes(s: Session, start: mdl.Model, cur: mdl.Model, cur_table: rs.Er
 SAME_PREDICTIONS = 1e-6
 
 
-def _at_declared_scale(s: Session, start: mdl.Model, run: _Run) -> bool:
-    """The changes named (_name_changes) at the declared scale (changes_apart.
-    at_declared_scale) as well as on the updated model as fitted; the scaled model and its
-    names kept when its predictions are the same, each declared mass or stiffness it changes
-    is named and fewer changes are. Whether the names were given (else _name_changes is the
-    caller's)."""
+def _named_changes(s: Session, start: mdl.Model, run: _Run) -> None:
+    """The changes named (_name_changes) on the updated model and, where the tests see it only
+    up to one common factor, at the declared scale too (changes_apart.at_declared_scale, from
+    the entries as fitted); the scaled model and its names kept when its predictions are the
+    same, each declared mass or stiffness it changes is named and fewer changes are."""
     sc = changes_apart.at_declared_scale(start, run.cur, run.effects)
+    first = len(s.notes)
+    _name_changes(s, start, run.cur, run.cur_table, run.effects)
     if sc is None:
-        return False
+        return
     tab = s.table(sc.model)[0]
     now, then = (t.total(s.fit_names + s.held_names) for t in (run.cur_table, tab))
     if not abs(then - now) <= SAME_PREDICTIONS * now:
         log.info("at the declared scale the error is %.6g against %.6g: not the same model",
                  then, now)
-        return False
-    first = len(s.notes)
-    _name_changes(s, start, run.cur, run.cur_table, run.effects)
+        return
     fitted_notes = s.notes[first:]
     del s.notes[first:]
     _name_changes(s, start, sc.model, tab, sc.effects)
@@ -515,7 +514,6 @@ def _at_declared_scale(s: Session, start: mdl.Model, run: _Run) -> bool:
         log.info("at the declared scale %s named (%s as fitted): kept as fitted",
                  ", ".join(named) or "none", ", ".join(fitted) or "none")
         s.notes[first:] = fitted_notes
-    return True
 
 
 OFFSET_SHARE = 0.05  # a channel's constant residual must hold this share of its energy
@@ -977,8 +975,7 @@ def _discover(declared: mdl.Model, recs: Sequence[Recording], o: Options,
     _rounds(s, run, st.prediction, offsets is not None, on_progress)
     t_end = time.perf_counter()
     m, before, res_before = _finish(s, run, declared, st)
-    if not _at_declared_scale(s, start, run):
-        _name_changes(s, start, run.cur, run.cur_table, run.effects)
+    _named_changes(s, start, run)
     after, res_after = s.table(run.cur)
     s.notes += extrapolation.notes(m, run.cur, s.fit_t, s.held_t)
     noise = run.noise()
